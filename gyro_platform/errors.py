@@ -1,0 +1,17 @@
+"""Exceptions of the simulator. All derive from ``SimulationError`` (a ``ValueError``)."""
+
+
+class SimulationError(ValueError):
+    """The simulation cannot go on as asked; the state is left as it was before the call."""
+
+
+class GimbalLockError(SimulationError):
+    """A gimbal came so close to ±90° that the model's equations are singular there."""
+
+
+class PrecessionInvalidError(SimulationError):
+    """The precession approximation is invalid for this configuration (det G_R = 0, …)."""
+
+
+class InputError(SimulationError):
+    """An input sample cannot be used (non-finite, out of order, out of range)."""

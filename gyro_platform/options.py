@@ -1,0 +1,85 @@
+"""Model options: how the vehicle drives the platform, which fidelity, which effects are on.
+
+Every effect is off unless named. An effect that is off is not evaluated at all (its branch in
+the kernels is skipped), so a scene pays only for what it asks for. See ``effects`` for what
+each one adds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Iterable
+
+MODES = ("carried", "stabilised")
+FIDELITIES = ("full", "linear", "precession")
+EFFECTS: dict[str, str] = {
+    "rotor_gyroscopic": "rotor relative momenta L: gyroscopic coupling G_R ẋ and Ω × Bᵀ L",
+    "coriolis": "velocity-quadratic terms without L (Coriolis/centrifugal G_A, ω × Iω)",
+    "vehicle_angular_acceleration": "carried mode: inertia of the gyros against the vehicle's Ω̇ (J·Ω̇ terms)",
+    "gimbal_springs": "restraint springs −c q on each gimbal axis",
+    "gimbal_dampers": "viscous dampers −d q̇ on each gimbal axis",
+    "gimbal_friction": "gimbal bearing friction: viscous + smoothed Coulomb (causes drift)",
+    "bias_torque": "constant g-insensitive gimbal torques b_k",
+    "support_friction": "stabilised mode: vehicle-to-platform mount friction, viscous + smoothed Coulomb",
+    "servo": "stabilised mode: PID pick-off servo on the mount axes, saturated",
+    "earth_rate": "local-level reference rotating with the Earth, gyro torquer compensation (9.4)",
+    "mass_unbalance": "CG of each housing+rotor offset along the spin axis: torque −m r × f (needs specific force)",
+    "anisoelastic": "compliance difference along/across the spin axis: r = −m ΔK (s·f) s, then as unbalance",
+}
+#: effects that need the vehicle specific force in the input
+NEEDS_SPECIFIC_FORCE = frozenset({"mass_unbalance", "anisoelastic"})
+STABILISED_ONLY = frozenset({"support_friction", "servo"})
+
+DEFAULT_EFFECTS = {
+    "carried": frozenset({"rotor_gyroscopic", "coriolis", "vehicle_angular_acceleration"}),
+    "stabilised": frozenset({"rotor_gyroscopic", "coriolis", "support_friction", "servo"}),
+}
+
+
+class OptionsError(ValueError):
+    """Bad model options; the message names the option and what is allowed."""
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """``mode``: carried | stabilised; ``fidelity``: full | linear | precession;
+    ``effects``: names from ``EFFECTS``; ``integrator``: a name from ``integrators`` or
+    ``auto``; ``max_step`` (s): the largest internal step of a fixed-step integrator;
+    ``rtol``/``atol``: tolerances of adaptive integrators."""
+
+    mode: str = "stabilised"
+    fidelity: str = "full"
+    effects: frozenset[str] = field(default_factory=lambda: DEFAULT_EFFECTS["stabilised"])
+    integrator: str = "auto"
+    max_step: float = 1e-3
+    rtol: float = 1e-8
+    atol: float = 1e-12
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise OptionsError(f"option 'mode' = {self.mode!r}; allowed: {', '.join(MODES)}")
+        if self.fidelity not in FIDELITIES:
+            raise OptionsError(f"option 'fidelity' = {self.fidelity!r}; allowed: {', '.join(FIDELITIES)}")
+        eff = frozenset(self.effects)
+        unknown = sorted(eff - set(EFFECTS))
+        if unknown:
+            raise OptionsError(f"option 'effects': unknown effect(s) {unknown}; known: {sorted(EFFECTS)}")
+        if self.mode == "carried" and eff & STABILISED_ONLY:
+            raise OptionsError(f"option 'effects': {sorted(eff & STABILISED_ONLY)} need mode 'stabilised'")
+        if not (0.0 < self.max_step <= 1.0):
+            raise OptionsError(f"option 'max_step' = {self.max_step} s; allowed (0, 1]")
+        if not (0.0 < self.rtol < 1.0) or not (0.0 < self.atol < 1.0):
+            raise OptionsError("options 'rtol' and 'atol' must lie in (0, 1)")
+        object.__setattr__(self, "effects", eff)
+
+    def has(self, effect: str) -> bool:
+        return effect in self.effects
+
+    def with_(self, **changes: Any) -> "ModelOptions":
+        return replace(self, **changes)
+
+    @staticmethod
+    def make(mode: str = "stabilised", fidelity: str = "full",
+             effects: Iterable[str] | None = None, **kw: Any) -> "ModelOptions":
+        """Options with the mode's default effects unless ``effects`` is given."""
+        eff = DEFAULT_EFFECTS.get(mode, frozenset()) if effects is None else frozenset(effects)
+        return ModelOptions(mode=mode, fidelity=fidelity, effects=eff, **kw)

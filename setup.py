@@ -1,0 +1,42 @@
+"""Build script: a plain setuptools package that is also an ament_python ROS 2 package."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "gyro_platform"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+        ("share/" + PACKAGE + "/config", glob("config/*.yaml") + glob("config/*.xml")),
+        ("share/" + PACKAGE + "/config/scenes", glob("config/scenes/*.yaml")),
+        ("share/" + PACKAGE + "/launch", glob("launch/*.py")),
+    ],
+    python_requires=">=3.10",
+    install_requires=[
+        "numpy>=1.24",
+        "scipy>=1.10",
+        "numba>=0.58",
+        "matplotlib>=3.6",
+        "pyyaml>=6",
+        "rosbags>=0.10",
+        "pytest>=7",
+    ],
+    extras_require={"dds": ["cyclonedds>=0.10.5"]},
+    zip_safe=True,
+    maintainer="gyro_platform developers",
+    maintainer_email="gyro-platform@example.com",
+    description="Gyro-stabilised three-gyro platform simulator (ROS 2 Jazzy node + ROS-free core)",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "gyro-platform = gyro_platform.cli:main",
+            "platform_node = gyro_platform.node:main",
+        ],
+    },
+)
