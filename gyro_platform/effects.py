@@ -1,0 +1,188 @@
+"""Effects: each switchable effect is one small kernel that adds its generalised forces.
+
+Generalised forces act on the gimbal axes (``Q``: ``alpha4, beta5, beta7, alpha9, beta10``,
+N m about each joint axis on the child body) and on the platform (``M``: N m, platform axes,
+the external torque on the whole platform assembly). An effect that is off is never called
+(``applied_forces`` branches on its flag), so it costs nothing. The structural effects
+(``rotor_gyroscopic``, ``coriolis``, ``vehicle_angular_acceleration``) switch terms inside the
+model kernels (``tree``, ``model``) instead; ``gimbal_inertia`` is the fidelity ``precession``.
+
+Spec: PHYSICS.md sections 5 (generalised forces), 9.3 (servo), 9.4 (torquers), 10 (effects).
+Modelling limits: the platform suspension is an ideal three-axis isolator (its own gimbal
+geometry, inertia and lock are not modelled); all gimbal centres coincide with the mass centre
+unless ``mass_unbalance``/``anisoelastic`` is on; the platform pivot does not translate.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .options import EFFECTS
+
+#: index of each effect in the flag array handed to the kernels
+EFFECT_INDEX: dict[str, int] = {name: i for i, name in enumerate(EFFECTS)}
+N_EFFECTS = len(EFFECT_INDEX)
+SPRINGS = EFFECT_INDEX["gimbal_springs"]
+DAMPERS = EFFECT_INDEX["gimbal_dampers"]
+FRICTION = EFFECT_INDEX["gimbal_friction"]
+BIAS = EFFECT_INDEX["bias_torque"]
+SUPPORT = EFFECT_INDEX["support_friction"]
+SERVO = EFFECT_INDEX["servo"]
+EARTH = EFFECT_INDEX["earth_rate"]
+UNBALANCE = EFFECT_INDEX["mass_unbalance"]
+ANISO = EFFECT_INDEX["anisoelastic"]
+GYRO = EFFECT_INDEX["rotor_gyroscopic"]
+CORIOLIS = EFFECT_INDEX["coriolis"]
+VEHICLE_ACC = EFFECT_INDEX["vehicle_angular_acceleration"]
+
+# layout of the float coefficient vector ``k`` handed to the kernels (built by ``coefficients``)
+K_SPRING, K_DAMPER, K_COULOMB, K_VISC, K_BIAS = 0, 5, 10, 15, 20
+K_EPS, K_KP, K_KD, K_KI, K_LIMIT, K_DS, K_MUS, K_MASS, K_ELL, K_DK = 25, 26, 27, 28, 29, 30, 31, 32, 33, 34
+N_K = 35
+
+
+def flags(effects) -> np.ndarray:
+    """int64 flag array (1 = on) for a set of effect names."""
+    f = np.zeros(N_EFFECTS, dtype=np.int64)
+    for name in effects:
+        f[EFFECT_INDEX[name]] = 1
+    return f
+
+
+def coefficients(p) -> np.ndarray:
+    """Pack the effect coefficients of ``PlatformParams`` into one float array."""
+    k = np.zeros(N_K)
+    k[K_SPRING:K_SPRING + 5] = p.spring
+    k[K_DAMPER:K_DAMPER + 5] = p.damper
+    k[K_COULOMB:K_COULOMB + 5] = p.gimbal_coulomb
+    k[K_VISC:K_VISC + 5] = p.gimbal_viscous_friction
+    k[K_BIAS:K_BIAS + 5] = p.bias_torque
+    k[K_EPS] = p.friction_rate_eps
+    k[K_KP], k[K_KD], k[K_KI], k[K_LIMIT] = p.servo_kp, p.servo_kd, p.servo_ki, p.servo_limit
+    k[K_DS], k[K_MUS] = p.support_viscous, p.support_coulomb
+    k[K_MASS], k[K_ELL], k[K_DK] = p.gyro_mass, p.unbalance, p.anisoelastic
+    return k
+
+
+@njit(cache=True)
+def sat(x):
+    """Regularised sign: x clipped to [−1, 1] (Coulomb friction with a linear zone)."""
+    return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
+
+
+@njit(cache=True)
+def gimbal_springs(k, q, Q):
+    """Restraint springs: Q_k −= c_k q_k (rate-gyro scenes)."""
+    for i in range(5):
+        Q[i] -= k[K_SPRING + i] * q[i]
+
+
+@njit(cache=True)
+def gimbal_dampers(k, qd, Q):
+    """Viscous dampers: Q_k −= d_k q̇_k."""
+    for i in range(5):
+        Q[i] -= k[K_DAMPER + i] * qd[i]
+
+
+@njit(cache=True)
+def gimbal_friction(k, qd, Q):
+    """Gimbal bearing friction: Q_k −= b_k q̇_k + μ_k sat(q̇_k/ε) (drift source)."""
+    eps = k[K_EPS]
+    for i in range(5):
+        Q[i] -= k[K_VISC + i] * qd[i] + k[K_COULOMB + i] * sat(qd[i] / eps)
+
+
+@njit(cache=True)
+def bias_torque(k, Q):
+    """g-insensitive bias torques: Q_k += b_k."""
+    for i in range(5):
+        Q[i] += k[K_BIAS + i]
+
+
+@njit(cache=True)
+def gyro_torquers(L, wc, Q):
+    """Torque the gyros so that they precess at ``wc`` (rad/s, platform axes), spec 9.4:
+    Q9 = L11 ωc1, Q10 = −L11 ωc3, Q5 = −L6 ωc2, Q7 = −L8 ωc2, Q4 = (L6 − L8) ωc3."""
+    Q[0] += (L[0] - L[1]) * wc[2]
+    Q[1] -= L[0] * wc[1]
+    Q[2] -= L[1] * wc[1]
+    Q[3] += L[2] * wc[0]
+    Q[4] -= L[2] * wc[2]
+
+
+@njit(cache=True)
+def servo_torque(k, y, yd, z, out):
+    """PID pick-off servo on the mount axes (spec 9.3): M = sat(K_P y + K_D ẏ + K_I z),
+    y = (β10, α4, α9) rad, saturated at ±limit per axis. Writes out (3,) N m, platform axes.
+    Returns a bit mask of the saturated axes (used for anti-windup)."""
+    lim = k[K_LIMIT]
+    mask = 0
+    for i in range(3):
+        m = k[K_KP] * y[i] + k[K_KD] * yd[i] + k[K_KI] * z[i]
+        if m > lim:
+            m = lim
+            mask |= 1 << i
+        elif m < -lim:
+            m = -lim
+            mask |= 1 << i
+        out[i] = m
+    return mask
+
+
+@njit(cache=True)
+def support_friction(k, Om, wB_P, M):
+    """Mount bearing friction dragging the platform towards the vehicle rate (offset, not
+    drift): M −= D_s (Ω − ω_B) + μ_s sat((Ω − ω_B)/ε), rates in platform axes."""
+    eps = k[K_EPS]
+    for i in range(3):
+        d = Om[i] - wB_P[i]
+        M[i] -= k[K_DS] * d + k[K_MUS] * sat(d / eps)
+
+
+@njit(cache=True)
+def body_specific_force(R, parent, f_root, fb):
+    """fb[i] = specific force (m/s²) in body i axes: f_i = R_p,iᵀ f_p, fb[0] = f_root."""
+    for k in range(3):
+        fb[0, k] = f_root[k]
+    for i in range(1, parent.shape[0]):
+        p = parent[i]
+        for k in range(3):
+            fb[i, k] = R[i, 0, k] * fb[p, 0] + R[i, 1, k] * fb[p, 1] + R[i, 2, k] * fb[p, 2]
+
+
+@njit(cache=True)
+def g_sensitive_torques(k, unbalance_on, aniso_on, rotor_host, rotor_axis, fb, tau_ext):
+    """Add the g-sensitive torques of each housing+rotor (housing axes) to ``tau_ext``:
+    mass unbalance r = ℓ s, anisoelastic r = −m ΔK (s·f) s, torque τ = −m r × f."""
+    m = k[K_MASS]
+    for r in range(rotor_host.shape[0]):
+        h = rotor_host[r]
+        s = rotor_axis[r]
+        f0, f1, f2 = fb[h, 0], fb[h, 1], fb[h, 2]
+        sf = s[0] * f0 + s[1] * f1 + s[2] * f2
+        coef = 0.0
+        if unbalance_on:
+            coef += k[K_ELL]
+        if aniso_on:
+            coef -= m * k[K_DK] * sf
+        # τ = −m coef (s × f)
+        tau_ext[h, 0] -= m * coef * (s[1] * f2 - s[2] * f1)
+        tau_ext[h, 1] -= m * coef * (s[2] * f0 - s[0] * f2)
+        tau_ext[h, 2] -= m * coef * (s[0] * f1 - s[1] * f0)
+
+
+@njit(cache=True)
+def gimbal_forces(on, k, L, q, qd, wc, Q):
+    """Sum of the axial gimbal torques Q (N m) of the effects that are on (``on`` flags)."""
+    for i in range(5):
+        Q[i] = 0.0
+    if on[SPRINGS]:
+        gimbal_springs(k, q, Q)
+    if on[DAMPERS]:
+        gimbal_dampers(k, qd, Q)
+    if on[FRICTION]:
+        gimbal_friction(k, qd, Q)
+    if on[BIAS]:
+        bias_torque(k, Q)
+    if on[EARTH]:
+        gyro_torquers(L, wc, Q)

@@ -1,0 +1,333 @@
+"""The simulator: input samples in, platform state integrated, outputs on demand.
+
+``push(sample)`` integrates from the previous sample to this one with the input interpolated
+linearly between them (one input sample → one ``advance`` of the integrator). ``outputs()``
+evaluates gimbal angles, drift and the Newton–Euler bearing torques at the current time — do
+that at the output rate, not at every sample. Internally time runs from the first sample
+(``t_rel = t − t_start``) so that bag stamps of ~1.7e9 s do not cost precision.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import effects as fx
+from .errors import InputError, SimulationError
+from .inputs import RateSample
+from .integrators import Integrator, make_integrator
+from .model import BODY_OF_GIMBAL, GIMBAL_AXES, LOCK_COS, SPIN_AXES
+from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
+from .outputs import BEARING_NAMES, Outputs
+from .params import NAV1, PlatformParams
+from .system import FULL, LINEAR, PRECESSION, PlatformSystem
+from .tree import TreeWork, tree_inverse_dynamics
+
+#: integrator chosen by ``integrator: auto`` per (mode, fidelity); see README "Integrators"
+AUTO_INTEGRATOR = {
+    ("stabilised", "full"): "etd2",
+    ("stabilised", "linear"): "etd2",
+    ("stabilised", "precession"): "rk4",
+    ("carried", "full"): "etd2",
+    ("carried", "linear"): "etd2",
+    ("carried", "precession"): "rk4",
+}
+
+
+def choose_integrator(options: ModelOptions) -> Integrator:
+    name = options.integrator
+    if name == "auto":
+        name = AUTO_INTEGRATOR[(options.mode, options.fidelity)]
+    return make_integrator(name, max_step=options.max_step, rtol=options.rtol, atol=options.atol)
+
+
+class Simulator:
+    """Three-gyro platform simulation driven by vehicle rate samples (ROS-free)."""
+
+    def __init__(self, params: PlatformParams = NAV1, options: ModelOptions | None = None,
+                 integrator: Integrator | None = None):
+        self.params = params
+        self.options = options if options is not None else ModelOptions()
+        self.system = PlatformSystem(params, self.options)
+        self.integrator = integrator if integrator is not None else choose_integrator(self.options)
+        self.layout = self.system.layout
+        self.needs_f = bool(self.options.effects & NEEDS_SPECIFIC_FORCE)
+        # full tree (with the true rotor momenta) for bearing torques at output instants
+        self._out_tree = self.system.tree
+        self._out_work = TreeWork(self._out_tree)
+        self._ydot = np.zeros(self.layout.n)
+        self.reset()
+
+    # ---- state -------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the initial state; the next ``push`` starts a new time base."""
+        self.y = self.system.rest_state()
+        self.t_start: float | None = None
+        self.t_rel = 0.0
+        self._last: RateSample | None = None
+        self.n_samples = 0
+        self.n_steps = 0
+        self.max_error_estimate = 0.0
+        self.integrator.reset()
+        st = self.layout
+        if self.system.stabilised and self.options.has("earth_rate"):
+            # consistent start (spec 4.7): the platform already turns with the local level
+            self.y[st.Om] = self.system.w_IN
+
+    @property
+    def t(self) -> float | None:
+        """Time (s, the samples' time base) of the last accepted sample."""
+        return None if self.t_start is None else self.t_start + self.t_rel
+
+    @property
+    def stats(self) -> dict:
+        return {"integrator": self.integrator.name, "n_samples": self.n_samples, "n_steps": self.n_steps,
+                "n_rhs": self.system.n_rhs, "max_error_estimate": self.max_error_estimate}
+
+    def _first(self, s: RateSample) -> None:
+        self.t_start = s.t
+        self.t_rel = 0.0
+        st = self.layout
+        if not self.system.stabilised and st.qd is not None:
+            # consistent start of free gyros on a turning vehicle (spec 4.7)
+            Om = self.system.R_PB @ s.omega
+            self.y[st.qd] = [-Om[1], -Om[2], Om[2], -Om[2], -Om[0]]
+
+    def push(self, sample: RateSample) -> None:
+        """Integrate to ``sample.t``. Raises ``InputError`` (state unchanged) for a non-finite
+        sample, a time not after the last one, or a missing specific force that an effect
+        needs; ``SimulationError`` if the integration fails (state unchanged)."""
+        if not sample.is_finite():
+            raise InputError(f"non-finite sample at t = {sample.t}")
+        if self.needs_f and sample.specific_force is None:
+            raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
+                             + " need the specific force, which this sample does not carry")
+        if self._last is None:
+            self._first(sample)
+            self._last = sample
+            self.n_samples = 1
+            return
+        t1 = sample.t - self.t_start
+        if not t1 > self.t_rel:
+            raise InputError(f"sample time {sample.t!r} is not after the last one ({self.t!r})")
+        last = self._last
+        self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
+                              sample.specific_force)
+        try:
+            y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
+        except (FloatingPointError, np.linalg.LinAlgError) as e:
+            raise SimulationError(f"integration failed at t = {sample.t}: {e}") from e
+        if not np.all(np.isfinite(y1)):
+            raise SimulationError(f"non-finite state after the step to t = {sample.t}; state kept at t = {self.t}")
+        st = self.layout
+        for sl in (st.quat_IB, st.quat_IP):
+            if sl is not None:
+                y1[sl] /= np.linalg.norm(y1[sl])
+        self.y = y1
+        self.t_rel = t1
+        self._last = sample
+        self.n_samples += 1
+        self.n_steps += stats.n_steps
+        if stats.error_estimate == stats.error_estimate:  # not nan
+            self.max_error_estimate = max(self.max_error_estimate, float(stats.error_estimate))
+
+    def run(self, samples, output_period: float | None = None) -> list[Outputs]:
+        """Push all samples; collect outputs every ``output_period`` s (None: after each)."""
+        outs: list[Outputs] = []
+        next_t = None
+        for s in samples:
+            self.push(s)
+            if output_period is None or next_t is None or s.t >= next_t - 1e-12:
+                outs.append(self.outputs())
+                next_t = s.t + (output_period or 0.0)
+        return outs
+
+    # ---- derived quantities ------------------------------------------------------------
+    def gimbal_rates(self, y: np.ndarray | None = None) -> np.ndarray:
+        y = self.y if y is None else y
+        st = self.layout
+        if st.qd is not None:
+            return y[st.qd].copy()
+        return self._rhs(self.t_rel, y)[st.q].copy()
+
+    def _rhs(self, t_rel: float, y: np.ndarray) -> np.ndarray:
+        self.system.rhs_into(t_rel, y, self._ydot)
+        return self._ydot
+
+    def _input_now(self):
+        s = self._last
+        f = s.specific_force if s.specific_force is not None else np.zeros(3)
+        return s.omega, f
+
+    def platform_rate(self) -> np.ndarray:
+        st = self.layout
+        if st.Om is not None:
+            return self.y[st.Om].copy()
+        return self.system.R_PB @ self._last.omega
+
+    def attitudes(self) -> tuple[Rotation, Rotation]:
+        """(R_IB vehicle, R_IP platform) as scipy Rotations."""
+        st = self.layout
+        R_IB = Rotation.from_quat(self.y[st.quat_IB])
+        if st.quat_IP is not None:
+            R_IP = Rotation.from_quat(self.y[st.quat_IP])
+        else:
+            R_IP = R_IB * Rotation.from_matrix(self.system.R_BP)
+        return R_IB, R_IP
+
+    def reference(self) -> Rotation:
+        """R_IC: the frame the platform should hold (inertial, or local level with Earth rate)."""
+        w = self.system.w_IN
+        return Rotation.from_rotvec(w * self.t_rel)
+
+    def invariants(self) -> dict[str, float]:
+        """T2 = ½ ẋᵀ A* ẋ (J) and the total angular momentum |p_Ω| (N m s, stabilised), the
+        torque-free invariants of spec 4.5 (full fidelity)."""
+        st = self.layout
+        tree, wk = self._out_tree, self._out_work
+        from .tree import kinematics, mass_matrix
+        v = self.y[st.v]
+        w0 = np.zeros(3) if self.system.stabilised else self.platform_rate()
+        kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
+                   self.y[st.q], v, w0, wk.R, wk.w, wk.J)
+        M = np.zeros((tree.nv, tree.nv))
+        mass_matrix(wk.J, tree.inertia, M)
+        out = {"T2": 0.5 * float(v @ M @ v)}
+        if self.system.stabilised:
+            from .model import spin_momentum
+            h = np.zeros(3)
+            spin_momentum(self.system.L, self.y[st.q], np.zeros(5), h, np.zeros(3))
+            p = (M @ v)[:3] + h
+            out["p_norm"] = float(np.linalg.norm(p))
+            out["p_inertial"] = self.attitudes()[1].apply(p)
+        return out
+
+    def _accelerations(self) -> tuple[np.ndarray, np.ndarray]:
+        """(v, a): generalised velocities and accelerations of the tree at the current state."""
+        st = self.layout
+        sys_ = self.system
+        yd = self._rhs(self.t_rel, self.y).copy()
+        if sys_.fid != PRECESSION:
+            return self.y[st.v].copy(), yd[st.v].copy()
+        # precession: q̇ from the model, q̈ by a central difference along the motion
+        eps = 1e-6
+        qd = yd[st.q].copy()
+        yp = self.y + eps * yd
+        ym = self.y - eps * yd
+        qd_plus = self._rhs(self.t_rel + eps, yp)[st.q].copy()
+        qdd = (qd_plus - self._rhs(self.t_rel - eps, ym)[st.q]) / (2 * eps)
+        if sys_.stabilised:
+            v = np.concatenate([self.y[st.Om], qd])
+            a = np.concatenate([yd[st.Om], qdd])
+        else:
+            v, a = qd, qdd
+        return v, a
+
+    def outputs(self) -> Outputs:
+        """Outputs at the current time (see ``outputs.Outputs``)."""
+        if self._last is None:
+            raise SimulationError("no sample pushed yet")
+        st = self.layout
+        sys_ = self.system
+        p = self.params
+        y = self.y
+        q = y[st.q].copy()
+        v, a = self._accelerations()
+        qd = v[-5:].copy()
+        wB, fB = self._input_now()
+        # applied axial gimbal torques (effects that act about the gimbal axes)
+        Q = np.zeros(5)
+        R_IB, R_IP = self.attitudes()
+        R_IC = self.reference()
+        wc = (R_IP.inv() * R_IC).apply(sys_.w_IN) if self.options.has("earth_rate") else np.zeros(3)
+        fx.gimbal_forces(sys_.on, sys_.k, sys_.L, q, qd, wc, Q)
+        # Newton–Euler with the full tree and true rotor momenta
+        tree, wk = self._out_tree, self._out_work
+        tau_ext = np.zeros((tree.nb, 3))
+        if self.needs_f:
+            from .tree import kinematics
+            fP = (R_IP.inv() * R_IB).apply(fB)
+            kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
+                       q, v, self.platform_rate(), wk.R, wk.w, wk.J)
+            fb = np.zeros((tree.nb, 3))
+            fx.body_specific_force(wk.R, tree.parent, fP, fb)
+            fx.g_sensitive_torques(sys_.k, sys_.on[fx.UNBALANCE], sys_.on[fx.ANISO], tree.rotor_host,
+                                   tree.rotor_axis, fb, tau_ext)
+        if sys_.stabilised:
+            w0 = np.zeros(3)
+            wd0 = np.zeros(3)
+        else:
+            w0 = sys_.R_PB @ wB
+            seg = sys_.seg
+            wd0 = sys_.R_PB @ ((seg[5:8] - seg[2:5]) / seg[1]) if seg[1] > 0 else np.zeros(3)
+        L = sys_.L_true if self.options.has("rotor_gyroscopic") else np.zeros(3)
+        F, f, rtau = tree_inverse_dynamics(tree, wk, q, v, a, w0, wd0, L, tau_ext)
+        bearings: dict[str, np.ndarray] = {"support": f[0].copy()}
+        for i, name in enumerate(("gimbal4", "gimbal5", "gimbal7", "gimbal9", "gimbal10")):
+            b = BODY_OF_GIMBAL[i]
+            n = GIMBAL_AXES[i]
+            fi = f[b]
+            bearings[name] = fi - (n @ fi) * n
+        motor = np.zeros(3)
+        for r, name in enumerate(("rotor6", "rotor8", "rotor11")):
+            s = SPIN_AXES[r]
+            motor[r] = s @ rtau[r]
+            bearings[name] = rtau[r] - motor[r] * s
+        # drift
+        Om = self.platform_rate()
+        if sys_.stabilised:
+            R_CP = R_IC.inv() * R_IP
+            drift = R_CP.as_rotvec()
+            drift_rate = Om - R_CP.inv().apply(sys_.w_IN)
+            servo = np.zeros(3)
+            if self.options.has("servo"):
+                yp = np.array([q[4], q[0], q[3]])
+                ydp = np.array([qd[4], qd[0], qd[3]])
+                fx.servo_torque(sys_.k, yp, ydp, y[st.z], servo)
+            R_BP = R_IB.inv() * R_IP
+            mount = (Rotation.from_matrix(sys_.R_BP).inv() * R_BP).as_euler("XYZ")
+        else:
+            drift, drift_rate = self._gyro_reference_drift(R_IP, R_IC)
+            servo = None
+            mount = None
+        cos_inner = np.cos(q[[1, 2, 4]])
+        status = {
+            "gimbal_lock_margin": float(np.min(np.abs(cos_inner))),
+            "max_gimbal_angle": float(np.max(np.abs(q))),
+            "n_steps": float(self.n_steps),
+        }
+        return Outputs(
+            t=float(self.t), gimbal_angles=q, gimbal_rates=qd, gimbal_axial_torques=Q,
+            platform_rate=Om, platform_attitude=R_IP.as_quat(), drift_angle=drift,
+            drift_rate=drift_rate, bearing_torques=bearings, motor_torques=motor,
+            mount_angles=mount, servo_torque=servo, status=status)
+
+    def _gyro_reference_drift(self, R_IP: Rotation, R_IC: Rotation) -> tuple[np.ndarray, np.ndarray]:
+        """Carried mode: drift of the gyros' own inertial reference, the triad spanned by the
+        spin axes of rotors 6 (x) and 11 (y), relative to where it started (rad, rad/s)."""
+        wk = self._out_work
+        R = wk.R
+        R_P5 = R[1] @ R[2]
+        R_P10 = R[4] @ R[5]
+        e6 = R_P5 @ SPIN_AXES[0]
+        e11 = R_P10 @ SPIN_AXES[2]
+        # spin-axis rates in platform axes relative to inertial: ė = (ω_h × e) seen from I
+        w5 = R_P5 @ wk.w[2]
+        w10 = R_P10 @ wk.w[5]
+        x = e6
+        yv = e11 - (e11 @ x) * x
+        yv /= np.linalg.norm(yv)
+        z = np.cross(x, yv)
+        G_P = np.column_stack([x, yv, z])          # R_PG
+        R_CG = R_IC.inv() * R_IP * Rotation.from_matrix(G_P)
+        drift = R_CG.as_rotvec()
+        # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ḃ_inertial = ω_b × b)
+        xd = np.cross(w5, e6)
+        yd = np.cross(w10, e11)
+        zd = np.cross(xd, yv) + np.cross(x, yd)
+        w_IG_P = 0.5 * (np.cross(x, xd) + np.cross(yv, yd) + np.cross(z, zd))
+        w_IG_G = G_P.T @ w_IG_P
+        rate = w_IG_G - R_CG.inv().apply(self.system.w_IN)
+        return drift, rate

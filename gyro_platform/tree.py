@@ -1,0 +1,304 @@
+"""Rigid-body trees with revolute joints and spinning rotors: kinematics, mass matrix and
+recursive Newton–Euler (spec sections 2, 4.3 and 8; [MBB] sections 6–7).
+
+A tree is a root body (index 0) and bodies ``1..nb-1`` listed parents-first. Body ``i`` hangs
+from ``parent[i]`` by a joint about the unit axis ``axis[i]`` (child axes). Joint types:
+
+* ``REVOLUTE``: a generalised coordinate θ (``q[qidx[i]]``), ``R_pc = Rot(axis, θ)``;
+* ``SPIN``: an axisymmetric body spinning about ``axis`` with a free rate (a velocity DOF,
+  no angle needed: rotating a body about its symmetry axis leaves its inertia unchanged, so
+  its quantities are taken in the carrier's axes, ``R_pc = 1``).
+
+The root turns with the body rate ``w0``: either prescribed (carried mode, ``w0`` and its
+derivative are inputs) or the first three generalised velocities (a free platform; these are
+quasi-velocities, so the root row is Euler's law, i.e. Euler–Poincaré).
+
+Rotors held at constant relative speed by ideal speed controllers are *attachments*: their
+inertia is frozen into the host body (``K = I_h + A 1 + (C−A) s sᵀ``) and their relative momentum
+``L s`` adds the gyroscopic torque ``ω_h × L s`` on the host (exact, spec 4.1 and 8).
+
+Everything here is a numba kernel on plain arrays; ``BodyTree`` holds the arrays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+ROOT, REVOLUTE, SPIN = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class BodyTree:
+    """Arrays describing a tree. ``inertia[i]`` is body i's inertia tensor in its own axes
+    (kg m², with frozen ideal rotors included); ``rotor_*`` describe ideal-rotor attachments."""
+
+    names: tuple[str, ...]
+    parent: np.ndarray      # int64 (nb,)
+    jtype: np.ndarray       # int64 (nb,)
+    axis: np.ndarray        # float64 (nb, 3), joint axis in child axes
+    qidx: np.ndarray        # int64 (nb,), index into q (REVOLUTE) else -1
+    vidx: np.ndarray        # int64 (nb,), index into the generalised velocity (REVOLUTE/SPIN) else -1
+    inertia: np.ndarray     # float64 (nb, 3, 3)
+    rotor_host: np.ndarray  # int64 (nr,)
+    rotor_axis: np.ndarray  # float64 (nr, 3), spin axis in host axes
+    rotor_C: np.ndarray     # float64 (nr,)
+    rotor_A: np.ndarray     # float64 (nr,)
+    root_dynamic: bool      # root rate is a DOF (first 3 velocities)
+    nq: int
+    nv: int
+
+    @property
+    def nb(self) -> int:
+        return len(self.names)
+
+
+# ---------------------------------------------------------------------------------------------
+# small vector helpers (numba)
+
+@njit(cache=True, fastmath=False)
+def rot_axis(n, th, out):
+    """out = Rot(n, th): rotation by th (rad) about the unit vector n (Rodrigues)."""
+    c = np.cos(th)
+    s = np.sin(th)
+    v = 1.0 - c
+    x, y, z = n[0], n[1], n[2]
+    out[0, 0] = c + x * x * v
+    out[0, 1] = x * y * v - z * s
+    out[0, 2] = x * z * v + y * s
+    out[1, 0] = y * x * v + z * s
+    out[1, 1] = c + y * y * v
+    out[1, 2] = y * z * v - x * s
+    out[2, 0] = z * x * v - y * s
+    out[2, 1] = z * y * v + x * s
+    out[2, 2] = c + z * z * v
+
+
+@njit(cache=True)
+def _cross(a, b, out):
+    """out = a × b (out must not alias a or b)."""
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True)
+def _matT_vec(R, v, out):
+    """out = Rᵀ v"""
+    for i in range(3):
+        out[i] = R[0, i] * v[0] + R[1, i] * v[1] + R[2, i] * v[2]
+
+
+@njit(cache=True)
+def _mat_vec(R, v, out):
+    for i in range(3):
+        out[i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+
+
+# ---------------------------------------------------------------------------------------------
+# kernels
+
+@njit(cache=True)
+def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J):
+    """Rotations ``R[i] = R_parent,i``, body rates ``w[i]`` (rad/s, body axes) and velocity
+    Jacobians ``J[i]`` (3 × nv, ω_i = J_i v + affine root part) for all bodies."""
+    nb = parent.shape[0]
+    nv = J.shape[2]
+    tmp = np.empty(3)
+    for k in range(3):
+        R[0, k, 0] = 0.0
+        R[0, k, 1] = 0.0
+        R[0, k, 2] = 0.0
+        R[0, k, k] = 1.0
+        for j in range(nv):
+            J[0, k, j] = 0.0
+    if root_dynamic:
+        for k in range(3):
+            w[0, k] = v[k]
+            J[0, k, k] = 1.0
+    else:
+        for k in range(3):
+            w[0, k] = w0[k]
+    for i in range(1, nb):
+        p = parent[i]
+        if jtype[i] == REVOLUTE:
+            rot_axis(axis[i], q[qidx[i]], R[i])
+        else:
+            for a in range(3):
+                for b in range(3):
+                    R[i, a, b] = 1.0 if a == b else 0.0
+        _matT_vec(R[i], w[p], tmp)
+        rate = v[vidx[i]]
+        for k in range(3):
+            w[i, k] = tmp[k] + rate * axis[i, k]
+        for j in range(nv):
+            for k in range(3):
+                J[i, k, j] = R[i, 0, k] * J[p, 0, j] + R[i, 1, k] * J[p, 1, j] + R[i, 2, k] * J[p, 2, j]
+        for k in range(3):
+            J[i, k, vidx[i]] += axis[i, k]
+
+
+@njit(cache=True)
+def mass_matrix(J, inertia, M):
+    """M = Σ_i J_iᵀ I_i J_i (the frozen-rotor mass matrix A*, kg m²)."""
+    nb = J.shape[0]
+    nv = J.shape[2]
+    IJ = np.empty((3, nv))
+    for a in range(nv):
+        for b in range(nv):
+            M[a, b] = 0.0
+    for i in range(nb):
+        I = inertia[i]
+        for k in range(3):
+            for j in range(nv):
+                IJ[k, j] = I[k, 0] * J[i, 0, j] + I[k, 1] * J[i, 1, j] + I[k, 2] * J[i, 2, j]
+        for a in range(nv):
+            for b in range(a, nv):
+                s = J[i, 0, a] * IJ[0, b] + J[i, 1, a] * IJ[1, b] + J[i, 2, a] * IJ[2, b]
+                M[a, b] += s
+    for a in range(nv):
+        for b in range(a):
+            M[a, b] = M[b, a]
+
+
+@njit(cache=True)
+def newton_euler(parent, jtype, axis, vidx, inertia, root_dynamic, rotor_host, rotor_axis, rotor_L,
+                 v, a, wd0, R, w, coriolis, gyroscopic, tau_ext, wd, f):
+    """Recursive Newton–Euler, torques only (all mass centres on the joint axes).
+
+    Given rates ``w`` and rotations ``R`` from ``kinematics``, generalised accelerations ``a``
+    and (prescribed root) root acceleration ``wd0``: body accelerations ``wd`` and the torque
+    ``f[i]`` (N m, child axes) that the parent exerts on body i through its joint
+    (``f[0]``: torque on the root from outside, root axes). ``coriolis``/``gyroscopic`` switch
+    the velocity-product terms of the frozen system and the rotor-momentum terms; ``tau_ext``
+    (nb, 3) are applied body torques (body axes)."""
+    nb = parent.shape[0]
+    tmp = np.empty(3)
+    tmp2 = np.empty(3)
+    tmp3 = np.empty(3)
+    if root_dynamic:
+        for k in range(3):
+            wd[0, k] = a[k]
+    else:
+        for k in range(3):
+            wd[0, k] = wd0[k]
+    for i in range(1, nb):
+        p = parent[i]
+        _matT_vec(R[i], wd[p], tmp)
+        acc = a[vidx[i]]
+        for k in range(3):
+            wd[i, k] = tmp[k] + acc * axis[i, k]
+        if coriolis:
+            _matT_vec(R[i], w[p], tmp)
+            rate = v[vidx[i]]
+            for k in range(3):
+                tmp2[k] = rate * axis[i, k]
+            _cross(tmp, tmp2, tmp3)
+            for k in range(3):
+                wd[i, k] += tmp3[k]
+    # body torques
+    for i in range(nb):
+        I = inertia[i]
+        for k in range(3):
+            f[i, k] = I[k, 0] * wd[i, 0] + I[k, 1] * wd[i, 1] + I[k, 2] * wd[i, 2] - tau_ext[i, k]
+        if coriolis:
+            for k in range(3):
+                tmp2[k] = I[k, 0] * w[i, 0] + I[k, 1] * w[i, 1] + I[k, 2] * w[i, 2]
+            _cross(w[i], tmp2, tmp)
+            for k in range(3):
+                f[i, k] += tmp[k]
+    if gyroscopic:
+        for r in range(rotor_host.shape[0]):
+            h = rotor_host[r]
+            for k in range(3):
+                tmp2[k] = rotor_L[r] * rotor_axis[r, k]
+            _cross(w[h], tmp2, tmp)
+            for k in range(3):
+                f[h, k] += tmp[k]
+    # backward pass: children pass their joint torque to the parent
+    for i in range(nb - 1, 0, -1):
+        p = parent[i]
+        _mat_vec(R[i], f[i], tmp)
+        for k in range(3):
+            f[p, k] += tmp[k]
+
+
+@njit(cache=True)
+def generalised(jtype, axis, vidx, root_dynamic, f, out):
+    """Project joint torques on the joint axes: out[v] = n_i · f_i; root rows = f_0."""
+    if root_dynamic:
+        for k in range(3):
+            out[k] = f[0, k]
+    for i in range(1, jtype.shape[0]):
+        out[vidx[i]] = axis[i, 0] * f[i, 0] + axis[i, 1] * f[i, 1] + axis[i, 2] * f[i, 2]
+
+
+@njit(cache=True)
+def rotor_torques(rotor_host, rotor_axis, rotor_C, rotor_A, rotor_L, w, wd, tau):
+    """Torque each ideal rotor's housing exerts on it (N m, housing axes), spec 8 step 2
+    (φ̈ = 0): τ = C(s·ω̇)s + A(ω̇ − (s·ω̇)s) + ω × H, H = C(s·ω)s + A(ω − (s·ω)s) + L s."""
+    H = np.empty(3)
+    tmp = np.empty(3)
+    for r in range(rotor_host.shape[0]):
+        h = rotor_host[r]
+        s = rotor_axis[r]
+        C = rotor_C[r]
+        A = rotor_A[r]
+        sw = s[0] * w[h, 0] + s[1] * w[h, 1] + s[2] * w[h, 2]
+        swd = s[0] * wd[h, 0] + s[1] * wd[h, 1] + s[2] * wd[h, 2]
+        for k in range(3):
+            H[k] = C * sw * s[k] + A * (w[h, k] - sw * s[k]) + rotor_L[r] * s[k]
+        _cross(w[h], H, tmp)
+        for k in range(3):
+            tau[r, k] = C * swd * s[k] + A * (wd[h, k] - swd * s[k]) + tmp[k]
+
+
+class TreeWork:
+    """Preallocated work arrays for one tree (reuse per evaluation: no allocation in the loop)."""
+
+    def __init__(self, tree: BodyTree):
+        nb, nv = tree.nb, tree.nv
+        self.R = np.zeros((nb, 3, 3))
+        self.w = np.zeros((nb, 3))
+        self.wd = np.zeros((nb, 3))
+        self.J = np.zeros((nb, 3, nv))
+        self.f = np.zeros((nb, 3))
+        self.M = np.zeros((nv, nv))
+        self.c = np.zeros(nv)
+        self.tau_ext = np.zeros((nb, 3))
+        self.zero_v = np.zeros(nv)
+        self.rotor_tau = np.zeros((len(tree.rotor_host), 3))
+
+
+def tree_mass_and_bias(tree: BodyTree, work: TreeWork, q, v, w0, wd0, rotor_L,
+                       coriolis: bool = True, gyroscopic: bool = True, tau_ext=None):
+    """(M, c) of ``M a + c = F`` at (q, v) for this tree (Python wrapper over the kernels)."""
+    kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
+               q, v, w0, work.R, work.w, work.J)
+    mass_matrix(work.J, tree.inertia, work.M)
+    te = work.tau_ext if tau_ext is None else tau_ext
+    if tau_ext is None:
+        te[:] = 0.0
+    newton_euler(tree.parent, tree.jtype, tree.axis, tree.vidx, tree.inertia, tree.root_dynamic,
+                 tree.rotor_host, tree.rotor_axis, rotor_L, v, work.zero_v, wd0, work.R, work.w,
+                 coriolis, gyroscopic, te, work.wd, work.f)
+    generalised(tree.jtype, tree.axis, tree.vidx, tree.root_dynamic, work.f, work.c)
+    return work.M, work.c
+
+
+def tree_inverse_dynamics(tree: BodyTree, work: TreeWork, q, v, a, w0, wd0, rotor_L, tau_ext=None):
+    """Full inverse dynamics: joint torques ``f`` (nb, 3), generalised forces and rotor torques.
+    Returns (F, f, rotor_tau) — views into ``work`` (copy them to keep)."""
+    kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
+               q, v, w0, work.R, work.w, work.J)
+    te = work.tau_ext if tau_ext is None else tau_ext
+    if tau_ext is None:
+        te[:] = 0.0
+    newton_euler(tree.parent, tree.jtype, tree.axis, tree.vidx, tree.inertia, tree.root_dynamic,
+                 tree.rotor_host, tree.rotor_axis, rotor_L, v, a, wd0, work.R, work.w,
+                 True, True, te, work.wd, work.f)
+    generalised(tree.jtype, tree.axis, tree.vidx, tree.root_dynamic, work.f, work.c)
+    rotor_torques(tree.rotor_host, tree.rotor_axis, tree.rotor_C, tree.rotor_A, rotor_L,
+                  work.w, work.wd, work.rotor_tau)
+    return work.c, work.f, work.rotor_tau
