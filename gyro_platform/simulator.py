@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import effects as fx
-from .errors import InputError, SimulationError
+from .errors import GimbalLockError, InputError, SimulationError
 from .inputs import RateSample
 from .integrators import Integrator, make_integrator
 from .model import BODY_OF_GIMBAL, GIMBAL_AXES, LOCK_COS, SPIN_AXES
@@ -132,6 +132,96 @@ class Simulator:
         self.n_steps += stats.n_steps
         if stats.error_estimate == stats.error_estimate:  # not nan
             self.max_error_estimate = max(self.max_error_estimate, float(stats.error_estimate))
+
+    def push_many(self, t, omega, specific_force=None, output_every: int = 0) -> list[Outputs]:
+        """Push many samples at once (arrays: t (N,) s, omega (N, 3) rad/s, specific_force
+        (N, 3) m/s² or None); returns the outputs after every ``output_every``-th sample (0:
+        none). Uses the compiled batch loop (``fastpath``) when the integrator has one and the
+        steps are uniform (exponential methods); otherwise pushes one by one. Same results as
+        ``push``. Raises ``InputError`` before touching the state if any sample is bad."""
+        from .fastpath import run_batch, stage_matrices
+        t = np.asarray(t, dtype=float).reshape(-1)
+        w = np.ascontiguousarray(np.asarray(omega, dtype=float).reshape(-1, 3))
+        has_f = specific_force is not None
+        fB = (np.ascontiguousarray(np.asarray(specific_force, dtype=float).reshape(-1, 3)) if has_f
+              else np.zeros_like(w))
+        if len(t) != len(w) or len(fB) != len(w):
+            raise InputError("t, omega and specific_force must have the same length")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(w)) and np.all(np.isfinite(fB))):
+            bad = int(np.argmin(np.isfinite(t) & np.all(np.isfinite(w), 1) & np.all(np.isfinite(fB), 1)))
+            raise InputError(f"non-finite sample at index {bad}")
+        if self.needs_f and not has_f:
+            raise InputError("these effects need the specific force, which the samples do not carry")
+        outs: list[Outputs] = []
+        if len(t) == 0:
+            return outs
+        start = 0
+        if self._last is None:
+            self.push(RateSample(float(t[0]), w[0].copy(), fB[0].copy() if has_f else None))
+            start = 1
+            if output_every:
+                outs.append(self.outputs())
+        prev = self._last
+        t_rel = np.concatenate([[self.t_rel], t[start:] - self.t_start])
+        if np.any(np.diff(t_rel) <= 0):
+            bad = int(np.argmax(np.diff(t_rel) <= 0)) + start
+            raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
+        W = np.vstack([prev.omega[None, :], w[start:]])
+        Fm = np.vstack([(prev.specific_force if prev.specific_force is not None else np.zeros(3))[None, :],
+                        fB[start:]])
+        sys_ = self.system
+        h_max = self.options.max_step
+        dts = np.diff(t_rel)
+        nsub = np.maximum(1, np.ceil(dts / h_max - 1e-9))
+        hs = dts / nsub
+        try:
+            method, M, c = stage_matrices(self.integrator, sys_, float(hs[0]))
+            uniform = method == 0 or np.max(np.abs(hs - hs[0])) <= 1e-9 * hs[0]
+        except ValueError:
+            uniform = False
+        if not uniform:
+            for i in range(start, len(t)):
+                self.push(RateSample(float(t[i]), w[i].copy(), fB[i].copy() if has_f else None))
+                if output_every and (i % output_every == 0):
+                    outs.append(self.outputs())
+            return outs
+        idx = np.arange(1, len(t_rel))
+        sel = idx[((idx - 1 + start) % output_every) == 0] if output_every else idx[:0]
+        y_out = np.zeros((len(sel), self.layout.n))
+        y = self.y.copy()
+        wk = sys_.work
+        last, status = run_batch(method, 0, float(hs[0]) if method else h_max, M, c, t_rel, W, Fm, y,
+                                 sel.astype(np.int64), y_out, sys_.lay, sys_.fid, sys_.on, sys_.k, sys_.L,
+                                 sys_.lc, sys_.M0inv, sys_.G0, sys_.Ifz, sys_.Ifz_inv, sys_.tree.parent,
+                                 sys_.tree.jtype, sys_.tree.axis, sys_.tree.qidx, sys_.tree.vidx,
+                                 sys_.tree.inertia, sys_.tree.rotor_host, sys_.tree.rotor_axis, sys_.seg,
+                                 sys_.R_PB, sys_.w_IN, wk.R, wk.w, wk.wd, wk.J, wk.f, wk.M, wk.c, wk.tau_ext,
+                                 sys_._fb, sys_._chol, sys_._F, sys_._a, sys_._Q, sys_._scratch)
+        steps = int(np.sum(nsub[:last]))
+        sys_.n_rhs += steps * len(c)
+        # outputs at the selected samples (state restored afterwards)
+        for j, i in enumerate(sel):
+            if i > last:
+                break
+            self.y = y_out[j].copy()
+            self.t_rel = t_rel[i]
+            sys_.set_input(t_rel[i - 1], t_rel[i], W[i - 1], W[i], Fm[i - 1], Fm[i])
+            self._last = RateSample(float(t[i - 1 + start]), W[i].copy(), Fm[i].copy() if has_f else None)
+            outs.append(self.outputs())
+        self.y = y
+        self.t_rel = float(t_rel[last])
+        if last > 0:
+            self._last = RateSample(float(t[last - 1 + start]), W[last].copy(), Fm[last].copy() if has_f else None)
+            sys_.set_input(t_rel[last - 1], t_rel[last], W[last - 1], W[last], Fm[last - 1], Fm[last])
+        self.n_samples += last
+        self.n_steps += steps
+        if status:
+            at = float(t[min(last + start, len(t) - 1)])
+            if status & 1:
+                raise GimbalLockError(f"gimbal lock (precession model singular) after t = {self.t}; "
+                                      f"stopped before the sample at t = {at}")
+            raise SimulationError(f"integration failed after t = {self.t} (status {status}); state kept there")
+        return outs
 
     def run(self, samples, output_period: float | None = None) -> list[Outputs]:
         """Push all samples; collect outputs every ``output_period`` s (None: after each)."""
