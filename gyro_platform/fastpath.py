@@ -34,14 +34,12 @@ def _normalise(y, a, b):
 
 
 @njit(cache=True)
-def run_batch(method, nsub_max, max_step, M, c, t_rel, w, f, y, out_idx, y_out,
-              lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv,
-              parent, jtype, axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN,
-              R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a, Q, scratch):
+def run_batch(method, max_step, Mptr, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_out, fid, I, P, seg, mats,
+              axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a, Q, RR, V, W):
     """Step ``y`` through the samples ``t_rel[i]`` (s, relative), ``w[i]`` (rad/s),
     ``f[i]`` (m/s²). Stores a copy of y after sample ``out_idx[j]`` in ``y_out[j]``.
-    ``M`` (s, n, s·n) are the exponential stage matrices (unused for RK4), ``c`` the stage
-    nodes. Returns (index of the last sample reached, status): status ≠ 0 stops the loop
+    ``Mptr, Midx, Mdat`` are the exponential stage matrices in CSR form (``stage_matrices``;
+    unused for RK4), ``c`` the stage nodes. Returns (index of the last sample reached, status): status ≠ 0 stops the loop
     with ``y`` at the last good sample."""
     n = y.shape[0]
     s = c.shape[0]
@@ -49,8 +47,8 @@ def run_batch(method, nsub_max, max_step, M, c, t_rel, w, f, y, out_idx, y_out,
     Kf = K.reshape(s * n)
     U = np.empty(n)
     y0 = np.empty(n)
-    qa = lay[3]
-    qp = lay[2]
+    qa = I[0, 3]
+    qp = I[0, 2]
     j_out = 0
     nout = out_idx.shape[0]
     status = 0
@@ -73,55 +71,33 @@ def run_batch(method, nsub_max, max_step, M, c, t_rel, w, f, y, out_idx, y_out,
             y0[m] = y[m]
         for sub in range(nsub):
             t = t0 + sub * h
+            # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
+            for j in range(s):
+                if j == 0:
+                    for m in range(n):
+                        U[m] = y[m]
+                elif method == RK4:
+                    cj = c[j] * h
+                    for m in range(n):
+                        U[m] = y[m] + cj * K[j - 1, m]
+                else:
+                    for r in range(n):
+                        acc = 0.0
+                        for e in range(Mptr[j - 1, r], Mptr[j - 1, r + 1]):
+                            acc += Mdat[e] * Kf[Midx[e]]
+                        U[r] = y[r] + acc
+                status |= platform_rhs(t + c[j] * h, U, K[j], fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                                       R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a, Q, RR, V, W)
             if method == RK4:
-                st = platform_rhs(t, y, K[0], lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv, parent, jtype,
-                                  axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN, R, wb, wd, J, fo,
-                                  Mm, cc, tau_ext, fb, chol, F, a, Q, scratch)
-                status |= st
-                for m in range(n):
-                    U[m] = y[m] + 0.5 * h * K[0, m]
-                st = platform_rhs(t + 0.5 * h, U, K[1], lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv, parent,
-                                  jtype, axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN, R, wb, wd, J,
-                                  fo, Mm, cc, tau_ext, fb, chol, F, a, Q, scratch)
-                status |= st
-                for m in range(n):
-                    U[m] = y[m] + 0.5 * h * K[1, m]
-                st = platform_rhs(t + 0.5 * h, U, K[2], lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv, parent,
-                                  jtype, axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN, R, wb, wd, J,
-                                  fo, Mm, cc, tau_ext, fb, chol, F, a, Q, scratch)
-                status |= st
-                for m in range(n):
-                    U[m] = y[m] + h * K[2, m]
-                st = platform_rhs(t + h, U, K[3], lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv, parent,
-                                  jtype, axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN, R, wb, wd, J,
-                                  fo, Mm, cc, tau_ext, fb, chol, F, a, Q, scratch)
-                status |= st
                 for m in range(n):
                     y[m] += h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
             else:
-                st = platform_rhs(t, y, K[0], lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv, parent, jtype,
-                                  axis, qidx, vidx, inertia, rhost, raxis, seg, R_PBm, wIN, R, wb, wd, J, fo,
-                                  Mm, cc, tau_ext, fb, chol, F, a, Q, scratch)
-                status |= st
-                for j in range(1, s + 1):
-                    Mj = M[j - 1]
-                    width = j * n
-                    for r in range(n):
-                        acc = 0.0
-                        for col in range(width):
-                            acc += Mj[r, col] * Kf[col]
-                        U[r] = acc
-                    if j < s:
-                        for r in range(n):
-                            U[r] += y[r]
-                        st = platform_rhs(t + c[j] * h, U, K[j], lay, fid, on, k, L, lc, M0inv, G0, Ifz,
-                                          Ifz_inv, parent, jtype, axis, qidx, vidx, inertia, rhost, raxis,
-                                          seg, R_PBm, wIN, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a,
-                                          Q, scratch)
-                        status |= st
-                    else:
-                        for r in range(n):
-                            y[r] += U[r]
+                # output: y += M_s [f_0 … f_{s−1}]  (U_j above is y + M_j [f_0 … f_{j−1}])
+                for r in range(n):
+                    acc = 0.0
+                    for e in range(Mptr[s - 1, r], Mptr[s - 1, r + 1]):
+                        acc += Mdat[e] * Kf[Midx[e]]
+                    y[r] += acc
         _normalise(y, qa, qa + 4)
         _normalise(y, qp, qp + 4)
         ok = status == 0
@@ -142,17 +118,27 @@ def run_batch(method, nsub_max, max_step, M, c, t_rel, w, f, y, out_idx, y_out,
     return last, status
 
 
-def stage_matrices(integrator, system, h: float) -> tuple[int, np.ndarray, np.ndarray]:
-    """(method code, padded stage matrices (s, n, s·n), nodes c) for an integrator by name."""
+def stage_matrices(integrator, system, h: float):
+    """(method code, CSR stage matrices (ptr (s, n+1), idx, data), nodes c) for an integrator
+    by name. Stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to U_j − y."""
     n = system.layout.n
     if integrator.name == "rk4":
-        return RK4, np.zeros((4, 1, 1)), np.array([0.0, 0.5, 0.5, 1.0])
+        return RK4, (np.zeros((4, 1), np.int64), np.zeros(1, np.int64), np.zeros(1)), \
+            np.array([0.0, 0.5, 0.5, 1.0])
     if integrator.name in ("etd2", "etd4"):
         A, key = system.linear_part()
         Ms = integrator._cached(key, h, lambda: integrator._make(integrator._check_A(A, n), h))
         s = len(Ms)
-        M = np.zeros((s, n, s * n))
-        for i, Mi in enumerate(Ms):
-            M[i, :, :Mi.shape[1]] = Mi
-        return EXPRK, M, np.asarray(integrator.c, float)
+        ptr = np.zeros((s, n + 1), np.int64)
+        idx: list[int] = []
+        dat: list[float] = []
+        for j, Mj in enumerate(Ms):
+            for r in range(n):
+                cols = np.nonzero(Mj[r])[0]
+                ptr[j, r] = len(idx)
+                idx.extend(cols.tolist())
+                dat.extend(Mj[r, cols].tolist())
+            ptr[j, n] = len(idx)
+            # rows are numbered per stage: restart offsets at each stage's first row
+        return EXPRK, (ptr, np.asarray(idx, np.int64), np.asarray(dat, float)), np.asarray(integrator.c, float)
     raise ValueError(f"integrator {integrator.name!r} has no compiled batch path (rk4, etd2, etd4 have)")

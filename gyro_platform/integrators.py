@@ -36,7 +36,7 @@ from .errors import SimulationError
 __all__ = ["OdeSystem", "StepStats", "Integrator", "make_integrator", "INTEGRATORS"]
 
 _EPS = np.finfo(float).eps
-_CACHE_SIZE = 16          # (key, h) entries kept per integrator; h takes few values per run
+_CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 _NEWTON_TOL = 2 * _EPS    # implicit midpoint: Newton to round-off (relative, 2-norm), so
                           # quadratic invariants drift by round-off only, not by 1e-14 per step
 _NEWTON_MAXITER = 10
@@ -132,13 +132,15 @@ class _FixedStep(Integrator):
         nsub = max(1, math.ceil((t1 - t0) / self.max_step - 1e-9))
         return nsub, (t1 - t0) / nsub
 
+    cache_size = _CACHE_SIZE
+
     def _cached(self, key: Hashable, h: float, make: Callable[[], Any]) -> Any:
         """LRU cache of matrices by (key, h); ``h`` is compared exactly (it is exact: t1 - t0)."""
         k = (key, h)
         val = self._cache.pop(k, None)
         if val is None:
             val = make()
-            if len(self._cache) >= _CACHE_SIZE:
+            if len(self._cache) >= self.cache_size:
                 del self._cache[next(iter(self._cache))]
         self._cache[k] = val
         return val
@@ -234,7 +236,7 @@ class _ETD(_FixedStep):
         if lp is None:
             raise TypeError(f"integrator {self.name!r} needs system.linear_part() -> (A, key)")
         A, key = lp()
-        nsub, h = self._nsub(t0, t1)
+        nsub, h = self._grid_step(t0, t1)
         n = y.size
         Ms = self._cached(key, h, lambda: self._make(self._check_A(A, n), h))
         s = len(self.c)
@@ -257,6 +259,31 @@ class _ETD(_FixedStep):
             dot(Ms[s - 1], Kp[s], out=U)
             y += U
         return y, StepStats(nsub, s * nsub, math.nan)
+
+    #: exponential steps are multiples of max_step / GRID, so a few matrices serve all steps
+    GRID = 256
+    #: room for every grid step of one- and two-substep intervals (bounded by construction)
+    cache_size = 2 * GRID + 16
+
+    def _grid_step(self, t0: float, t1: float) -> tuple[int, float]:
+        """(nsub, h) with h on the grid q = max_step/GRID. Every new step size would need a new
+        matrix exponential (~ms), and real sample times jitter, so the step is rounded to the
+        grid and the rounding remainder is carried into the next call: the state lags the
+        requested time by at most nsub·q/2 (2 µs per substep at max_step = 1 ms) and the lag
+        never grows.
+        Uniform sampling at max_step is exact (h = max_step, no remainder)."""
+        dt = (t1 - t0) + self._carry
+        q = self.max_step / self.GRID
+        nsub = max(1, math.ceil(dt / self.max_step - 1e-9))
+        h = max(q, round(dt / nsub / q) * q)
+        self._carry = dt - nsub * h
+        return nsub, h
+
+    def reset(self) -> None:
+        super().reset()
+        self._carry = 0.0
+
+    _carry = 0.0
 
     def _check_A(self, A, n: int) -> np.ndarray:
         A = np.asarray(A, dtype=float)

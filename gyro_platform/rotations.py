@@ -36,6 +36,32 @@ def quat_rate(q, w, out):
     out[3] = -0.5 * (x * w[0] + y * w[1] + z * w[2])
 
 
+@njit(cache=True)
+def quat_rate_at(y, i, wx, wy, wz, out):
+    """out[i:i+4] = ½ q ⊗ (ω, 0) for q = y[i:i+4] (no array views: hot path)."""
+    x, yy, z, s = y[i], y[i + 1], y[i + 2], y[i + 3]
+    out[i] = 0.5 * (s * wx + yy * wz - z * wy)
+    out[i + 1] = 0.5 * (s * wy + z * wx - x * wz)
+    out[i + 2] = 0.5 * (s * wz + x * wy - yy * wx)
+    out[i + 3] = -0.5 * (x * wx + yy * wy + z * wz)
+
+
+@njit(cache=True)
+def quat_to_matrix_at(y, i, RR, k):
+    """RR[k] = R(q) for the quaternion q = y[i:i+4] (normalised on the fly; no views)."""
+    x, yy, z, w = y[i], y[i + 1], y[i + 2], y[i + 3]
+    s = 2.0 / (x * x + yy * yy + z * z + w * w)
+    RR[k, 0, 0] = 1.0 - s * (yy * yy + z * z)
+    RR[k, 0, 1] = s * (x * yy - z * w)
+    RR[k, 0, 2] = s * (x * z + yy * w)
+    RR[k, 1, 0] = s * (x * yy + z * w)
+    RR[k, 1, 1] = 1.0 - s * (x * x + z * z)
+    RR[k, 1, 2] = s * (yy * z - x * w)
+    RR[k, 2, 0] = s * (x * z - yy * w)
+    RR[k, 2, 1] = s * (yy * z + x * w)
+    RR[k, 2, 2] = 1.0 - s * (x * x + yy * yy)
+
+
 def quat_exp_rate(w: np.ndarray, t: float) -> np.ndarray:
     """Quaternion of a constant body rate w (rad/s) held for time t (s)."""
     th = float(np.linalg.norm(w)) * t

@@ -190,13 +190,8 @@ class Simulator:
         y_out = np.zeros((len(sel), self.layout.n))
         y = self.y.copy()
         wk = sys_.work
-        last, status = run_batch(method, 0, float(hs[0]) if method else h_max, M, c, t_rel, W, Fm, y,
-                                 sel.astype(np.int64), y_out, sys_.lay, sys_.fid, sys_.on, sys_.k, sys_.L,
-                                 sys_.lc, sys_.M0inv, sys_.G0, sys_.Ifz, sys_.Ifz_inv, sys_.tree.parent,
-                                 sys_.tree.jtype, sys_.tree.axis, sys_.tree.qidx, sys_.tree.vidx,
-                                 sys_.tree.inertia, sys_.tree.rotor_host, sys_.tree.rotor_axis, sys_.seg,
-                                 sys_.R_PB, sys_.w_IN, wk.R, wk.w, wk.wd, wk.J, wk.f, wk.M, wk.c, wk.tau_ext,
-                                 sys_._fb, sys_._chol, sys_._F, sys_._a, sys_._Q, sys_._scratch)
+        last, status = run_batch(method, float(hs[0]) if method else h_max, M[0], M[1], M[2], c, t_rel, W, Fm, y,
+                                 sel.astype(np.int64), y_out, sys_.fid, *sys_.kernel_args())
         steps = int(np.sum(nsub[:last]))
         sys_.n_rhs += steps * len(c)
         # outputs at the selected samples (state restored afterwards)

@@ -18,7 +18,7 @@ from .model import (LOCK_COS, StateLayout, check_precession_valid, linear_coeffi
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
 from .params import PlatformParams
-from .rotations import quat_rate, quat_to_matrix
+from .rotations import quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
 FULL, LINEAR, PRECESSION = 0, 1, 2
@@ -28,6 +28,14 @@ LAY_OM, LAY_QD, LAY_QIP, LAY_QIB, LAY_Z, LAY_STAB, LAY_NV = range(7)
 # segment array: [t0, dt, w0(3), w1(3), f0(3), f1(3)]
 SEG_N = 14
 STATUS_OK, STATUS_LOCK, STATUS_NOT_PD = 0, 1, 2
+# rows of the small-vector work array V
+V_OM, V_OMD, V_WC, V_TMP, V_FP, V_MP, V_H, V_HD, V_ZERO = range(9)
+N_V = 9
+# offsets in the packed float parameters P
+P_L = fx.N_K
+P_LC = P_L + 3
+P_WIN = P_LC + 13
+N_P = P_WIN + 3
 
 
 @njit(cache=True)
@@ -59,247 +67,257 @@ def chol_solve(M, b, x, work):
     return True
 
 
-@njit(cache=True)
-def platform_rhs(t, y, yd, lay, fid, on, k, L, lc, M0inv, G0, Ifz, Ifz_inv,
-                 parent, jtype, axis, qidx, vidx, inertia, rhost, raxis,
-                 seg, R_PBm, wIN,
-                 R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, scratch):
+@njit(cache=True, inline="always")
+def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                 R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
     """ẏ of the platform (see module doc). Writes ``yd``; returns a status code
     (0 ok, 1 precession gimbal lock, 2 mass matrix not positive definite).
 
-    ``scratch`` (≥ 40 floats) holds small temporaries so nothing is allocated here."""
+    Inputs are grouped (fewer than 30 arguments, so numba can inline this into the batch
+    loop; every array argument of a non-inlined call costs ~5 ns of reference counting):
+    ``I`` int rows (layout, effect flags, tree parent/jtype/qidx/vidx), ``P`` packed floats
+    (effect coefficients, L, linear coefficients, ω_IN; offsets ``P_*``), ``seg`` the input
+    interval, ``mats`` (5, 8, 8): M0⁻¹, G0, I_frozen, I_frozen⁻¹, R_PB (mounting). Work arrays
+    are preallocated and indexed directly (no views on the linear hot path): the tree's,
+    ``RR`` (4, 3, 3) rotations R_IP, R_IB, R_PB, R_IC, ``V`` (9, 3) small vectors (rows
+    ``V_*``), ``W`` rows q̇, tree v, zero a, dvisc, Qf."""
+    nb = inertia.shape[0]
+    lay = I[0]
+    on = I[1]
+    parent = I[2, :nb]
+    jtype = I[3, :nb]
+    qidx = I[4, :nb]
+    vidx = I[5, :nb]
+    k = P[0:P_L]
+    L = P[P_L:P_L + 3]
+    lc = P[P_LC:P_LC + 13]
+    wIN = P[P_WIN:P_WIN + 3]
+    qd = W[0]
+    vv = W[1]
+    za = W[2]
+    dvisc = W[3]
+    Qf = W[4]
     stab = lay[LAY_STAB] == 1
     nv = lay[LAY_NV]
     status = 0
     # --- input at time t (linear over the interval) ---------------------------------------
     dt = seg[1]
     s = (t - seg[0]) / dt if dt > 0.0 else 0.0
-    wB = scratch[0:3]
-    wdB = scratch[3:6]
-    fB = scratch[6:9]
-    for i in range(3):
-        wB[i] = seg[2 + i] + s * (seg[5 + i] - seg[2 + i])
-        wdB[i] = (seg[5 + i] - seg[2 + i]) / dt if dt > 0.0 else 0.0
-        fB[i] = seg[8 + i] + s * (seg[11 + i] - seg[8 + i])
+    inv_dt = 1.0 / dt if dt > 0.0 else 0.0
+    wB0 = seg[2] + s * (seg[5] - seg[2])
+    wB1 = seg[3] + s * (seg[6] - seg[3])
+    wB2 = seg[4] + s * (seg[7] - seg[4])
+    fB0 = seg[8] + s * (seg[11] - seg[8])
+    fB1 = seg[9] + s * (seg[12] - seg[9])
+    fB2 = seg[10] + s * (seg[13] - seg[10])
     iqb = lay[LAY_QIB]
-    quat_rate(y[iqb:iqb + 4], wB, yd[iqb:iqb + 4])
-    q = y[0:5]
-    for i in range(5):
-        yd[i] = 0.0
-    Rtmp = scratch[9:18].reshape((3, 3))
-    R_PB = scratch[18:27].reshape((3, 3))
-    Om = scratch[27:30]
-    Omd = scratch[30:33]
-    fP = scratch[33:36]
-    wBP = scratch[36:39]
-    wc = scratch[39:42]
-    tmp = scratch[42:45]
-    MP = scratch[45:48]
+    quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
+    # R_PB: platform <- vehicle
     if stab:
-        # R_PB = R_IPᵀ R_IB
         iqp = lay[LAY_QIP]
-        quat_to_matrix(y[iqp:iqp + 4], Rtmp)          # R_IP
-        R_IB3 = scratch[48:57].reshape((3, 3))
-        quat_to_matrix(y[iqb:iqb + 4], R_IB3)
+        quat_to_matrix_at(y, iqp, RR, 0)          # R_IP
+        quat_to_matrix_at(y, iqb, RR, 1)          # R_IB
         for i in range(3):
             for j in range(3):
-                R_PB[i, j] = Rtmp[0, i] * R_IB3[0, j] + Rtmp[1, i] * R_IB3[1, j] + Rtmp[2, i] * R_IB3[2, j]
+                RR[2, i, j] = RR[0, 0, i] * RR[1, 0, j] + RR[0, 1, i] * RR[1, 1, j] + RR[0, 2, i] * RR[1, 2, j]
         io = lay[LAY_OM]
-        for i in range(3):
-            Om[i] = y[io + i]
-            Omd[i] = 0.0
+        Om0, Om1, Om2 = y[io], y[io + 1], y[io + 2]
+        Omd0, Omd1, Omd2 = 0.0, 0.0, 0.0
     else:
         for i in range(3):
             for j in range(3):
-                R_PB[i, j] = R_PBm[i, j]
-    for i in range(3):
-        wBP[i] = R_PB[i, 0] * wB[0] + R_PB[i, 1] * wB[1] + R_PB[i, 2] * wB[2]
-        fP[i] = R_PB[i, 0] * fB[0] + R_PB[i, 1] * fB[1] + R_PB[i, 2] * fB[2]
-        if not stab:
-            Om[i] = wBP[i]
-            Omd[i] = R_PB[i, 0] * wdB[0] + R_PB[i, 1] * wdB[1] + R_PB[i, 2] * wdB[2]
+                RR[2, i, j] = mats[4, i, j]
+        Om0, Om1, Om2 = 0.0, 0.0, 0.0
+        Omd0, Omd1, Omd2 = 0.0, 0.0, 0.0
+    wBP0 = RR[2, 0, 0] * wB0 + RR[2, 0, 1] * wB1 + RR[2, 0, 2] * wB2
+    wBP1 = RR[2, 1, 0] * wB0 + RR[2, 1, 1] * wB1 + RR[2, 1, 2] * wB2
+    wBP2 = RR[2, 2, 0] * wB0 + RR[2, 2, 1] * wB1 + RR[2, 2, 2] * wB2
+    if not stab:
+        Om0, Om1, Om2 = wBP0, wBP1, wBP2
+        d0 = (seg[5] - seg[2]) * inv_dt
+        d1 = (seg[6] - seg[3]) * inv_dt
+        d2 = (seg[7] - seg[4]) * inv_dt
+        Omd0 = RR[2, 0, 0] * d0 + RR[2, 0, 1] * d1 + RR[2, 0, 2] * d2
+        Omd1 = RR[2, 1, 0] * d0 + RR[2, 1, 1] * d1 + RR[2, 1, 2] * d2
+        Omd2 = RR[2, 2, 0] * d0 + RR[2, 2, 1] * d1 + RR[2, 2, 2] * d2
+    V[V_OM, 0], V[V_OM, 1], V[V_OM, 2] = Om0, Om1, Om2
+    V[V_OMD, 0], V[V_OMD, 1], V[V_OMD, 2] = Omd0, Omd1, Omd2
     # --- Earth rate: commanded precession ω_c = R_PI R_IC(t) ω_IN ---------------------------
-    for i in range(3):
-        wc[i] = 0.0
+    wc0, wc1, wc2 = 0.0, 0.0, 0.0
     if on[fx.EARTH]:
         wn = math.sqrt(wIN[0] ** 2 + wIN[1] ** 2 + wIN[2] ** 2)
-        R_IC = scratch[57:66].reshape((3, 3))
+        for i in range(3):
+            for j in range(3):
+                RR[3, i, j] = 1.0 if i == j else 0.0
         if wn > 0.0:
-            for i in range(3):
-                tmp[i] = wIN[i] / wn
-            rot_axis(tmp, wn * t, R_IC)
-        else:
-            for i in range(3):
-                for j in range(3):
-                    R_IC[i, j] = 1.0 if i == j else 0.0
-        for i in range(3):   # tmp = R_IC ω_IN  (inertial axes)
-            tmp[i] = R_IC[i, 0] * wIN[0] + R_IC[i, 1] * wIN[1] + R_IC[i, 2] * wIN[2]
-        if stab:             # R_IP = Rtmp
-            for i in range(3):
-                wc[i] = Rtmp[0, i] * tmp[0] + Rtmp[1, i] * tmp[1] + Rtmp[2, i] * tmp[2]
-        else:                # R_PI = R_PB R_BI
-            R_IB3 = scratch[48:57].reshape((3, 3))
-            quat_to_matrix(y[iqb:iqb + 4], R_IB3)
-            for i in range(3):
-                u = R_IB3[0, i] * tmp[0] + R_IB3[1, i] * tmp[1] + R_IB3[2, i] * tmp[2]  # (R_BI ω)_i
-                scratch[66 + i] = u
-            for i in range(3):
-                wc[i] = R_PB[i, 0] * scratch[66] + R_PB[i, 1] * scratch[67] + R_PB[i, 2] * scratch[68]
+            V[V_TMP, 0], V[V_TMP, 1], V[V_TMP, 2] = wIN[0] / wn, wIN[1] / wn, wIN[2] / wn
+            rot_axis(V[V_TMP], wn * t, RR[3])
+        u0 = RR[3, 0, 0] * wIN[0] + RR[3, 0, 1] * wIN[1] + RR[3, 0, 2] * wIN[2]   # R_IC ω_IN
+        u1 = RR[3, 1, 0] * wIN[0] + RR[3, 1, 1] * wIN[1] + RR[3, 1, 2] * wIN[2]
+        u2 = RR[3, 2, 0] * wIN[0] + RR[3, 2, 1] * wIN[1] + RR[3, 2, 2] * wIN[2]
+        if not stab:   # R_IP = R_IB R_BP: ω_c = R_PB R_BI u
+            quat_to_matrix_at(y, iqb, RR, 1)
+            b0 = RR[1, 0, 0] * u0 + RR[1, 1, 0] * u1 + RR[1, 2, 0] * u2
+            b1 = RR[1, 0, 1] * u0 + RR[1, 1, 1] * u1 + RR[1, 2, 1] * u2
+            b2 = RR[1, 0, 2] * u0 + RR[1, 1, 2] * u1 + RR[1, 2, 2] * u2
+            wc0 = RR[2, 0, 0] * b0 + RR[2, 0, 1] * b1 + RR[2, 0, 2] * b2
+            wc1 = RR[2, 1, 0] * b0 + RR[2, 1, 1] * b1 + RR[2, 1, 2] * b2
+            wc2 = RR[2, 2, 0] * b0 + RR[2, 2, 1] * b1 + RR[2, 2, 2] * b2
+        else:          # ω_c = R_IPᵀ u
+            wc0 = RR[0, 0, 0] * u0 + RR[0, 1, 0] * u1 + RR[0, 2, 0] * u2
+            wc1 = RR[0, 0, 1] * u0 + RR[0, 1, 1] * u1 + RR[0, 2, 1] * u2
+            wc2 = RR[0, 0, 2] * u0 + RR[0, 1, 2] * u1 + RR[0, 2, 2] * u2
+    V[V_WC, 0], V[V_WC, 1], V[V_WC, 2] = wc0, wc1, wc2
     # --- gimbal rates --------------------------------------------------------------------
     iqd = lay[LAY_QD]
-    qd = scratch[70:75]
     if fid != 2:
         for i in range(5):
             qd[i] = y[iqd + i]
+    else:
+        for i in range(5):
+            qd[i] = 0.0
     # g-sensitive torques need body rotations
     g_sens = on[fx.UNBALANCE] or on[fx.ANISO]
-    for i in range(tau_ext.shape[0]):
-        for j in range(3):
-            tau_ext[i, j] = 0.0
     need_kin = fid == 0 or g_sens
-    v = scratch[75:75 + nv]
     if need_kin:
-        # velocity vector of the tree: [Ω (stab)] + q̇ (zeros in precession: only R is used there)
+        for i in range(tau_ext.shape[0]):
+            for j in range(3):
+                tau_ext[i, j] = 0.0
+        # tree velocities: [Ω (stab)] + q̇ (zeros in precession: only R is used there)
         if stab:
-            for i in range(3):
-                v[i] = Om[i]
+            vv[0], vv[1], vv[2] = Om0, Om1, Om2
         for i in range(5):
-            v[nv - 5 + i] = qd[i] if fid != 2 else 0.0
-        kinematics(parent, jtype, axis, qidx, vidx, stab, q, v, Om, R, w, J)
+            vv[nv - 5 + i] = qd[i]
+        kinematics(parent, jtype, axis, qidx, vidx, stab, y, vv, V[V_OM], R, w, J)
         if g_sens:
-            fx.body_specific_force(R, parent, fP, fb)
+            V[V_FP, 0] = RR[2, 0, 0] * fB0 + RR[2, 0, 1] * fB1 + RR[2, 0, 2] * fB2
+            V[V_FP, 1] = RR[2, 1, 0] * fB0 + RR[2, 1, 1] * fB1 + RR[2, 1, 2] * fB2
+            V[V_FP, 2] = RR[2, 2, 0] * fB0 + RR[2, 2, 1] * fB1 + RR[2, 2, 2] * fB2
+            fx.body_specific_force(R, parent, V[V_FP], fb)
             fx.g_sensitive_torques(k, on[fx.UNBALANCE], on[fx.ANISO], rhost, raxis, fb, tau_ext)
-    # --- platform torque (stabilised): servo + support friction --------------------------
-    for i in range(3):
-        MP[i] = 0.0
+    # --- platform torque (stabilised): support friction; servo after the gimbal rates ------
+    MP0, MP1, MP2 = 0.0, 0.0, 0.0
+    if stab and on[fx.SUPPORT]:
+        eps = k[fx.K_EPS]
+        r0, r1, r2 = Om0 - wBP0, Om1 - wBP1, Om2 - wBP2
+        MP0 -= k[fx.K_DS] * r0 + k[fx.K_MUS] * fx.sat(r0 / eps)
+        MP1 -= k[fx.K_DS] * r1 + k[fx.K_MUS] * fx.sat(r1 / eps)
+        MP2 -= k[fx.K_DS] * r2 + k[fx.K_MUS] * fx.sat(r2 / eps)
+    # gimbal torques of the effects (precession: dampers solved implicitly, friction iterated)
+    if fid == 2:
+        saved_d = on[fx.DAMPERS]
+        saved_f = on[fx.FRICTION]
+        on[fx.DAMPERS] = 0
+        on[fx.FRICTION] = 0
+        fx.gimbal_forces(on, k, L, y, qd, V[V_WC], Q)
+        on[fx.DAMPERS] = saved_d
+        on[fx.FRICTION] = saved_f
+    else:
+        fx.gimbal_forces(on, k, L, y, qd, V[V_WC], Q)
+    if g_sens and fid != 0:   # generalised force of the body torques: Σ J_hᵀ τ_h
+        V[V_MP, 0], V[V_MP, 1], V[V_MP, 2] = MP0, MP1, MP2
+        _add_body_torques(J, tau_ext, nv, stab, Q, V[V_MP])
+        MP0, MP1, MP2 = V[V_MP, 0], V[V_MP, 1], V[V_MP, 2]
+    if fid == 2:
+        for i in range(5):
+            dvisc[i] = k[fx.K_DAMPER + i] if on[fx.DAMPERS] else 0.0
+        iters = 6 if on[fx.FRICTION] else 1
+        cmin = 1.0
+        for it in range(iters):
+            for i in range(5):
+                Qf[i] = Q[i]
+            if on[fx.FRICTION]:
+                fx.gimbal_friction(k, qd, Qf)
+            cmin = precession_rates(L, y, V[V_OM], Qf, dvisc, qd)
+        if cmin < LOCK_COS:
+            status = 1
     if stab:
         iz = lay[LAY_Z]
         if on[fx.SERVO]:
-            yp = scratch[85:88]
-            ydp = scratch[88:91]
-            yp[0], yp[1], yp[2] = q[4], q[0], q[3]
-            if fid == 2:
-                ydp[0], ydp[1], ydp[2] = 0.0, 0.0, 0.0   # filled after the precession rates below
-            else:
-                ydp[0], ydp[1], ydp[2] = qd[4], qd[0], qd[3]
-            if fid != 2:
-                mask = fx.servo_torque(k, yp, ydp, y[iz:iz + 3], tmp)
-                for i in range(3):
-                    MP[i] += tmp[i]
-                    yd[iz + i] = 0.0 if (mask >> i) & 1 else yp[i]
+            lim = k[fx.K_LIMIT]
+            pk, dk, ik = k[fx.K_KP], k[fx.K_KD], k[fx.K_KI]
+            # pick-offs y = (β10, α4, α9) drive mount axes 1, 2, 3 (spec 9.3)
+            for ax in range(3):
+                g = 4 if ax == 0 else (0 if ax == 1 else 3)
+                m = pk * y[g] + dk * qd[g] + ik * y[iz + ax]
+                saturated = False
+                if m > lim:
+                    m = lim
+                    saturated = True
+                elif m < -lim:
+                    m = -lim
+                    saturated = True
+                yd[iz + ax] = 0.0 if saturated else y[g]     # conditional integration (anti-windup)
+                if ax == 0:
+                    MP0 += m
+                elif ax == 1:
+                    MP1 += m
+                else:
+                    MP2 += m
         else:
-            for i in range(3):
-                yd[iz + i] = 0.0
-        if on[fx.SUPPORT]:
-            fx.support_friction(k, Om, wBP, MP)
+            yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
     # --- fidelities ----------------------------------------------------------------------
     if fid == 0:
         mass_matrix(J, inertia, M)
-        zero_a = scratch[91:91 + nv]
         for i in range(nv):
-            zero_a[i] = 0.0
-        wd0 = Omd if (on[fx.VEHICLE_ACC] and not stab) else scratch[100:103]
-        if not (on[fx.VEHICLE_ACC] and not stab):
-            for i in range(3):
-                wd0[i] = 0.0
-        newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, L, v, zero_a, wd0,
-                     R, w, on[fx.CORIOLIS], on[fx.GYRO], tau_ext, wd, f)
+            za[i] = 0.0
+        veh = on[fx.VEHICLE_ACC] and not stab
+        newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, L, vv, za,
+                     V[V_OMD] if veh else V[V_ZERO], R, w, on[fx.CORIOLIS], on[fx.GYRO], tau_ext, wd, f)
         generalised(jtype, axis, vidx, stab, f, c)
-        fx.gimbal_forces(on, k, L, q, qd, wc, Q)
         off = nv - 5
-        for i in range(3):
-            if stab:
-                F[i] = MP[i] - c[i]
+        if stab:
+            F[0] = MP0 - c[0]
+            F[1] = MP1 - c[1]
+            F[2] = MP2 - c[2]
         for i in range(5):
             F[off + i] = Q[i] - c[off + i]
-        if not chol_solve(M, F[0:nv], a[0:nv], chol[0:nv, 0:nv]):
+        if not chol_solve(M, F, a, chol):
             status = 2
             for i in range(nv):
                 a[i] = 0.0
     elif fid == 1:
-        fx.gimbal_forces(on, k, L, q, qd, wc, Q)
-        if g_sens:   # generalised force of the body torques: Σ J_hᵀ τ_h (gimbal columns)
-            _add_body_torques(J, tau_ext, nv, stab, Q, MP)
         if stab:
-            for i in range(3):
-                F[i] = MP[i]
+            F[0], F[1], F[2] = MP0, MP1, MP2
             for i in range(5):
                 F[3 + i] = Q[i]
             if on[fx.GYRO]:
                 for i in range(8):
                     sacc = 0.0
                     for j in range(8):
-                        sacc += G0[i, j] * y[5 + j]
+                        sacc += mats[1, i, j] * y[5 + j]
                     F[i] -= sacc
             for i in range(8):
                 sacc = 0.0
                 for j in range(8):
-                    sacc += M0inv[i, j] * F[j]
+                    sacc += mats[0, i, j] * F[j]
                 a[i] = sacc
         else:
-            linear_gimbal_accel(lc, L, q, qd, Om, Omd, Q, on[fx.GYRO], on[fx.CORIOLIS],
+            linear_gimbal_accel(lc, L, y, qd, V[V_OM], V[V_OMD], Q, on[fx.GYRO], on[fx.CORIOLIS],
                                 on[fx.VEHICLE_ACC], a)
-    else:
-        # precession: Q without dampers (solved implicitly) and with friction by fixed point
-        dvisc = scratch[103:108]
-        for i in range(5):
-            dvisc[i] = k[fx.K_DAMPER + i] if on[fx.DAMPERS] else 0.0
-            qd[i] = 0.0
-        saved_d = on[fx.DAMPERS]
-        saved_f = on[fx.FRICTION]
-        on[fx.DAMPERS] = 0
-        on[fx.FRICTION] = 0
-        fx.gimbal_forces(on, k, L, q, qd, wc, Q)
-        on[fx.DAMPERS] = saved_d
-        on[fx.FRICTION] = saved_f
-        if g_sens:
-            _add_body_torques(J, tau_ext, nv, stab, Q, MP)
-        Qf = scratch[120:125]
-        iters = 6 if saved_f else 1
-        cmin = 1.0
-        for it in range(iters):
-            for i in range(5):
-                Qf[i] = Q[i]
-            if saved_f:
-                fx.gimbal_friction(k, qd, Qf)
-            cmin = precession_rates(L, q, Om, Qf, dvisc, qd)
-        if cmin < LOCK_COS:
-            status = 1
-        if stab:
-            h = scratch[125:128]
-            hd = scratch[128:131]
-            spin_momentum(L, q, qd, h, hd)
-            if on[fx.SERVO]:
-                yp = scratch[85:88]
-                ydp = scratch[88:91]
-                ydp[0], ydp[1], ydp[2] = qd[4], qd[0], qd[3]
-                iz = lay[LAY_Z]
-                mask = fx.servo_torque(k, yp, ydp, y[iz:iz + 3], tmp)
-                for i in range(3):
-                    MP[i] += tmp[i]
-                    yd[iz + i] = 0.0 if (mask >> i) & 1 else yp[i]
-            # Ifz Ω̇ = M − Ω × (Ifz Ω + h) − ḣ
-            for i in range(3):
-                tmp[i] = Ifz[i, 0] * Om[0] + Ifz[i, 1] * Om[1] + Ifz[i, 2] * Om[2] + h[i]
-            r0 = MP[0] - (Om[1] * tmp[2] - Om[2] * tmp[1]) - hd[0]
-            r1 = MP[1] - (Om[2] * tmp[0] - Om[0] * tmp[2]) - hd[1]
-            r2 = MP[2] - (Om[0] * tmp[1] - Om[1] * tmp[0]) - hd[2]
-            for i in range(3):
-                a[i] = Ifz_inv[i, 0] * r0 + Ifz_inv[i, 1] * r1 + Ifz_inv[i, 2] * r2
+    elif stab:
+        # precession platform rows: Ifz Ω̇ = M − Ω × (Ifz Ω + h) − ḣ
+        spin_momentum(L, y, qd, V[V_H], V[V_HD])
+        h0 = mats[2, 0, 0] * Om0 + mats[2, 0, 1] * Om1 + mats[2, 0, 2] * Om2 + V[V_H, 0]
+        h1 = mats[2, 1, 0] * Om0 + mats[2, 1, 1] * Om1 + mats[2, 1, 2] * Om2 + V[V_H, 1]
+        h2 = mats[2, 2, 0] * Om0 + mats[2, 2, 1] * Om1 + mats[2, 2, 2] * Om2 + V[V_H, 2]
+        r0 = MP0 - (Om1 * h2 - Om2 * h1) - V[V_HD, 0]
+        r1 = MP1 - (Om2 * h0 - Om0 * h2) - V[V_HD, 1]
+        r2 = MP2 - (Om0 * h1 - Om1 * h0) - V[V_HD, 2]
+        for i in range(3):
+            a[i] = mats[3, i, 0] * r0 + mats[3, i, 1] * r1 + mats[3, i, 2] * r2
     # --- assemble ẏ ----------------------------------------------------------------------
     for i in range(5):
         yd[i] = qd[i]
     if fid == 2:
         if stab:
             io = lay[LAY_OM]
-            for i in range(3):
-                yd[io + i] = a[i]
+            yd[io], yd[io + 1], yd[io + 2] = a[0], a[1], a[2]
     else:
         for i in range(nv):
             yd[5 + i] = a[i]
     if stab:
-        iqp = lay[LAY_QIP]
-        quat_rate(y[iqp:iqp + 4], Om, yd[iqp:iqp + 4])
+        quat_rate_at(y, lay[LAY_QIP], Om0, Om1, Om2, yd)
     return status
 
 
@@ -331,40 +349,57 @@ class PlatformSystem:
         self.fid = FIDELITY_CODE[options.fidelity]
         if self.fid == PRECESSION:
             check_precession_valid(params, options)
-        self.layout = StateLayout.make(self.stabilised, self.fid == PRECESSION)
+        self.layout = lay = StateLayout.make(self.stabilised, self.fid == PRECESSION)
         self.tree = platform_tree(params, root_dynamic=self.stabilised)
         self.work = TreeWork(self.tree)
-        lay = self.layout
         self.nv = self.tree.nv
-        self.lay = np.array([
+        nb = self.tree.nb
+        # packed kernel inputs; the named attributes below are numpy views into them
+        self.I = np.zeros((6, max(12, fx.N_EFFECTS, 7, nb)), dtype=np.int64)
+        self.I[0, :7] = [
             lay.Om.start if lay.Om else -1, lay.qd.start if lay.qd else -1,
             lay.quat_IP.start if lay.quat_IP else -1, lay.quat_IB.start, lay.z.start if lay.z else -1,
-            1 if self.stabilised else 0, self.nv], dtype=np.int64)
-        self.on = fx.flags(options.effects)
-        self.k = fx.coefficients(params)
-        self.L = np.asarray(params.L, float) if options.has("rotor_gyroscopic") else np.zeros(3)
+            1 if self.stabilised else 0, self.nv]
+        self.I[1, :fx.N_EFFECTS] = fx.flags(options.effects)
+        for row, arr in ((2, self.tree.parent), (3, self.tree.jtype), (4, self.tree.qidx), (5, self.tree.vidx)):
+            self.I[row, :nb] = arr
+        self.lay = self.I[0]
+        self.on = self.I[1]
+        self.P = np.zeros(N_P)
+        self.k = self.P[0:P_L]
+        self.k[:] = fx.coefficients(params)
+        self.L = self.P[P_L:P_L + 3]
+        self.L[:] = np.asarray(params.L, float) if options.has("rotor_gyroscopic") else np.zeros(3)
         self.L_true = np.asarray(params.L, float)
-        self.lc = linear_coefficients(params)
+        self.lc = self.P[P_LC:P_LC + 13]
+        self.lc[:] = linear_coefficients(params)
         M0, G0 = rest_matrices(params)
         self.M0, self.G0 = M0, G0
-        self.M0inv = np.linalg.inv(M0)
         self.Ifz = M0[:3, :3].copy()
-        self.Ifz_inv = np.linalg.inv(self.Ifz)
+        self.mats = np.zeros((5, 8, 8))
+        self.mats[0] = np.linalg.inv(M0)
+        self.mats[1] = G0
+        self.mats[2, :3, :3] = self.Ifz
+        self.mats[3, :3, :3] = np.linalg.inv(self.Ifz)
         from scipy.spatial.transform import Rotation
         self.R_BP = Rotation.from_quat(params.mounting).as_matrix()   # platform → vehicle
         self.R_PB = np.ascontiguousarray(self.R_BP.T)
+        self.mats[4, :3, :3] = self.R_PB
         lat = params.latitude
-        self.w_IN = (params.earth_rate * np.array([0.0, math.cos(lat), math.sin(lat)])
-                     if options.has("earth_rate") else np.zeros(3))
+        self.w_IN = self.P[P_WIN:P_WIN + 3]
+        self.w_IN[:] = (params.earth_rate * np.array([0.0, math.cos(lat), math.sin(lat)])
+                        if options.has("earth_rate") else np.zeros(3))
         self.seg = np.zeros(SEG_N)
         self.seg[1] = 1.0
         n = self.nv
-        self._F = np.zeros(max(n, 8))
-        self._a = np.zeros(max(n, 8))
+        self._F = np.zeros(n)
+        self._a = np.zeros(8)
         self._Q = np.zeros(5)
-        self._chol = np.zeros((max(n, 8), max(n, 8)))
-        self._fb = np.zeros((self.tree.nb, 3))
-        self._scratch = np.zeros(160)
+        self._chol = np.zeros((n, n))
+        self._fb = np.zeros((nb, 3))
+        self._RR = np.zeros((4, 3, 3))
+        self._V = np.zeros((N_V, 3))
+        self._W = np.zeros((5, 8))
         self.n_rhs = 0
         self.last_status = 0
         self._lin = None
@@ -385,15 +420,16 @@ class PlatformSystem:
             seg[11:14] = f0 if f1 is None else f1
 
     # ---- ODE ---------------------------------------------------------------------------
+    def kernel_args(self) -> tuple:
+        """Arguments of ``platform_rhs`` after (t, y, yd, fid): model tables and work arrays."""
+        wk, tr = self.work, self.tree
+        return (self.I, self.P, self.seg, self.mats, tr.axis, tr.inertia, tr.rotor_host, tr.rotor_axis,
+                wk.R, wk.w, wk.wd, wk.J, wk.f, wk.M, wk.c, wk.tau_ext, self._fb, self._chol, self._F,
+                self._a, self._Q, self._RR, self._V, self._W)
+
     def rhs_into(self, t: float, y: np.ndarray, out: np.ndarray) -> int:
-        wk = self.work
         self.n_rhs += 1
-        st = platform_rhs(t, y, out, self.lay, self.fid, self.on, self.k, self.L, self.lc, self.M0inv,
-                          self.G0, self.Ifz, self.Ifz_inv, self.tree.parent, self.tree.jtype, self.tree.axis,
-                          self.tree.qidx, self.tree.vidx, self.tree.inertia, self.tree.rotor_host,
-                          self.tree.rotor_axis, self.seg, self.R_PB, self.w_IN, wk.R, wk.w, wk.wd, wk.J,
-                          wk.f, wk.M, wk.c, wk.tau_ext, self._fb, self._chol, self._F, self._a, self._Q,
-                          self._scratch)
+        st = platform_rhs(t, y, out, self.fid, *self.kernel_args())
         if st:
             self.last_status = st
             if st == 1:

@@ -1,0 +1,436 @@
+"""ROS 2 message mapping of the platform (ROS-free: works on rosbags' and rclpy's classes).
+
+Inputs are read duck-typed (same field names in rosbags and rclpy); outputs are built through a
+:class:`MessageTypes` namespace, so the same code makes rosbags classes (bags, tests) and rclpy
+classes (the node). Frames follow REP-103 (FLU, right-handed) and REP-145 (IMU data).
+
+Topics (names relative to the node namespace, except ``/diagnostics``; copy this table to the README):
+
+| topic | type | content, units | frame (header.frame_id) |
+| --- | --- | --- | --- |
+| `imu` (in) | `sensor_msgs/msg/Imu` | angular_velocity rad/s; linear_acceleration m/s² as specific force (+9.81 up at rest, REP-145); `angular_velocity_covariance[0] == -1`: sample rejected (`no_rate`); `linear_acceleration_covariance[0] == -1`: no specific force | sensor frame, rotated to `base_link` by the configured mounting |
+| `twist` (in) | `geometry_msgs/msg/Twist` or `geometry_msgs/msg/TwistStamped` | angular part rad/s (linear part ignored; no specific force) | Twist: `base_link`; TwistStamped: header frame, rotated to `base_link` |
+| `gimbal/joint_states` (out) | `sensor_msgs/msg/JointState` | gimbals `alpha4, beta5, beta7, alpha9, beta10`: position rad, velocity rad/s, effort = axial torque N m; then `mount_roll, mount_pitch, mount_yaw` (stabilised mode): position rad, velocity and effort NaN (not reported) | `""` (joint space) |
+| `drift/angle` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift angle, rotation vector, rad | `platform` |
+| `drift/rate` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift rate, rad/s | `platform` |
+| `bearing/<name>/torque` (out, one per bearing: `support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11`) | `geometry_msgs/msg/WrenchStamped` | torque = bearing reaction torque N m; force = 0 | `BEARING_FRAMES[name]`: `platform, gyro_frame4, gyro_housing5, gyro_housing7, gyro_frame9, gyro_housing10, gyro_housing5, gyro_housing7, gyro_housing10` |
+| `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | status `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz) and `gyro_platform: platform` (`Outputs.status`) | `""` |
+
+Output stamps are in the input's time base (the sample's header stamp, or its receive time when
+the stamps are not set), see :mod:`gyro_platform.timebase`.
+"""
+from __future__ import annotations
+
+import array
+import importlib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+
+# ---- names -------------------------------------------------------------------------------
+IMU = "sensor_msgs/msg/Imu"
+TWIST = "geometry_msgs/msg/Twist"
+TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
+WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+
+#: message types accepted as platform input
+INPUT_TYPES: tuple[str, ...] = (IMU, TWIST, TWIST_STAMPED)
+#: the vehicle frame (REP-105 ``base_link``, FLU)
+VEHICLE_FRAME = "base_link"
+#: frame of drift angle and drift rate
+PLATFORM_FRAME = "platform"
+HARDWARE_ID = "gyro_platform"
+
+
+class TopicSpec(NamedTuple):
+    """One row of the topic table above."""
+
+    name: str
+    type: str
+    direction: str   # "in" | "out"
+    units: str
+    frame: str
+
+
+def bearing_topic(name: str) -> str:
+    """Topic of one bearing's reaction torque: ``bearing/<name>/torque``."""
+    return f"bearing/{name}/torque"
+
+
+TOPICS: tuple[TopicSpec, ...] = (
+    TopicSpec("imu", IMU, "in", "rad/s; m/s² (specific force)", "sensor frame → base_link"),
+    TopicSpec("twist", TWIST_STAMPED, "in", "rad/s (angular part)", "header frame → base_link"),
+    TopicSpec("gimbal/joint_states", JOINT_STATE, "out", "rad, rad/s, N m", ""),
+    TopicSpec("drift/angle", VECTOR3_STAMPED, "out", "rad", PLATFORM_FRAME),
+    TopicSpec("drift/rate", VECTOR3_STAMPED, "out", "rad/s", PLATFORM_FRAME),
+    *(TopicSpec(bearing_topic(b), WRENCH_STAMPED, "out", "N m", BEARING_FRAMES[b]) for b in BEARING_NAMES),
+    TopicSpec("/diagnostics", DIAGNOSTIC_ARRAY, "out", "-", ""),
+)
+
+
+def resolve(name: str, namespace: str = "") -> str:
+    """Absolute topic name of ``name`` in ``namespace`` ("" or "/" = root); absolute names stay."""
+    if name.startswith("/"):
+        return name
+    ns = namespace.strip("/")
+    return f"/{ns}/{name}" if ns else f"/{name}"
+
+
+def output_topics(namespace: str = "") -> dict[str, str]:
+    """Absolute output topic name → type, in ``namespace`` (root: ``/gimbal/joint_states`` …)."""
+    return {resolve(s.name, namespace): s.type for s in TOPICS if s.direction == "out"}
+
+
+# ---- type namespaces ---------------------------------------------------------------------
+class MessageTypes:
+    """Message classes by ROS type name (``'sensor_msgs/msg/JointState'``) plus the binding's
+    float64[] constructor (rosbags wants numpy arrays, rclpy wants ``array.array('d')``)."""
+
+    def __init__(self, lookup: Callable[[str], type], float_array: Callable[[Sequence[float]], Any]):
+        self._lookup = lookup
+        self._cache: dict[str, type] = {}
+        self.float_array = float_array
+
+    def __getitem__(self, name: str) -> type:
+        cls = self._cache.get(name)
+        if cls is None:
+            cls = self._cache[name] = self._lookup(name)
+        return cls
+
+    @classmethod
+    def rosbags(cls, typestore: Any = None) -> "MessageTypes":
+        """rosbags classes of ``typestore`` (default: the ROS 2 Jazzy store)."""
+        if typestore is None:
+            typestore = jazzy_typestore()
+        return cls(typestore.types.__getitem__, lambda v: np.asarray(v, dtype=np.float64))
+
+    @classmethod
+    def rclpy(cls) -> "MessageTypes":
+        """Generated rclpy classes (imported lazily: ``sensor_msgs.msg.JointState`` …)."""
+
+        def lookup(name: str) -> type:
+            pkg, sub, typ = name.split("/")
+            return getattr(importlib.import_module(f"{pkg}.{sub}"), typ)
+
+        return cls(lookup, lambda v: array.array("d", (float(x) for x in v)))
+
+
+_JAZZY = None
+
+
+def jazzy_typestore():
+    """The rosbags ROS 2 Jazzy typestore (cached)."""
+    global _JAZZY
+    if _JAZZY is None:
+        from rosbags.typesys import Stores, get_typestore
+
+        _JAZZY = get_typestore(Stores.ROS2_JAZZY)
+    return _JAZZY
+
+
+# ---- time ---------------------------------------------------------------------------------
+def stamp_ns(stamp: Any) -> int:
+    """``builtin_interfaces/Time`` → integer ns."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def header(types: MessageTypes, t_ns: int, frame_id: str = "") -> Any:
+    """``std_msgs/Header`` at ``t_ns`` (ns; negative times are clamped to 0)."""
+    sec, nsec = divmod(max(int(t_ns), 0), 1_000_000_000)
+    time = types["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int(nsec))
+    return types["std_msgs/msg/Header"](stamp=time, frame_id=frame_id)
+
+
+# ---- mounting ----------------------------------------------------------------------------
+class Mounting:
+    """Sensor mountings: ``frame_id`` → rotation of the sensor frame in ``base_link``.
+
+    A rotation ``q`` (quaternion x, y, z, w — the ``base_link → frame`` TF rotation) maps a
+    vector given in the sensor frame to the vehicle frame: ``v_base = R(q) v_sensor``.
+    ``base_link`` is the identity. ``unknown_frame`` says what to do with other frame ids:
+    ``"identity"`` (use them as if aligned with base_link; flagged so it can be counted) or
+    ``"reject"`` (the sample is rejected with reason ``unknown_frame``).
+    """
+
+    UNKNOWN_POLICIES = ("identity", "reject")
+
+    def __init__(self, frames: Mapping[str, Any] | None = None, *, vehicle_frame: str = VEHICLE_FRAME,
+                 unknown_frame: str = "identity"):
+        if unknown_frame not in self.UNKNOWN_POLICIES:
+            raise ValueError(f"unknown_frame = {unknown_frame!r}; allowed: {', '.join(self.UNKNOWN_POLICIES)}")
+        self.vehicle_frame = vehicle_frame
+        self.unknown_frame = unknown_frame
+        self._rot: dict[str, Rotation] = {vehicle_frame: Rotation.identity()}
+        self._mat: dict[str, np.ndarray] = {vehicle_frame: np.eye(3)}
+        for frame, rot in (frames or {}).items():
+            self.add(frame, rot)
+
+    def add(self, frame_id: str, rotation: Any) -> None:
+        """Set the mounting of ``frame_id``: a Rotation, a quaternion (x, y, z, w) or roll,
+        pitch, yaw (rad, fixed axes x-y-z, i.e. R = Rz(yaw) Ry(pitch) Rx(roll), as in URDF)."""
+        self._rot[frame_id] = r = as_rotation(rotation)
+        self._mat[frame_id] = r.as_matrix()
+
+    def frames(self) -> dict[str, tuple[float, float, float, float]]:
+        """Configured frames → quaternion (x, y, z, w)."""
+        return {f: tuple(float(x) for x in r.as_quat()) for f, r in self._rot.items()}
+
+    def matrix(self, frame_id: str) -> np.ndarray | None:
+        """3×3 matrix sensor → vehicle, or None when the frame is unknown (whatever the policy)."""
+        return self._mat.get(frame_id)
+
+    @staticmethod
+    def parse_spec(spec: str) -> tuple[str, Rotation]:
+        """``"imu_link=qx,qy,qz,qw"`` or ``"imu_link=roll,pitch,yaw"`` (rad) → (frame, Rotation)."""
+        frame, sep, values = spec.partition("=")
+        if not sep or not frame.strip():
+            raise ValueError(f"mounting {spec!r}: expected FRAME=qx,qy,qz,qw or FRAME=roll,pitch,yaw")
+        try:
+            nums = [float(x) for x in values.replace(" ", "").split(",") if x]
+        except ValueError:
+            raise ValueError(f"mounting {spec!r}: values must be numbers") from None
+        return frame.strip(), as_rotation(nums)
+
+
+def as_rotation(value: Any) -> Rotation:
+    """Rotation from a Rotation, a unit quaternion (x, y, z, w) or roll, pitch, yaw (rad)."""
+    if isinstance(value, Rotation):
+        return value
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.size == 4:
+        n = float(np.linalg.norm(v))
+        if not math.isfinite(n) or abs(n - 1.0) > 1e-6:
+            raise ValueError(f"mounting quaternion {v.tolist()} is not a unit quaternion (norm {n:.9g})")
+        return Rotation.from_quat(v)  # scalar-last (x, y, z, w)
+    if v.size == 3 and np.all(np.isfinite(v)):
+        return Rotation.from_euler("xyz", v)  # extrinsic x, y, z = Rz(yaw) Ry(pitch) Rx(roll)
+    raise ValueError(f"mounting {value!r}: expected a quaternion (x, y, z, w) or roll, pitch, yaw")
+
+
+# ---- inputs ------------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class Reading:
+    """Rates of one message, rotated into the vehicle frame (not yet timed; the gate does that).
+
+    ``omega`` rad/s and ``specific_force`` m/s² (or None), vehicle axes; ``stamp_ns`` the header
+    stamp (ns; 0 = not set) or None when the type has no header; ``identity_assumed`` when the
+    frame was unknown and taken as base_link.
+    """
+
+    omega: np.ndarray
+    specific_force: np.ndarray | None
+    stamp_ns: int | None
+    frame_id: str
+    identity_assumed: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Rejected:
+    """A message that cannot give a rate sample: ``reason`` (``no_rate``, ``unknown_frame``,
+    ``bad_message``) and a human-readable ``detail``."""
+
+    reason: str
+    detail: str
+    stamp_ns: int | None = None
+    frame_id: str = ""
+
+
+def _vec3(v: Any) -> np.ndarray:
+    return np.array((float(v.x), float(v.y), float(v.z)))
+
+
+def type_name(msg: Any) -> str | None:
+    """ROS type name of a message: rosbags ``__msgtype__``, or from an rclpy class
+    (``sensor_msgs.msg._imu.Imu`` → ``sensor_msgs/msg/Imu``); None if neither."""
+    name = getattr(msg, "__msgtype__", None)
+    if isinstance(name, str):
+        return name
+    parts = type(msg).__module__.split(".")
+    if len(parts) >= 2 and parts[1] == "msg":
+        return f"{parts[0]}/msg/{type(msg).__name__}"
+    return None
+
+
+def message_kind(msg: Any) -> str | None:
+    """``IMU``, ``TWIST_STAMPED``, ``TWIST`` or None: by type name when known (other types,
+    e.g. nav_msgs/Odometry, are None), else by the fields (duck typing)."""
+    name = type_name(msg)
+    if name is not None:
+        return name if name in INPUT_TYPES else None
+    if hasattr(msg, "angular_velocity") and hasattr(msg, "header"):
+        return IMU
+    if hasattr(msg, "twist") and hasattr(msg, "header"):
+        return TWIST_STAMPED
+    if hasattr(msg, "angular") and hasattr(msg, "linear"):
+        return TWIST
+    return None
+
+
+def reading_from_msg(msg: Any, mounting: Mounting | None = None) -> Reading | Rejected:
+    """Imu / Twist / TwistStamped → :class:`Reading` in base_link, or :class:`Rejected`. Never raises.
+
+    Imu: ``angular_velocity_covariance[0] == -1`` (sensor_msgs: "not reported") → rejected
+    ``no_rate``; ``linear_acceleration_covariance[0] == -1`` → ``specific_force`` None.
+    Values are passed through as they are (NaN/Inf and range are the gate's job).
+    """
+    mounting = mounting if mounting is not None else _DEFAULT_MOUNTING
+    stamp: int | None = None
+    frame = ""
+    try:
+        kind = message_kind(msg)
+        if kind is None:
+            return Rejected("bad_message", f"unsupported message type {type_name(msg) or type(msg).__name__}")
+        if kind == TWIST:
+            omega, force, frame = _vec3(msg.angular), None, mounting.vehicle_frame
+        else:
+            stamp = stamp_ns(msg.header.stamp)
+            frame = str(msg.header.frame_id)
+            if kind == TWIST_STAMPED:
+                omega, force = _vec3(msg.twist.angular), None
+            else:
+                if float(msg.angular_velocity_covariance[0]) == -1.0:
+                    return Rejected("no_rate", "angular_velocity_covariance[0] = -1 (rate not reported)",
+                                    stamp, frame)
+                omega = _vec3(msg.angular_velocity)
+                force = (None if float(msg.linear_acceleration_covariance[0]) == -1.0
+                         else _vec3(msg.linear_acceleration))
+    except (AttributeError, TypeError, ValueError, IndexError) as e:
+        return Rejected("bad_message", f"malformed message: {e}", stamp, frame)
+    mat = mounting.matrix(frame)
+    assumed = False
+    if mat is None:
+        if mounting.unknown_frame == "reject":
+            return Rejected("unknown_frame", f"no mounting configured for frame_id {frame!r}", stamp, frame)
+        mat, assumed = None, True
+    if mat is not None:
+        omega = mat @ omega
+        force = None if force is None else mat @ force
+    return Reading(omega, force, stamp, frame, assumed)
+
+
+_DEFAULT_MOUNTING = Mounting()
+
+
+# ---- outputs -----------------------------------------------------------------------------
+def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
+    """``sensor_msgs/JointState``: gimbals (rad, rad/s, axial torque N m), then the mount joints
+    (position rad; velocity and effort NaN = not reported, as ros2_control does) if present."""
+    names = list(GIMBAL_NAMES)
+    pos = [float(x) for x in out.gimbal_angles]
+    vel = [float(x) for x in out.gimbal_rates]
+    eff = [float(x) for x in out.gimbal_axial_torques]
+    if out.mount_angles is not None:
+        names += MOUNT_NAMES
+        pos += [float(x) for x in out.mount_angles]
+        vel += [math.nan] * len(MOUNT_NAMES)
+        eff += [math.nan] * len(MOUNT_NAMES)
+    fa = types.float_array
+    return types[JOINT_STATE](header=header(types, t_ns), name=names, position=fa(pos),
+                              velocity=fa(vel), effort=fa(eff))
+
+
+def _vector3(types: MessageTypes, v: Sequence[float]) -> Any:
+    return types["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def vector3_stamped(v: Sequence[float], types: MessageTypes, t_ns: int, frame_id: str = PLATFORM_FRAME) -> Any:
+    """``geometry_msgs/Vector3Stamped`` of a 3-vector."""
+    return types[VECTOR3_STAMPED](header=header(types, t_ns, frame_id), vector=_vector3(types, v))
+
+
+def drift_angle(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
+    """Drift angle (rotation vector, rad) in frame ``platform``."""
+    return vector3_stamped(out.drift_angle, types, t_ns)
+
+
+def drift_rate(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
+    """Drift rate (rad/s) in frame ``platform``."""
+    return vector3_stamped(out.drift_rate, types, t_ns)
+
+
+def bearing_wrenches(out: Outputs, types: MessageTypes, t_ns: int) -> dict[str, Any]:
+    """Bearing name → ``geometry_msgs/WrenchStamped`` (torque N m in BEARING_FRAMES[name],
+    force 0); bearings the outputs do not carry are left out."""
+    res: dict[str, Any] = {}
+    for name in BEARING_NAMES:
+        tq = out.bearing_torques.get(name)
+        if tq is None:
+            continue
+        wrench = types["geometry_msgs/msg/Wrench"](force=_vector3(types, (0.0, 0.0, 0.0)),
+                                                   torque=_vector3(types, tq))
+        res[name] = types[WRENCH_STAMPED](header=header(types, t_ns, BEARING_FRAMES[name]), wrench=wrench)
+    return res
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (np.floating, np.integer)):
+        return repr(v.item())
+    if isinstance(v, Mapping):
+        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items()) or "-"
+    return str(v)
+
+
+def _key_values(types: MessageTypes, items: Iterable[tuple[str, Any]]) -> list[Any]:
+    kv = types["diagnostic_msgs/msg/KeyValue"]
+    return [kv(key=str(k), value=_fmt(v)) for k, v in items]
+
+
+def diagnostic_array(gate: Mapping[str, Any] | None, out: Outputs | None, types: MessageTypes,
+                     t_ns: int, extra: Mapping[str, Any] | None = None) -> Any:
+    """``diagnostic_msgs/DiagnosticArray`` with status "gyro_platform: input" (the gate
+    snapshot: counts by reason, last reason, input rate Hz; WARN when the last input was
+    dropped or a frame was taken as identity) and "gyro_platform: platform" (``out.status``
+    plus ``extra``; ERROR if a value is not finite, STALE before any output)."""
+    status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
+    statuses = []
+    if gate is not None:
+        level, message = status_cls.OK, "ok"
+        if gate.get("last_action") == "drop":
+            level, message = status_cls.WARN, f"last input dropped: {gate.get('last_reason')}"
+        elif gate.get("notes", {}).get("identity_frame"):
+            level, message = status_cls.WARN, "input frame without mounting, identity assumed"
+        statuses.append(status_cls(level=level, name="gyro_platform: input", message=message,
+                                   hardware_id=HARDWARE_ID, values=_key_values(types, _flatten(gate))))
+    items: list[tuple[str, Any]] = []
+    if out is not None:
+        items = [("t", out.t), *out.status.items()]
+    items += list((extra or {}).items())
+    if out is None:
+        level, message = status_cls.STALE, "no output yet"
+    elif all(math.isfinite(float(v)) for _, v in items if isinstance(v, (int, float, np.number))):
+        level, message = status_cls.OK, "ok"
+    else:
+        level, message = status_cls.ERROR, "non-finite value"
+    statuses.append(status_cls(level=level, name="gyro_platform: platform", message=message,
+                               hardware_id=HARDWARE_ID, values=_key_values(types, items)))
+    return types[DIAGNOSTIC_ARRAY](header=header(types, t_ns), status=statuses)
+
+
+def _flatten(d: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
+    res: list[tuple[str, Any]] = []
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            res += _flatten(v, f"{prefix}{k}.")
+        else:
+            res.append((f"{prefix}{k}", v))
+    return res
+
+
+def output_messages(out: Outputs, types: MessageTypes, t_ns: int, namespace: str = "") -> list[tuple[str, Any]]:
+    """All per-instant output messages as (topic, message): joint states, drift angle and rate,
+    one wrench per bearing (diagnostics are separate: :func:`diagnostic_array`)."""
+    res = [(resolve("gimbal/joint_states", namespace), joint_state(out, types, t_ns)),
+           (resolve("drift/angle", namespace), drift_angle(out, types, t_ns)),
+           (resolve("drift/rate", namespace), drift_rate(out, types, t_ns))]
+    res += [(resolve(bearing_topic(b), namespace), m) for b, m in bearing_wrenches(out, types, t_ns).items()]
+    return res

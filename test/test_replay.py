@@ -1,0 +1,488 @@
+"""Replay: real recordings through the simulator into output bags, read back with rosbags.
+
+The two real bags are replayed once each (module fixtures) with the real simulator; the
+expectations (counts, stamps, copies) are computed from the input bag independently of the
+replay code.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from gyro_platform import cli, replay as rp
+from gyro_platform import messages as m
+from gyro_platform.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
+from gyro_platform.timebase import Action, GateConfig, TimeGate
+
+BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
+CABRILLO = BAGS / "cabrillo_rov_bno085_imu"
+HUSKY = BAGS / "robot_localization_husky_test1"
+JAZZY = get_typestore(Stores.ROS2_JAZZY)
+T = JAZZY.types
+S = 1_000_000_000
+# robot_localization README: static_transform_publisher 0 -0.3 0.52 -1.570796327 0 1.570796327 base_link imu_link
+HUSKY_RPY = (math.pi / 2, 0.0, -math.pi / 2)
+
+
+def need(bag: Path) -> None:
+    if not bag.exists():
+        pytest.skip(f"real recording absent: {bag} (see shared/data/bags)")
+
+
+# ---- independent expectations from the input bag -----------------------------------------
+def input_facts(bag: Path, topic: str) -> dict:
+    """Counts, raw messages per topic and the sample times the gate should pick."""
+    counts, stamps, recv = {}, [], []
+    with AnyReader([bag], default_typestore=JAZZY) as r:
+        for c, ts, raw in r.messages():
+            counts[c.topic] = counts.get(c.topic, 0) + 1
+            if c.topic == topic:
+                msg = r.deserialize(raw, c.msgtype)
+                stamps.append(msg.header.stamp.sec * S + msg.header.stamp.nanosec)
+                recv.append(ts)
+    use_header = stamps[0] != 0
+    times = np.array(stamps if use_header else recv, dtype=np.int64)
+    assert np.all(np.diff(times) > 0) and np.diff(times).max() < S, "precondition: a clean recording"
+    return {"counts": counts, "times": times, "recv": np.array(recv, dtype=np.int64), "use_header": use_header}
+
+
+def grid_count(times_ns: np.ndarray, rate: float | None) -> int:
+    """Outputs on the grid floor((t − t0)·rate): one at the first sample and one per new slot."""
+    if not rate:
+        return len(times_ns)
+    slots = [math.floor((int(t) - int(times_ns[0])) * 1e-9 * rate + 1e-9) for t in times_ns]
+    return 1 + sum(1 for a, b in zip(slots, slots[1:]) if b > a)
+
+
+def raw_by_topic(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
+    res: dict[str, list] = {}
+    with Reader(bag) as r:
+        for c, ts, raw in r.messages():
+            res.setdefault(c.topic, []).append((ts, bytes(raw)))
+    return res
+
+
+def read_output(bag: Path, undecodable_ok: tuple[str, ...] = ()) -> dict[str, list]:
+    """topic -> [(record ts, message)] via AnyReader (the output carries its type definitions);
+    records of the topics in ``undecodable_ok`` that do not decode are left out."""
+    res: dict[str, list] = {}
+    with AnyReader([bag]) as r:
+        for c, ts, raw in r.messages():
+            try:
+                msg = r.deserialize(raw, c.msgtype)
+            except Exception:
+                if c.topic in undecodable_ok:
+                    continue
+                raise
+            res.setdefault(c.topic, []).append((ts, msg))
+    return res
+
+
+# ---- the two real replays (once each) -----------------------------------------------------
+@pytest.fixture(scope="module")
+def cabrillo(tmp_path_factory):
+    need(CABRILLO)
+    out = tmp_path_factory.mktemp("cab") / "out"
+    cfg = rp.ReplayConfig(output_rate=None, progress=False)          # every sample
+    summary = rp.replay(CABRILLO, out, cfg)
+    return dict(bag=CABRILLO, out=out, summary=summary, topic="/logic_tube/imu", rate=None, storage="sqlite3",
+                facts=input_facts(CABRILLO, "/logic_tube/imu"))
+
+
+@pytest.fixture(scope="module")
+def husky(tmp_path_factory):
+    need(HUSKY)
+    out = tmp_path_factory.mktemp("husky") / "out"
+    cfg = rp.ReplayConfig(output_rate=2.0, progress=False,
+                          mounting=m.Mounting({"imu_link": HUSKY_RPY}, unknown_frame="reject"))
+    summary = rp.replay(HUSKY, out, cfg)
+    return dict(bag=HUSKY, out=out, summary=summary, topic="/imu/data", rate=2.0, storage="mcap",
+                facts=input_facts(HUSKY, "/imu/data"))
+
+
+@pytest.fixture(params=["cabrillo", "husky"])
+def run(request):
+    return request.getfixturevalue(request.param)
+
+
+def test_output_bag_counts_per_topic(run):
+    facts, out = run["facts"], read_output(run["out"])
+    n_out = grid_count(facts["times"], run["rate"])
+    n_diag = grid_count(facts["recv"], 1.0)
+    expected = dict(facts["counts"])
+    expected.update({t: n_out for t in m.output_topics() if t != "/diagnostics"})
+    expected["/diagnostics"] = n_diag
+    assert {t: len(v) for t, v in out.items()} == expected
+    with Reader(run["out"]) as r:                                   # metadata agrees with the data
+        assert {c.topic: c.msgcount for c in r.connections} == expected
+        assert r.message_count == sum(expected.values())
+    meta = rp._read_metadata(run["out"])
+    assert meta["version"] == 9 and meta["storage_identifier"] == run["storage"]
+
+
+def test_output_types_qos_and_hashes(run):
+    with Reader(run["out"]) as r:
+        conns = {c.topic: c for c in r.connections}
+    for topic, typ in m.output_topics().items():
+        c = conns[topic]
+        assert c.msgtype == typ and c.digest == JAZZY.hash_rihs01(typ)
+        (qos,) = c.ext.offered_qos_profiles
+        assert (qos.reliability.name, qos.durability.name, qos.history.name, qos.depth) == \
+            ("RELIABLE", "VOLATILE", "KEEP_LAST", 10)
+    meta_topics = {t["topic_metadata"]["name"]: t["topic_metadata"] for t in
+                   rp._read_metadata(run["out"])["topics_with_message_count"]}
+    assert meta_topics["/gimbal/joint_states"]["offered_qos_profiles"][0]["reliability"] == "reliable"
+
+
+def test_input_topics_copied_byte_identically(run):
+    src, dst = raw_by_topic(run["bag"]), raw_by_topic(run["out"])
+    for topic, msgs in src.items():
+        assert dst[topic] == msgs, topic
+    with Reader(run["bag"]) as a, Reader(run["out"]) as b:
+        qa = {c.topic: c.ext.offered_qos_profiles for c in a.connections}
+        qb = {c.topic: c.ext.offered_qos_profiles for c in b.connections}
+        assert all(qb[t] == q for t, q in qa.items())                 # QoS kept as recorded
+
+
+def test_output_stamps_follow_the_input_time_base(run):
+    facts, out = run["facts"], read_output(run["out"])
+    accepted_times = set(facts["times"].tolist())
+    recv_of = dict(zip(facts["times"].tolist(), facts["recv"].tolist()))
+    for topic in m.output_topics():
+        recs = out[topic]
+        ts = np.array([x[0] for x in recs])
+        stamps = np.array([x[1].header.stamp.sec * S + x[1].header.stamp.nanosec for x in recs])
+        assert np.all(np.diff(ts) >= 0) and np.all(np.diff(stamps) > 0), topic
+        if topic == "/diagnostics":
+            assert np.array_equal(ts, stamps)                          # node clock = receive time
+            continue
+        assert set(stamps.tolist()) <= accepted_times                 # stamped at an input sample's time
+        assert all(recv_of[s] == t for s, t in zip(stamps.tolist(), ts.tolist()))  # recorded when received
+    js = out["/gimbal/joint_states"]
+    if facts["use_header"]:
+        lag = [(t - (x.header.stamp.sec * S + x.header.stamp.nanosec)) / 1e6 for t, x in js]
+        assert 15 < min(lag) and max(lag) < 40                        # husky: receive − stamp 20–36 ms
+    assert run["summary"]["input"]["time_source"] == ("header" if facts["use_header"] else "receive")
+
+
+def test_output_values_finite_and_bounded(run):
+    out = read_output(run["out"])
+    for _, js in out["/gimbal/joint_states"]:
+        assert js.name == [*GIMBAL_NAMES, *MOUNT_NAMES]                # stabilised: mount joints too
+        assert np.all(np.isfinite(js.position))
+        assert np.max(np.abs(js.position[:5])) < 1e-3                 # servo holds the pick-offs (rad)
+        assert np.max(np.abs(js.position[5:])) < math.pi + 1e-9
+        assert np.all(np.isfinite(js.velocity[:5])) and np.all(np.isfinite(js.effort[:5]))
+        assert np.all(np.isnan(js.velocity[5:])) and np.all(np.isnan(js.effort[5:]))   # not reported
+    for name in BEARING_NAMES:
+        for _, w in out[f"/bearing/{name}/torque"]:
+            assert w.header.frame_id == BEARING_FRAMES[name]
+            f, tq = w.wrench.force, w.wrench.torque
+            assert (f.x, f.y, f.z) == (0.0, 0.0, 0.0)
+            v = np.array([tq.x, tq.y, tq.z])
+            assert np.all(np.isfinite(v)) and np.linalg.norm(v) < 1.0    # N m; the servo limit is 2
+    for topic, bound in (("/drift/angle", 1e-3), ("/drift/rate", 1e-2)):
+        for _, v in out[topic]:
+            vec = np.array([v.vector.x, v.vector.y, v.vector.z])
+            assert v.header.frame_id == "platform" and np.all(np.isfinite(vec)) and np.max(np.abs(vec)) < bound
+    for _, d in out["/diagnostics"]:
+        assert [s.name for s in d.status] == ["gyro_platform: input", "gyro_platform: platform"]
+
+
+def test_summary_consistent_with_the_bags(run):
+    s, facts = run["summary"], run["facts"]
+    out = read_output(run["out"])
+    assert json.loads(rp.sidecar_paths(run["out"])[0].read_text()) == json.loads(json.dumps(s, default=str))
+    n_in = facts["counts"][run["topic"]]
+    c = s["counts"]
+    assert c["in"] == n_in == s["input"]["topic_messages"]
+    assert c["accepted"] + c["dropped"] == n_in and c["dropped"] == 0 and c["resets"] == 0
+    assert c["simulator"] == {"pushed": n_in}
+    taken = s["config"]["frames_taken_as_base_link"]
+    assert taken == (["logic_tube_bno085"] if run["topic"] == "/logic_tube/imu" else [])
+    assert c["out"] == len(out["/gimbal/joint_states"]) == s["output"]["outputs"]
+    assert s["output"]["messages_by_topic"] == {t: len(v) for t, v in out.items()}
+    assert s["input"]["messages"] == sum(facts["counts"].values())
+    with Reader(run["bag"]) as r:
+        assert s["duration_s"] == pytest.approx((r.end_time - 1 - r.start_time) / S, abs=1e-9)
+    assert s["real_time_factor"] == pytest.approx(s["duration_s"] / s["wall_time_s"])
+    assert s["real_time_factor"] > 1.0 and s["error"] is None
+    pos = np.array([x.position for _, x in out["/gimbal/joint_states"]])
+    for i, name in enumerate((*GIMBAL_NAMES, *MOUNT_NAMES)):
+        assert s["ranges"][name] == [pos[:, i].min(), pos[:, i].max()], name
+    last_rate = out["/drift/rate"][-1][1].vector
+    assert s["drift"]["final_drift_rate_rad_s"] == [last_rate.x, last_rate.y, last_rate.z]
+    png = Path(s["files"]["plot"])
+    assert png.name == run["out"].name + ".png" and png.stat().st_size > 10_000
+    assert s["recorder"]["n_outputs"] == c["out"]
+
+
+def test_husky_samples_are_rotated_into_base_link():
+    need(HUSKY)
+    mount = m.Mounting({"imu_link": HUSKY_RPY}, unknown_frame="reject")
+    rot = mount.matrix("imu_link")
+    forces = []
+    for i, bs in enumerate(rp.read_samples(HUSKY, mounting=mount)):
+        w = bs.msg.angular_velocity
+        np.testing.assert_allclose(bs.sample.omega, rot @ [w.x, w.y, w.z], atol=1e-15)
+        forces.append(bs.sample.specific_force)
+        if i == 199:
+            break
+    assert np.mean(forces, axis=0)[2] > 9.6                           # gravity up in base_link
+
+
+def test_read_samples_streams_lazily(monkeypatch):
+    """The reader is a generator: it yields the first sample after pulling one message."""
+    need(HUSKY)
+    pulled = []
+    orig = Reader.messages
+
+    def counting(self, *a, **k):
+        for item in orig(self, *a, **k):
+            pulled.append(item[1])
+            yield item
+
+    monkeypatch.setattr(Reader, "messages", counting)
+    gen = rp.read_samples(HUSKY)
+    first = next(gen)
+    assert len(pulled) == 1 and first.decision.action is Action.ACCEPT
+    assert first.receive_ns == pulled[0]
+    next(gen)
+    assert len(pulled) == 2
+    gen.close()                                                       # closes the bag
+
+
+def test_read_samples_cabrillo_uses_receive_time():
+    need(CABRILLO)
+    gate = TimeGate()
+    n, prev = 0, -1.0
+    for bs in rp.read_samples(CABRILLO, gate=gate):
+        assert bs.decision.action is Action.ACCEPT and bs.decision.source == "receive"
+        assert bs.decision.stamp_ns == bs.receive_ns and bs.sample.t > prev
+        prev = bs.sample.t
+        n += 1
+    assert n == 1041 and gate.snapshot()["notes"]["identity_frame"] == 1041
+    assert 9.5 < gate.snapshot()["input_rate_hz"] < 10.5
+
+
+def test_plot_series_is_bounded():
+    ps = rp._PlotSeries(cap=100)
+    for i in range(10_000):
+        ps.add(i)
+    assert len(ps.items) < 100 and ps.items == list(range(0, ps.items[-1] + 1, ps.stride))
+
+
+# ---- damaged bags ------------------------------------------------------------------------
+def _cut_copy(src: Path, dst: Path, frac: float) -> Path:
+    shutil.copytree(src, dst)
+    for f in dst.iterdir():
+        f.chmod(0o644)
+        if f.suffix in (".db3", ".mcap"):
+            data = f.read_bytes()
+            f.write_bytes(data[:int(len(data) * frac)])
+    return dst
+
+
+@pytest.mark.parametrize("name,frac", [("cabrillo", 0.2), ("husky", 0.15)])
+def test_truncated_bag_gives_clear_error_and_readable_partial_output(name, frac, tmp_path, capsys):
+    src = CABRILLO if name == "cabrillo" else HUSKY
+    need(src)
+    bag = _cut_copy(src, tmp_path / "cut", frac)
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--output-rate", "1", "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == rp.EXIT_DAMAGED
+    storage_file = next(f for f in bag.iterdir() if f.suffix in (".db3", ".mcap"))
+    assert f"error: {storage_file}" in err and ("truncated" in err or "damaged" in err)
+    assert "output bag closed and readable" in err
+    summary = json.loads(rp.sidecar_paths(out)[0].read_text())
+    assert str(storage_file) in summary["error"] and summary["input"]["salvaged"]
+    got = read_output(out)                                            # readable, every message decodes
+    full = input_facts(src, summary["input"]["topic"])["counts"][summary["input"]["topic"]]
+    n_in = len(got[summary["input"]["topic"]])
+    assert 0 < n_in < full and n_in == summary["counts"]["in"]
+    assert len(got["/gimbal/joint_states"]) == summary["counts"]["out"] > 0
+    # the salvaged part is the bag's beginning, byte for byte
+    head = raw_by_topic(src)[summary["input"]["topic"]][:n_in]
+    assert raw_by_topic(out)[summary["input"]["topic"]] == head
+
+
+def test_corrupt_chunk_mid_stream_ends_replay_with_readable_output(tmp_path, capsys):
+    """An intact index but garbage inside a chunk: rosbags opens the bag, reading fails later."""
+    need(HUSKY)
+    bag = _cut_copy(HUSKY, tmp_path / "bad", 1.0)
+    f = next(bag.glob("*.mcap"))
+    data = bytearray(f.read_bytes())
+    data[len(data) // 7:len(data) // 7 + 4096] = b"\xff" * 4096
+    f.write_bytes(bytes(data))
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--output-rate", "1", "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == rp.EXIT_DAMAGED and f"error: {bag}: damaged" in err
+    got = read_output(out)
+    assert 0 < len(got["/imu/data"]) < 11865 and len(got["/gimbal/joint_states"]) > 0
+
+
+# ---- bad input end to end (synthetic bag) ------------------------------------------------
+def imu_msg(stamp_ns, w, frame="base_link", cov_w=0.0):
+    cov = np.zeros(9)
+    cov[0] = cov_w
+    return T["sensor_msgs/msg/Imu"](
+        header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=stamp_ns // S,
+                                                                               nanosec=stamp_ns % S),
+                                        frame_id=frame),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=np.zeros(9),
+        angular_velocity=T["geometry_msgs/msg/Vector3"](x=w[0], y=w[1], z=w[2]),
+        angular_velocity_covariance=cov,
+        linear_acceleration=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=9.81),
+        linear_acceleration_covariance=np.zeros(9))
+
+
+def write_bag(path: Path, items, storage="sqlite3", topic="/imu", msgtype="sensor_msgs/msg/Imu", extra=()):
+    from rosbags.rosbag2 import StoragePlugin
+
+    plugin = StoragePlugin.SQLITE3 if storage == "sqlite3" else StoragePlugin.MCAP
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conn = w.add_connection(topic, msgtype, typestore=JAZZY)
+        others = {t: w.add_connection(t, ty, typestore=JAZZY) for t, ty, _ in extra}
+        for ts, msg in items:
+            raw = msg if isinstance(msg, bytes) else JAZZY.serialize_cdr(msg, msgtype)
+            w.write(conn, ts, raw)
+        for t, _, recs in extra:
+            for ts, msg in recs:
+                w.write(others[t], ts, JAZZY.serialize_cdr(msg, msg.__msgtype__))
+    return path
+
+
+T0 = 1_700_000_000 * S
+DT = S // 50
+
+
+def bad_stream():
+    """(receive ns, message, expected decision reason)."""
+    w = (0.01, -0.02, 0.03)
+    seq, t = [], T0
+    for i in range(10):
+        seq.append((t, imu_msg(t, w), "start" if i == 0 else "ok"))
+        t += DT
+    seq.append((t, imu_msg(0, w), "zero_stamp"))
+    seq.append((t + 1, imu_msg(t - DT, w), "repeated_stamp"))
+    seq.append((t + 2, imu_msg(t - 3 * DT, w), "backward_stamp"))
+    seq.append((t + 3, imu_msg(t, (math.nan, 0.0, 0.0)), "non_finite"))
+    seq.append((t + 4, imu_msg(t, (40.0, 0.0, 0.0)), "over_rate"))
+    seq.append((t + 5, imu_msg(t, w, cov_w=-1.0), "no_rate"))
+    seq.append((t + 6, imu_msg(t, w, frame="elsewhere"), "unknown_frame"))
+    seq.append((t + 7, b"\x00\x01\x00\x00garbage", "bad_message"))
+    for i in range(5):
+        seq.append((t + 8 + i, imu_msg(t, w), "ok"))
+        t += DT
+    t += 3 * S                                                        # gap > max_gap 1 s
+    for i in range(5):
+        seq.append((t, imu_msg(t, w), "gap" if i == 0 else "ok"))
+        t += DT
+    t -= 20 * S                                                       # the recording loops
+    seq.append((t + 25 * S, imu_msg(t, w), "jump_back"))
+    for i in range(4):
+        t += DT
+        seq.append((t + 25 * S, imu_msg(t, w), "ok"))
+    return seq
+
+
+def test_every_bad_input_gets_its_decision_and_counter(tmp_path):
+    seq = bad_stream()
+    bag = write_bag(tmp_path / "bad", [(ts, msg) for ts, msg, _ in seq])
+    mount = m.Mounting(unknown_frame="reject")
+    reasons = [bs.decision.reason for bs in rp.read_samples(bag, mounting=mount)]
+    assert reasons == [r for _, _, r in seq]
+
+    out = tmp_path / "out"
+    cfg = rp.ReplayConfig(output_rate=None, progress=False, plot=False, storage="mcap", mounting=mount)
+    s = rp.replay(bag, out, cfg)
+    expect_drop = {r: 1 for r in ("zero_stamp", "repeated_stamp", "backward_stamp", "non_finite", "over_rate",
+                                  "no_rate", "unknown_frame", "bad_message")}
+    assert s["counts"]["dropped_by_reason"] == expect_drop
+    assert s["counts"]["resets_by_reason"] == {"gap": 1, "jump_back": 1}
+    n_acc = sum(1 for _, _, r in seq if r in ("start", "ok", "gap", "jump_back"))
+    assert s["counts"]["accepted"] == n_acc and s["counts"]["in"] == len(seq)
+    assert s["counts"]["simulator"] == {"pushed": n_acc - 2, "reset": 2, "dropped": 8}
+    got = read_output(out, undecodable_ok=("/imu",))                  # mcap output from a sqlite3 input
+    assert rp._read_metadata(out)["storage_identifier"] == "mcap"
+    js = got["/gimbal/joint_states"]
+    assert len(js) == n_acc                                           # a reset loses no emitted output
+    stamps = [x.header.stamp.sec * S + x.header.stamp.nanosec for _, x in js]
+    backwards = [i for i in range(1, len(stamps)) if stamps[i] <= stamps[i - 1]]
+    assert len(backwards) == 1                                        # only at the loop
+    assert got["/imu"] and len(got["/imu"]) == len(seq) - 1           # the garbage record is copied, not decoded
+    assert raw_by_topic(out)["/imu"] == raw_by_topic(bag)["/imu"]
+
+
+def test_gap_integrate_and_twist_topic_selection(tmp_path):
+    v3 = T["geometry_msgs/msg/Vector3"]
+    items, t = [], T0
+    for i in range(30):
+        tw = T["geometry_msgs/msg/TwistStamped"](
+            header=m.header(m.MessageTypes.rosbags(), t, "base_link"),
+            twist=T["geometry_msgs/msg/Twist"](linear=v3(x=0.0, y=0.0, z=0.0), angular=v3(x=0.0, y=0.0, z=0.2)))
+        items.append((t, tw))
+        t += DT if i != 15 else 2 * S
+    odom = [(T0 + i * DT, T["geometry_msgs/msg/Twist"](linear=v3(x=1.0, y=0.0, z=0.0),
+                                                       angular=v3(x=0.0, y=0.0, z=0.0))) for i in range(5)]
+    # two input-type topics: /a_cmd (Twist) comes first in the bag, --topic picks /vel
+    bag = write_bag(tmp_path / "tw", items, topic="/vel", msgtype="geometry_msgs/msg/TwistStamped",
+                    extra=[("/z_cmd", "geometry_msgs/msg/Twist", odom)])
+    out = tmp_path / "out"
+    cfg = rp.ReplayConfig(topic="/vel", output_rate=5.0, progress=False, plot=False,
+                          gate=GateConfig(on_gap="integrate"))
+    s = rp.replay(bag, out, cfg)
+    assert s["input"]["topic"] == "/vel" and s["counts"]["resets"] == 0
+    assert s["counts"]["notes"]["gap_integrated"] == 1
+    assert len(read_output(out)["/z_cmd"]) == 5
+    with rp.InputBag(bag) as b:                                        # default: first input-type topic
+        assert b.topic == "/vel"
+
+
+def test_scene_sets_model_and_output_rate(tmp_path):
+    seq = [(ts, msg) for ts, msg, r in bad_stream()[:10]]
+    bag = write_bag(tmp_path / "b", seq)
+    scene = tmp_path / "s.yaml"
+    scene.write_text(f"name: s\nmode: carried\nduration: 1\noutput_rate: 25\n"
+                     f"motion: {{type: bag, path: {bag}}}\n")
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(bag), "--out", str(out), "--scene", str(scene), "--quiet", "--no-plot"]) == 0
+    s = json.loads(rp.sidecar_paths(out)[0].read_text())
+    assert s["simulator"]["mode"] == "carried" and s["output"]["output_rate_hz"] == 25.0
+    assert len(read_output(out)["/gimbal/joint_states"][0][1].name) == 5      # carried: no mount joints
+
+
+def test_cli_errors_are_clear(tmp_path, capsys):
+    bag = write_bag(tmp_path / "b", [(ts, msg) for ts, msg, _ in bad_stream()[:5]])
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(tmp_path / "nope"), "--out", str(out), "--quiet"]) == rp.EXIT_ERROR
+    assert f"{tmp_path / 'nope'}: no such file" in capsys.readouterr().err
+    assert cli.main(["replay", str(bag), "--out", str(out), "--topic", "/x", "--quiet"]) == rp.EXIT_ERROR
+    assert "no topic '/x'; topics: /imu (sensor_msgs/msg/Imu)" in capsys.readouterr().err
+    assert not out.exists()
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot"]) == 0
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet"]) == rp.EXIT_ERROR
+    assert "exists already" in capsys.readouterr().err
+    # an output bag as input: its output topics clash unless a namespace separates them
+    out2 = tmp_path / "out2"
+    assert cli.main(["replay", str(out), "--out", str(out2), "--quiet"]) == rp.EXIT_ERROR
+    assert "--namespace" in capsys.readouterr().err
+    assert cli.main(["replay", str(out), "--out", str(out2), "--quiet", "--no-plot", "--namespace", "again"]) == 0
+    again = read_output(out2)
+    first = read_output(out)
+    assert len(again["/again/gimbal/joint_states"]) == len(first["/gimbal/joint_states"]) > 0
+    assert raw_by_topic(out2)["/gimbal/joint_states"] == raw_by_topic(out)["/gimbal/joint_states"]  # copied
+    assert len(again["/diagnostics"]) == 2 * len(first["/diagnostics"])       # shared, as on a robot
+    assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"]) == 1
+    assert "mounting" in capsys.readouterr().err
