@@ -37,8 +37,8 @@ VEHICLE_ACC = EFFECT_INDEX["vehicle_angular_acceleration"]
 
 # layout of the float coefficient vector ``k`` handed to the kernels (built by ``coefficients``)
 K_SPRING, K_DAMPER, K_COULOMB, K_VISC, K_BIAS = 0, 5, 10, 15, 20
-K_EPS, K_KP, K_KD, K_KI, K_LIMIT, K_DS, K_MUS, K_MASS, K_ELL, K_DK = 25, 26, 27, 28, 29, 30, 31, 32, 33, 34
-N_K = 35
+K_EPS, K_KP, K_KD, K_KI, K_LIMIT, K_DS, K_MUS, K_MASS, K_ELL, K_DK, K_EPS_S = 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35
+N_K = 36
 
 
 def flags(effects) -> np.ndarray:
@@ -58,6 +58,7 @@ def coefficients(p) -> np.ndarray:
     k[K_VISC:K_VISC + 5] = p.gimbal_viscous_friction
     k[K_BIAS:K_BIAS + 5] = p.bias_torque
     k[K_EPS] = p.friction_rate_eps
+    k[K_EPS_S] = p.support_rate_eps
     k[K_KP], k[K_KD], k[K_KI], k[K_LIMIT] = p.servo_kp, p.servo_kd, p.servo_ki, p.servo_limit
     k[K_DS], k[K_MUS] = p.support_viscous, p.support_coulomb
     k[K_MASS], k[K_ELL], k[K_DK] = p.gyro_mass, p.unbalance, p.anisoelastic
@@ -132,8 +133,8 @@ def servo_torque(k, y, yd, z, out):
 @njit(cache=True)
 def support_friction(k, Om, wB_P, M):
     """Mount bearing friction dragging the platform towards the vehicle rate (offset, not
-    drift): M −= D_s (Ω − ω_B) + μ_s sat((Ω − ω_B)/ε), rates in platform axes."""
-    eps = k[K_EPS]
+    drift): M −= D_s (Ω − ω_B) + μ_s sat((Ω − ω_B)/ε_s), rates in platform axes."""
+    eps = k[K_EPS_S]
     for i in range(3):
         d = Om[i] - wB_P[i]
         M[i] -= k[K_DS] * d + k[K_MUS] * sat(d / eps)

@@ -16,9 +16,10 @@ import math
 import numpy as np
 from numba import njit
 
-from .system import platform_rhs
+from .system import platform_rhs, support_regime
 
 RK4, EXPRK = 0, 1
+NEED_REGIME = 8   # run_batch status: matrices for a new friction regime are needed
 
 
 @njit(cache=True)
@@ -34,12 +35,16 @@ def _normalise(y, a, b):
 
 
 @njit(cache=True)
-def run_batch(method, max_step, Mptr, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_out, fid, I, P, seg, mats,
-              axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a, Q, RR, V, W):
+def run_batch(method, max_step, reg_of, Mptr_all, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_out, first, need,
+              fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a,
+              Q, RR, V, W):
     """Step ``y`` through the samples ``t_rel[i]`` (s, relative), ``w[i]`` (rad/s),
     ``f[i]`` (m/s²). Stores a copy of y after sample ``out_idx[j]`` in ``y_out[j]``.
-    ``Mptr, Midx, Mdat`` are the exponential stage matrices in CSR form (``stage_matrices``;
-    unused for RK4), ``c`` the stage nodes. Returns (index of the last sample reached, status): status ≠ 0 stops the loop
+    ``Mptr_all[set], Midx, Mdat`` are the exponential stage matrices in CSR form, one set per
+    support-friction regime (``reg_of[regime]`` = set index, −1 = not built yet: the loop then
+    stops with status ``NEED_REGIME`` and ``need[0]`` = regime, and is resumed from the sample it
+    reached once Python has built the set). ``c`` are the stage nodes. Starts after sample
+    ``first``. Returns (index of the last sample reached, status): status ≠ 0 stops the loop
     with ``y`` at the last good sample."""
     n = y.shape[0]
     s = c.shape[0]
@@ -51,9 +56,12 @@ def run_batch(method, max_step, Mptr, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_
     qp = I[0, 2]
     j_out = 0
     nout = out_idx.shape[0]
+    while j_out < nout and out_idx[j_out] <= first:
+        j_out += 1
     status = 0
-    last = 0
-    for i in range(1, t_rel.shape[0]):
+    last = first
+    Mptr = Mptr_all[0]
+    for i in range(first + 1, t_rel.shape[0]):
         t0 = t_rel[i - 1]
         t1 = t_rel[i]
         seg[0] = t0
@@ -69,6 +77,13 @@ def run_batch(method, max_step, Mptr, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_
         h = (t1 - t0) / nsub
         for m in range(n):
             y0[m] = y[m]
+        if method == EXPRK:
+            r = support_regime(y, I, P, seg, RR)
+            sidx = reg_of[r]
+            if sidx < 0:
+                need[0] = r
+                return last, NEED_REGIME
+            Mptr = Mptr_all[sidx]
         for sub in range(nsub):
             t = t0 + sub * h
             # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
@@ -142,3 +157,37 @@ def stage_matrices(integrator, system, h: float):
             # rows are numbered per stage: restart offsets at each stage's first row
         return EXPRK, (ptr, np.asarray(idx, np.int64), np.asarray(dat, float)), np.asarray(integrator.c, float)
     raise ValueError(f"integrator {integrator.name!r} has no compiled batch path (rk4, etd2, etd4 have)")
+
+
+class RegimeMatrices:
+    """CSR stage matrices of an exponential method, one set per support-friction regime
+    (built on demand: a scene meets only a few of the 8 regimes)."""
+
+    def __init__(self, integrator, system, h: float):
+        self.integrator, self.system, self.h = integrator, system, h
+        n = system.layout.n
+        self.reg_of = -np.ones(8, dtype=np.int64)
+        self.ptr = np.zeros((1, 4, n + 1), np.int64)
+        self.idx = np.zeros(1, np.int64)
+        self.dat = np.zeros(1)
+        self._sets: list = []
+        if integrator.name in ("etd2", "etd4"):
+            self.add(system.regime)
+
+    def add(self, regime: int) -> None:
+        saved = self.system.regime
+        self.system.regime = regime
+        try:
+            _, (ptr, idx, dat), _ = stage_matrices(self.integrator, self.system, self.h)
+        finally:
+            self.system.regime = saved
+        off = sum(len(s[1]) for s in self._sets)
+        self._sets.append((ptr + off, idx, dat))
+        self.reg_of[regime] = len(self._sets) - 1
+        s_max = max(p.shape[0] for p, _, _ in self._sets)
+        n1 = ptr.shape[1]
+        self.ptr = np.zeros((len(self._sets), s_max, n1), np.int64)
+        for k, (p, _, _) in enumerate(self._sets):
+            self.ptr[k, :p.shape[0]] = p
+        self.idx = np.concatenate([s[1] for s in self._sets])
+        self.dat = np.concatenate([s[2] for s in self._sets])

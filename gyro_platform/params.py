@@ -54,7 +54,11 @@ class PlatformParams:
     gimbal_coulomb: tuple[float, float, float, float, float] = (1.0e-8,) * 5
     gimbal_viscous_friction: tuple[float, float, float, float, float] = (0.0,) * 5
     bias_torque: tuple[float, float, float, float, float] = (0.0,) * 5
-    friction_rate_eps: float = 1.0e-6  # rad/s, regularisation of sign() in Coulomb friction
+    friction_rate_eps: float = 1.0e-6  # rad/s, regularisation of sign() in gimbal Coulomb friction
+    # rad/s, regularisation of the mount (support) Coulomb friction. Wider than the gimbals':
+    # this friction only offsets the servo (no drift, O9 c) and a 1e-6 rad/s zone makes the
+    # platform flip between stick and slip every step on quiet axes (stiffness μ/ε = 5e3 N m s).
+    support_rate_eps: float = 1.0e-4
     # platform servo (pick-offs y = (beta10, alpha4, alpha9) -> mount torquers, platform axes)
     servo_kp: float = 1500.0
     servo_kd: float = 16.0
@@ -182,6 +186,7 @@ def validate(p: PlatformParams) -> None:
         _check(name, getattr(p, name), 0.0, 1e6)
     _check("bias_torque", p.bias_torque, -1e3, 1e3)
     _check("friction_rate_eps", p.friction_rate_eps, 0.0, 1.0, lo_open=True)
+    _check("support_rate_eps", p.support_rate_eps, 0.0, 1.0, lo_open=True)
     for name in ("servo_kp", "servo_kd", "servo_ki", "support_viscous", "support_coulomb",
                  "gyro_mass", "unbalance", "anisoelastic"):
         _check(name, getattr(p, name), 0.0 if name != "unbalance" else -1.0, 1e9)

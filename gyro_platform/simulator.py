@@ -115,6 +115,7 @@ class Simulator:
         last = self._last
         self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
                               sample.specific_force)
+        self.system.update_regime(self.y)
         try:
             y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
         except (FloatingPointError, np.linalg.LinAlgError) as e:
@@ -139,7 +140,7 @@ class Simulator:
         none). Uses the compiled batch loop (``fastpath``) when the integrator has one and the
         steps are uniform (exponential methods); otherwise pushes one by one. Same results as
         ``push``. Raises ``InputError`` before touching the state if any sample is bad."""
-        from .fastpath import run_batch, stage_matrices
+        from .fastpath import NEED_REGIME, RegimeMatrices, run_batch, stage_matrices
         t = np.asarray(t, dtype=float).reshape(-1)
         w = np.ascontiguousarray(np.asarray(omega, dtype=float).reshape(-1, 3))
         has_f = specific_force is not None
@@ -175,7 +176,7 @@ class Simulator:
         nsub = np.maximum(1, np.ceil(dts / h_max - 1e-9))
         hs = dts / nsub
         try:
-            method, M, c = stage_matrices(self.integrator, sys_, float(hs[0]))
+            method, c = stage_matrices(self.integrator, sys_, float(hs[0]))[0::2]
             uniform = method == 0 or np.max(np.abs(hs - hs[0])) <= 1e-9 * hs[0]
         except ValueError:
             uniform = False
@@ -189,9 +190,18 @@ class Simulator:
         sel = idx[((idx - 1 + start) % output_every) == 0] if output_every else idx[:0]
         y_out = np.zeros((len(sel), self.layout.n))
         y = self.y.copy()
-        wk = sys_.work
-        last, status = run_batch(method, float(hs[0]) if method else h_max, M[0], M[1], M[2], c, t_rel, W, Fm, y,
-                                 sel.astype(np.int64), y_out, sys_.fid, *sys_.kernel_args())
+        h_step = float(hs[0]) if method else h_max
+        sets = RegimeMatrices(self.integrator, sys_, h_step)
+        first, last, status = 0, 0, 0
+        while True:
+            need = np.zeros(1, dtype=np.int64)
+            last, status = run_batch(method, h_step, sets.reg_of, sets.ptr, sets.idx, sets.dat, c, t_rel, W, Fm,
+                                     y, sel.astype(np.int64), y_out, first, need, sys_.fid, *sys_.kernel_args())
+            if status == NEED_REGIME:
+                sets.add(int(need[0]))     # a friction regime met for the first time: build its matrices
+                first = last
+                continue
+            break
         steps = int(np.sum(nsub[:last]))
         sys_.n_rhs += steps * len(c)
         # outputs at the selected samples (state restored afterwards)

@@ -198,7 +198,7 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     # --- platform torque (stabilised): support friction; servo after the gimbal rates ------
     MP0, MP1, MP2 = 0.0, 0.0, 0.0
     if stab and on[fx.SUPPORT]:
-        eps = k[fx.K_EPS]
+        eps = k[fx.K_EPS_S]
         r0, r1, r2 = Om0 - wBP0, Om1 - wBP1, Om2 - wBP2
         MP0 -= k[fx.K_DS] * r0 + k[fx.K_MUS] * fx.sat(r0 / eps)
         MP1 -= k[fx.K_DS] * r1 + k[fx.K_MUS] * fx.sat(r1 / eps)
@@ -334,6 +334,54 @@ def _add_body_torques(J, tau_ext, nv, stab, Q, MP):
                 MP[j] += s
 
 
+@njit(cache=True)
+def support_regime(y, I, P, seg, RR):
+    """Bit mask of the mount axes whose support friction stays in its regularised (stick) zone
+    |Ω_i − ω_B,i| < ε over the whole input interval (stabilised mode, effect on). An axis only
+    passing through the zone (the vehicle rate seen from the platform turns or changes) is
+    slipping: d(ω_B^P)/dt = R_PB ω̇_B − Ω × ω_B^P is used to look across the interval."""
+    lay = I[0]
+    if lay[LAY_STAB] != 1 or I[1, fx.SUPPORT] == 0:
+        return 0
+    quat_to_matrix_at(y, lay[LAY_QIP], RR, 0)
+    quat_to_matrix_at(y, lay[LAY_QIB], RR, 1)
+    eps = P[fx.K_EPS_S]
+    io = lay[LAY_OM]
+    dt = seg[1]
+    inv_dt = 1.0 / dt if dt > 0.0 else 0.0
+    wbp0 = 0.0
+    wbp1 = 0.0
+    wbp2 = 0.0
+    dw0 = 0.0
+    dw1 = 0.0
+    dw2 = 0.0
+    for j in range(3):
+        r0 = RR[0, 0, 0] * RR[1, 0, j] + RR[0, 1, 0] * RR[1, 1, j] + RR[0, 2, 0] * RR[1, 2, j]
+        r1 = RR[0, 0, 1] * RR[1, 0, j] + RR[0, 1, 1] * RR[1, 1, j] + RR[0, 2, 1] * RR[1, 2, j]
+        r2 = RR[0, 0, 2] * RR[1, 0, j] + RR[0, 1, 2] * RR[1, 1, j] + RR[0, 2, 2] * RR[1, 2, j]
+        wj = seg[2 + j]
+        dj = (seg[5 + j] - seg[2 + j]) * inv_dt
+        wbp0 += r0 * wj
+        wbp1 += r1 * wj
+        wbp2 += r2 * wj
+        dw0 += r0 * dj
+        dw1 += r1 * dj
+        dw2 += r2 * dj
+    O0, O1, O2 = y[io], y[io + 1], y[io + 2]
+    # d(ω_B^P)/dt = R_PB ω̇_B − Ω × ω_B^P
+    dw0 -= O1 * wbp2 - O2 * wbp1
+    dw1 -= O2 * wbp0 - O0 * wbp2
+    dw2 -= O0 * wbp1 - O1 * wbp0
+    mask = 0
+    if abs(O0 - wbp0) + abs(dw0) * dt < eps:
+        mask |= 1
+    if abs(O1 - wbp1) + abs(dw1) * dt < eps:
+        mask |= 2
+    if abs(O2 - wbp2) + abs(dw2) * dt < eps:
+        mask |= 4
+    return mask
+
+
 class PlatformSystem:
     """The ODE system of one scene (``OdeSystem`` contract of ``integrators``).
 
@@ -452,20 +500,47 @@ class PlatformSystem:
             y[self.layout.quat_IP.start + 3] = 1.0
         return y
 
+    def update_regime(self, y: np.ndarray) -> int:
+        """Set (and return) the friction regime for the coming step (see ``support_regime``)."""
+        self.regime = int(support_regime(y, self.I, self.P, self.seg, self._RR))
+        return self.regime
+
+    regime = 0
+
     def linear_part(self):
-        """(A, key): Jacobian of ẏ at rest (zero input, q = 0, ẋ = 0, unit quaternions), with
-        Coulomb friction and the attitude/vehicle rows left to the nonlinear remainder."""
+        """(A, key): the linear part for exponential integrators — the Jacobian of ẏ at rest
+        (zero input, q = 0, ẋ = 0, unit quaternions) with Coulomb friction and the attitude
+        rows left to the remainder, plus, for every mount axis in its stick zone (``regime``),
+        the slope μ_s/ε of the regularised support friction: that stiffness (~5e4 1/s) must be
+        in A, or an explicit remainder turns it into a false drift. Cached per regime."""
         if self._lin is None:
-            saved = self.on.copy(), self.seg.copy()
+            self._lin = {}
+        r = self.regime
+        if r not in self._lin:
+            A = self._rest_jacobian().copy()
+            if r:
+                lay = self.layout
+                slope = self.k[fx.K_MUS] / self.k[fx.K_EPS_S]
+                if self.fid == PRECESSION:
+                    rows, Minv_cols = lay.Om, self.mats[3, :3, :3]
+                else:
+                    rows, Minv_cols = lay.v, self.mats[0][:, :3]
+                for i in range(3):
+                    if (r >> i) & 1:
+                        A[rows, lay.Om.start + i] -= slope * Minv_cols[:, i]
+            self._lin[r] = (A, ("platform", id(self), r))
+        return self._lin[r]
+
+    def _rest_jacobian(self) -> np.ndarray:
+        if getattr(self, "_A_rest", None) is None:
+            saved = self.on.copy(), self.seg.copy(), self.k.copy(), self.n_rhs
             self.on[fx.EARTH] = 0
-            self.k_saved = self.k.copy()
             self.k[fx.K_COULOMB:fx.K_COULOMB + 5] = 0.0
             self.k[fx.K_MUS] = 0.0
             self.set_input(0.0, 1.0, np.zeros(3), np.zeros(3))
             y0 = self.rest_state()
             n = y0.size
             A = np.zeros((n, n))
-            f0 = self.rhs(0.0, y0)
             for j in range(n):
                 h = 1e-7
                 yp = y0.copy()
@@ -478,9 +553,7 @@ class PlatformSystem:
                 if sl is not None:
                     A[sl, :] = 0.0
                     A[:, sl] = 0.0
-            self.on[:], self.seg[:] = saved
-            self.k[:] = self.k_saved
-            self.n_rhs -= 2 * n + 1
-            _ = f0
-            self._lin = (A, ("platform-rest", id(self)))
-        return self._lin
+            self.on[:], self.seg[:], self.k[:] = saved[0], saved[1], saved[2]
+            self.n_rhs = saved[3]
+            self._A_rest = A
+        return self._A_rest

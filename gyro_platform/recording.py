@@ -1,0 +1,383 @@
+"""Recording of simulator outputs: arrays per field, CSV/JSON files, a summary and a plot.
+
+Units: time s, angles rad, rates rad/s, torques N m; drift rates also in °/h
+(``1 rad/s = 206 264.8 °/h``). A *drift* is the slowly growing part of the drift angle, so the
+drift rate is the slope of a least-squares straight line through the drift angle over time —
+an oscillation on top of it averages out, a bounded offset does not count.
+
+Frames: ``drift_angle`` is the platform attitude error (rotation vector, platform axes; see
+``outputs.Outputs``); bearing torques are in the axes of ``outputs.BEARING_FRAMES``; servo
+torques in platform axes; vehicle rates in vehicle body axes (FLU).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from .outputs import BEARING_NAMES, GIMBAL_NAMES, Outputs
+
+RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
+AXES = ("x", "y", "z")
+ROTORS = ("rotor6", "rotor8", "rotor11")
+
+
+def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least-squares slope of ``y`` (N,) or (N, k) against ``t`` (N,): units of y per second."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t.size < 2:
+        return np.zeros(y.shape[1:]) if y.ndim > 1 else np.float64(0.0)
+    tc = t - t.mean()
+    den = float(tc @ tc)
+    if den == 0.0:
+        return np.zeros(y.shape[1:]) if y.ndim > 1 else np.float64(0.0)
+    yc = y - y.mean(axis=0)
+    return (tc @ yc) / den
+
+
+def _axes_dict(v: np.ndarray) -> dict[str, float]:
+    v = np.asarray(v, dtype=float)
+    return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]), "norm": float(np.linalg.norm(v))}
+
+
+def _max_abs_axes(a: np.ndarray) -> dict[str, float]:
+    d = {ax: float(np.max(np.abs(a[:, i]))) for i, ax in enumerate(AXES)}
+    d["norm"] = float(np.max(np.linalg.norm(a, axis=1)))
+    return d
+
+
+class Recorder:
+    """Collects :class:`~gyro_platform.outputs.Outputs` (one per output instant).
+
+    ``append(outputs, **extra)`` stores the outputs and optional extra per-instant series, e.g.
+    ``vehicle_omega`` (3,) rad/s and ``vehicle_attitude`` (4,) quaternion x, y, z, w
+    (vehicle → navigation frame) when the vehicle motion is known.
+    """
+
+    def __init__(self) -> None:
+        self._outs: list[Outputs] = []
+        self._extra: dict[str, list[np.ndarray]] = {}
+        self._cache: dict[str, np.ndarray] = {}
+
+    # ---- collection ---------------------------------------------------------------------
+    def append(self, outputs: Outputs, **extra: Any) -> None:
+        """Record one output instant; ``extra`` arrays must be given at every instant."""
+        if self._outs and set(extra) != set(self._extra):
+            raise ValueError(f"extra series must be the same at every instant: "
+                             f"{sorted(extra)} vs {sorted(self._extra)}")
+        if not self._outs:
+            self._extra = {k: [] for k in extra}
+        self._outs.append(outputs)
+        for k, v in extra.items():
+            self._extra[k].append(np.atleast_1d(np.asarray(v, dtype=float)).copy())
+        self._cache.clear()
+
+    def __len__(self) -> int:
+        return len(self._outs)
+
+    # ---- arrays -------------------------------------------------------------------------
+    def field(self, name: str) -> np.ndarray:
+        """Stacked values of an ``Outputs`` field (e.g. ``gimbal_angles`` → (N, 5)) or of an
+        extra series. Optional fields that are ``None`` give ``None``."""
+        if name in self._cache:
+            return self._cache[name]
+        if name in self._extra:
+            arr = np.array(self._extra[name])
+        elif name == "t":
+            arr = np.array([o.t for o in self._outs], dtype=float)
+        else:
+            vals = [getattr(o, name) for o in self._outs]
+            if not vals or vals[0] is None:
+                return None  # type: ignore[return-value]
+            arr = np.array(vals, dtype=float)
+        self._cache[name] = arr
+        return arr
+
+    @property
+    def t(self) -> np.ndarray:
+        """Output instants (s), as given by the simulator."""
+        return self.field("t")
+
+    @property
+    def t_rel(self) -> np.ndarray:
+        """Output instants relative to the first one (s)."""
+        t = self.t
+        return t - t[0] if t.size else t
+
+    @property
+    def gimbal_angles(self) -> np.ndarray:
+        """(N, 5) rad, order ``GIMBAL_NAMES``."""
+        return self.field("gimbal_angles")
+
+    @property
+    def drift_angle(self) -> np.ndarray:
+        """(N, 3) rad, platform axes."""
+        return self.field("drift_angle")
+
+    def bearing(self, name: str) -> np.ndarray | None:
+        """(N, 3) N m bearing torque of ``name`` (``None`` if the simulator does not report it)."""
+        key = "bearing:" + name
+        if key not in self._cache:
+            if not self._outs or self._outs[0].bearing_torques.get(name) is None:
+                return None
+            self._cache[key] = np.array([o.bearing_torques[name] for o in self._outs], dtype=float)
+        return self._cache[key]
+
+    def bearings(self) -> list[str]:
+        """Names of the bearings present in the outputs, in ``BEARING_NAMES`` order."""
+        if not self._outs:
+            return []
+        have = self._outs[0].bearing_torques
+        return [n for n in BEARING_NAMES if have.get(n) is not None]
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every recorded series as arrays: Outputs fields, ``bearing:<name>`` and extras."""
+        out: dict[str, np.ndarray] = {}
+        for name in ("t", "gimbal_angles", "gimbal_rates", "gimbal_axial_torques", "platform_rate",
+                     "platform_attitude", "drift_angle", "drift_rate", "motor_torques",
+                     "mount_angles", "servo_torque"):
+            a = self.field(name)
+            if a is not None:
+                out[name] = a
+        for b in self.bearings():
+            out["bearing:" + b] = self.bearing(b)
+        for k in self._extra:
+            out[k] = self.field(k)
+        return out
+
+    def rows(self) -> list[dict[str, float]]:
+        """One flat row per instant (``Outputs.as_row`` plus extras as ``name_i`` columns)."""
+        rows = []
+        for i, o in enumerate(self._outs):
+            r = o.as_row()
+            for k, v in self._extra.items():
+                for j, x in enumerate(v[i]):
+                    r[f"{k}_{j}"] = float(x)
+            rows.append(r)
+        return rows
+
+    # ---- files --------------------------------------------------------------------------
+    def write_csv(self, path) -> Path:
+        """All instants as CSV (header: column names; units in ``outputs`` docs)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        rows = self.rows()
+        cols: list[str] = []
+        for r in rows:
+            for k in r:
+                if k not in cols:
+                    cols.append(k)
+        with path.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=cols)
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: repr(v) for k, v in r.items()})
+        return path
+
+    def write_json(self, path, extra: dict | None = None) -> Path:
+        """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        doc = dict(extra or {})
+        if "summary" not in doc:
+            doc = {"summary": self.summary(), **doc}
+        path.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=True) + "\n")
+        return path
+
+    # ---- analysis -----------------------------------------------------------------------
+    def summary(self, fit_start: float = 0.0, mounting=(0.0, 0.0, 0.0, 1.0)) -> dict[str, Any]:
+        """Key figures of the run.
+
+        ``fit_start`` (s after the first instant) starts the window of the least-squares
+        drift fits. ``mounting`` (quaternion x, y, z, w, ``R_BP``) is the platform orientation
+        relative to the vehicle at the first instant, used for ``platform_vs_vehicle_*``.
+        """
+        n = len(self)
+        s: dict[str, Any] = {"n_outputs": n}
+        if n == 0:
+            return s
+        t = self.t_rel
+        s["t_start"] = float(self.t[0])
+        s["duration"] = float(t[-1])
+        q = self.gimbal_angles
+        s["max_abs_gimbal_angle"] = {g: float(np.max(np.abs(q[:, i]))) for i, g in enumerate(GIMBAL_NAMES)}
+        s["final_gimbal_angle"] = {g: float(q[-1, i]) for i, g in enumerate(GIMBAL_NAMES)}
+        win = t >= fit_start - 1e-12
+        if np.count_nonzero(win) < 2:
+            win = np.ones_like(t, dtype=bool)
+        slope_q = fit_slope(t[win], q[win])
+        s["gimbal_angle_slope"] = {g: float(slope_q[i]) for i, g in enumerate(GIMBAL_NAMES)}
+        s["max_abs_bearing_torque"] = {b: float(np.max(np.linalg.norm(self.bearing(b), axis=1)))
+                                       for b in self.bearings()}
+        mt = self.field("motor_torques")
+        if mt is not None:
+            s["max_abs_motor_torque"] = {r: float(np.max(np.abs(mt[:, i]))) for i, r in enumerate(ROTORS)}
+        st = self.field("servo_torque")
+        if st is not None:
+            s["max_abs_servo_torque"] = _max_abs_axes(st)
+        d = self.drift_angle
+        s["final_drift_angle"] = _axes_dict(d[-1])
+        s["max_abs_drift_angle"] = _max_abs_axes(d)
+        rate = fit_slope(t[win], d[win])
+        s["drift_fit_start"] = float(t[win][0])
+        s["drift_rate"] = _axes_dict(rate)
+        s["drift_rate_deg_per_h"] = _axes_dict(rate * RAD_S_TO_DEG_H)
+        if "vehicle_omega" in self._extra:
+            w = self.field("vehicle_omega")
+            s["mean_vehicle_rate"] = _axes_dict(w.mean(axis=0))
+            s["max_abs_vehicle_rate"] = _max_abs_axes(w)
+        if "vehicle_attitude" in self._extra:
+            rel = self.platform_vs_vehicle(mounting)
+            r = fit_slope(t[win], rel[win])
+            s["platform_vs_vehicle_rate_deg_per_h"] = _axes_dict(r * RAD_S_TO_DEG_H)
+        return s
+
+    def platform_vs_vehicle(self, mounting=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
+        """(N, 3) rad: rotation of the platform relative to the vehicle since the first
+        instant, ``Log(Mᵀ A_B(t)ᵀ M A_P(t))`` with ``A_X(t) = R_IX(0)ᵀ R_IX(t)`` and ``M = R_BP``
+        (platform axes). Each attitude is taken in its own inertial frame, so only their
+        changes are compared; the platform is assumed to start at the mounting orientation."""
+        from scipy.spatial.transform import Rotation
+
+        P = Rotation.from_quat(self.field("platform_attitude"))
+        B = Rotation.from_quat(self.field("vehicle_attitude"))
+        M = Rotation.from_quat(np.asarray(mounting, dtype=float))
+        AP = P[0].inv() * P
+        AB = B[0].inv() * B
+        return (M.inv() * AB.inv() * M * AP).as_rotvec()
+
+    # ---- plot ---------------------------------------------------------------------------
+    def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
+        """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
+        vehicle rate against time, written as PNG (matplotlib Agg backend)."""
+        import matplotlib
+
+        matplotlib.use("Agg", force=True)
+        import matplotlib.pyplot as plt
+
+        path = Path(path_png)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        s = summary if summary is not None else self.summary()
+        t = self.t_rel
+        has_vehicle = "vehicle_omega" in self._extra
+        n = 4 if has_vehicle else 3
+        fig, axs = plt.subplots(n, 1, figsize=(10, 2.6 * n + 0.6), sharex=True)
+        q = self.gimbal_angles
+        for i, g in enumerate(GIMBAL_NAMES):
+            axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
+        axs[0].set_ylabel("gimbal angle [mrad]")
+        axs[0].legend(loc="upper right", ncol=5, fontsize=8)
+        d = self.drift_angle
+        rates = s.get("drift_rate_deg_per_h", {})
+        t0f = s.get("drift_fit_start", 0.0)
+        for i, ax in enumerate(AXES):
+            lbl = f"{ax}: {rates.get(ax, float('nan')):+.4g} °/h"
+            line, = axs[1].plot(t, d[:, i] * 1e6, label=lbl, lw=1)
+            r = s.get("drift_rate", {}).get(ax)
+            if r is not None and t.size > 1:
+                win = t >= t0f
+                c = d[win, i].mean() - r * t[win].mean()
+                axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
+        axs[1].set_ylabel("drift angle [µrad]")
+        axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
+        for b in self.bearings():
+            axs[2].plot(t, np.linalg.norm(self.bearing(b), axis=1), label=b, lw=1)
+        st = self.field("servo_torque")
+        if st is not None:
+            axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
+        axs[2].set_ylabel("|bearing torque| [N m]")
+        if self.bearings():
+            axs[2].set_yscale("symlog", linthresh=1e-9)
+            axs[2].legend(loc="upper right", ncol=4, fontsize=7)
+        if has_vehicle:
+            w = self.field("vehicle_omega")
+            for i, ax in enumerate(AXES):
+                axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
+            axs[3].set_ylabel("vehicle rate [rad/s]")
+            axs[3].legend(loc="upper right", ncol=3, fontsize=8)
+        axs[-1].set_xlabel("time [s]")
+        for a in axs:
+            a.grid(True, alpha=0.3)
+        if title:
+            fig.suptitle(title)
+        fig.tight_layout()
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        return path
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, Path):
+        return str(x)
+    if isinstance(x, float) or isinstance(x, (int, str, bool)) or x is None:
+        return x
+    return str(x)
+
+
+# ---- summary table ----------------------------------------------------------------------
+_TABLE = [
+    # (summary key, unit, format, scale)
+    ("max_abs_gimbal_angle", "rad", "{:.3e}", 1.0),
+    ("final_gimbal_angle", "rad", "{:+.3e}", 1.0),
+    ("gimbal_angle_slope", "rad/s", "{:+.3e}", 1.0),
+    ("max_abs_bearing_torque", "N m", "{:.3e}", 1.0),
+    ("max_abs_motor_torque", "N m", "{:.3e}", 1.0),
+    ("max_abs_servo_torque", "N m", "{:.3e}", 1.0),
+    ("final_drift_angle", "rad", "{:+.3e}", 1.0),
+    ("max_abs_drift_angle", "rad", "{:.3e}", 1.0),
+    ("drift_rate", "rad/s", "{:+.4e}", 1.0),
+    ("drift_rate_deg_per_h", "°/h", "{:+.5f}", 1.0),
+    ("platform_vs_vehicle_rate_deg_per_h", "°/h", "{:+.5f}", 1.0),
+    ("mean_vehicle_rate", "rad/s", "{:+.3e}", 1.0),
+    ("max_abs_vehicle_rate", "rad/s", "{:.3e}", 1.0),
+]
+
+
+def print_summary_table(summary: dict, file: TextIO | None = None) -> None:
+    """Print the summary as a compact aligned table: one line per quantity, one column per
+    joint / bearing / axis."""
+    import sys
+
+    out = file if file is not None else sys.stdout
+    head = []
+    if "scene" in summary:
+        head.append(f"scene {summary['scene']}")
+    if "duration" in summary:
+        head.append(f"{summary['duration']:.6g} s simulated")
+    if "n_samples" in summary:
+        head.append(f"{summary['n_samples']} input samples")
+    head.append(f"{summary.get('n_outputs', 0)} outputs")
+    if "wall_time" in summary:
+        head.append(f"wall {summary['wall_time']:.3g} s")
+    print(" | ".join(head), file=out)
+    rows: list[tuple[str, list[str]]] = []
+    for key, unit, fmt, scale in _TABLE:
+        d = summary.get(key)
+        if not isinstance(d, dict) or not d:
+            continue
+        cells = [f"{k}={fmt.format(v * scale)}" for k, v in d.items()]
+        rows.append((f"{key} [{unit}]", cells))
+    if not rows:
+        return
+    w0 = max(len(r[0]) for r in rows)
+    ncol = max(len(r[1]) for r in rows)
+    widths = [max((len(r[1][j]) for r in rows if j < len(r[1])), default=0) for j in range(ncol)]
+    for name, cells in rows:
+        line = name.ljust(w0) + "  " + "  ".join(c.ljust(widths[j]) for j, c in enumerate(cells))
+        print(line.rstrip(), file=out)
+
+
+__all__ = ["Recorder", "fit_slope", "print_summary_table", "RAD_S_TO_DEG_H"]
