@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .system import platform_rhs, support_regime
+from .system import FASTMATH, platform_rhs, support_regime
 
 RK4, EXPRK = 0, 1
 NEED_REGIME = 8   # run_batch status: matrices for a new friction regime are needed
@@ -34,7 +34,7 @@ def _normalise(y, a, b):
         y[i] /= s
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def run_batch(method, max_step, reg_of, Mptr_all, Midx, Mdat, c, t_rel, w, f, y, out_idx, y_out, first, need,
               fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a,
               Q, RR, V, W):

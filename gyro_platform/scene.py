@@ -12,7 +12,7 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
     name: str                 # default: the file name without .yaml
     description: str          # free text
     mode: stabilised          # carried | stabilised                        (default stabilised)
-    fidelity: full            # full | linear | precession                  (default full)
+    fidelity: linear          # full | linear | precession   (default: linear when stabilised, full when carried)
     effects: [defaults, bias_torque]
                               # names of options.EFFECTS; the entry `defaults` stands for the
                               # mode's default effects; omitted = the mode's defaults
@@ -90,7 +90,7 @@ import numpy as np
 import yaml
 
 from . import motions as mo
-from .options import DEFAULT_EFFECTS, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
+from .options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
 from .outputs import BEARING_NAMES, GIMBAL_NAMES
 from .params import ParameterError, PlatformParams
 from .inputs import RateSample
@@ -365,7 +365,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
         v.fail("name", f"use letters, digits, '_', '-', '.' only (it names the output folder), got {name!r}")
     description = v.string(d.get("description", ""), "description")
     mode = v.choice(d.get("mode", "stabilised"), "mode", MODES)
-    fidelity = v.choice(d.get("fidelity", "full"), "fidelity", FIDELITIES)
+    fidelity = v.choice(d.get("fidelity", DEFAULT_FIDELITY[mode]), "fidelity", FIDELITIES)
 
     # effects
     if "effects" in d:

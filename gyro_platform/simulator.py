@@ -23,23 +23,41 @@ from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
 from .outputs import BEARING_NAMES, Outputs
 from .params import NAV1, PlatformParams
 from .system import FULL, LINEAR, PRECESSION, PlatformSystem
+from .rotations import euler_xyz, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
 from .tree import TreeWork, tree_inverse_dynamics
 
-#: integrator chosen by ``integrator: auto`` per (mode, fidelity); see README "Integrators"
-AUTO_INTEGRATOR = {
-    ("stabilised", "full"): "etd2",
-    ("stabilised", "linear"): "etd2",
-    ("stabilised", "precession"): "rk4",
-    ("carried", "full"): "etd2",
-    ("carried", "linear"): "etd2",
-    ("carried", "precession"): "rk4",
-}
+#: ``integrator: auto`` takes RK4 (4th order, the cheapest per step) where it is stable with
+#: margin at the step, i.e. the fastest mode λ of the model satisfies h·λ < AUTO_RK4_LIMIT
+#: (RK4's stability boundary is 2.8 on the imaginary axis); otherwise the exponential
+#: integrator etd2, which is stable at any step. See README "Integrators" and ``bench``.
+AUTO_RK4_LIMIT = 1.5
 
 
-def choose_integrator(options: ModelOptions) -> Integrator:
+def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
+    """Largest characteristic rate (rad/s or 1/s) of the model: nutation (not in precession),
+    spring restraint, the mount friction's stick zone, the servo."""
+    J = params.lumped()
+    L = np.abs(params.L) if options.has("rotor_gyroscopic") else np.zeros(3)
+    rates = [0.0]
+    if options.fidelity != "precession":
+        rates.append(math.sqrt((L[0] ** 2 / J["J5"] + L[1] ** 2 / J["J7"]) / J["J4"]))
+        rates.append(L[2] / math.sqrt(J["J9"] * J["J10"]))
+        if options.has("gimbal_springs"):
+            c = np.asarray(params.spring)
+            rates.append(math.sqrt(float(np.max(c / np.array([J["J4"], J["J5"], J["J7"], J["J9"], J["J10"]])))))
+    if options.mode == "stabilised":
+        Imin = float(np.linalg.eigvalsh(params.platform_tensor)[0])
+        if options.has("support_friction"):
+            rates.append((params.support_coulomb / params.support_rate_eps + params.support_viscous) / Imin)
+        if options.has("servo"):
+            rates.append(params.servo_kd / Imin + math.sqrt(params.servo_kp / Imin))
+    return max(rates)
+
+
+def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
     name = options.integrator
     if name == "auto":
-        name = AUTO_INTEGRATOR[(options.mode, options.fidelity)]
+        name = "rk4" if fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT else "etd2"
     return make_integrator(name, max_step=options.max_step, rtol=options.rtol, atol=options.atol)
 
 
@@ -51,7 +69,7 @@ class Simulator:
         self.params = params
         self.options = options if options is not None else ModelOptions()
         self.system = PlatformSystem(params, self.options)
-        self.integrator = integrator if integrator is not None else choose_integrator(self.options)
+        self.integrator = integrator if integrator is not None else choose_integrator(self.options, params)
         self.layout = self.system.layout
         self.needs_f = bool(self.options.effects & NEEDS_SPECIFIC_FORCE)
         # full tree (with the true rotor momenta) for bearing torques at output instants
@@ -264,18 +282,22 @@ class Simulator:
 
     def attitudes(self) -> tuple[Rotation, Rotation]:
         """(R_IB vehicle, R_IP platform) as scipy Rotations."""
+        R_IB, R_IP = self.attitude_matrices()
+        return Rotation.from_matrix(R_IB), Rotation.from_matrix(R_IP)
+
+    def attitude_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R_IB, R_IP) rotation matrices (vehicle → inertial, platform → inertial)."""
         st = self.layout
-        R_IB = Rotation.from_quat(self.y[st.quat_IB])
-        if st.quat_IP is not None:
-            R_IP = Rotation.from_quat(self.y[st.quat_IP])
-        else:
-            R_IP = R_IB * Rotation.from_matrix(self.system.R_BP)
+        R_IB = quat_matrix(self.y[st.quat_IB])
+        R_IP = quat_matrix(self.y[st.quat_IP]) if st.quat_IP is not None else R_IB @ self.system.R_BP
         return R_IB, R_IP
 
     def reference(self) -> Rotation:
         """R_IC: the frame the platform should hold (inertial, or local level with Earth rate)."""
-        w = self.system.w_IN
-        return Rotation.from_rotvec(w * self.t_rel)
+        return Rotation.from_rotvec(self.system.w_IN * self.t_rel)
+
+    def reference_matrix(self) -> np.ndarray:
+        return rotvec_matrix(self.system.w_IN * self.t_rel)
 
     def invariants(self) -> dict[str, float]:
         """T2 = ½ ẋᵀ A* ẋ (J) and the total angular momentum |p_Ω| (N m s, stabilised), the
@@ -296,7 +318,7 @@ class Simulator:
             spin_momentum(self.system.L, self.y[st.q], np.zeros(5), h, np.zeros(3))
             p = (M @ v)[:3] + h
             out["p_norm"] = float(np.linalg.norm(p))
-            out["p_inertial"] = self.attitudes()[1].apply(p)
+            out["p_inertial"] = self.attitude_matrices()[1] @ p
         return out
 
     def _accelerations(self) -> tuple[np.ndarray, np.ndarray]:
@@ -334,16 +356,16 @@ class Simulator:
         wB, fB = self._input_now()
         # applied axial gimbal torques (effects that act about the gimbal axes)
         Q = np.zeros(5)
-        R_IB, R_IP = self.attitudes()
-        R_IC = self.reference()
-        wc = (R_IP.inv() * R_IC).apply(sys_.w_IN) if self.options.has("earth_rate") else np.zeros(3)
+        R_IB, R_IP = self.attitude_matrices()
+        R_IC = self.reference_matrix()
+        wc = R_IP.T @ (R_IC @ sys_.w_IN) if self.options.has("earth_rate") else np.zeros(3)
         fx.gimbal_forces(sys_.on, sys_.k, sys_.L, q, qd, wc, Q)
         # Newton–Euler with the full tree and true rotor momenta
         tree, wk = self._out_tree, self._out_work
         tau_ext = np.zeros((tree.nb, 3))
         if self.needs_f:
             from .tree import kinematics
-            fP = (R_IP.inv() * R_IB).apply(fB)
+            fP = R_IP.T @ (R_IB @ fB)
             kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
                        q, v, self.platform_rate(), wk.R, wk.w, wk.J)
             fb = np.zeros((tree.nb, 3))
@@ -373,16 +395,15 @@ class Simulator:
         # drift
         Om = self.platform_rate()
         if sys_.stabilised:
-            R_CP = R_IC.inv() * R_IP
-            drift = R_CP.as_rotvec()
-            drift_rate = Om - R_CP.inv().apply(sys_.w_IN)
+            R_CP = R_IC.T @ R_IP
+            drift = matrix_rotvec(R_CP)
+            drift_rate = Om - R_CP.T @ sys_.w_IN
             servo = np.zeros(3)
             if self.options.has("servo"):
                 yp = np.array([q[4], q[0], q[3]])
                 ydp = np.array([qd[4], qd[0], qd[3]])
                 fx.servo_torque(sys_.k, yp, ydp, y[st.z], servo)
-            R_BP = R_IB.inv() * R_IP
-            mount = (Rotation.from_matrix(sys_.R_BP).inv() * R_BP).as_euler("XYZ")
+            mount = euler_xyz(sys_.R_PB @ (R_IB.T @ R_IP))
         else:
             drift, drift_rate = self._gyro_reference_drift(R_IP, R_IC)
             servo = None
@@ -395,11 +416,11 @@ class Simulator:
         }
         return Outputs(
             t=float(self.t), gimbal_angles=q, gimbal_rates=qd, gimbal_axial_torques=Q,
-            platform_rate=Om, platform_attitude=R_IP.as_quat(), drift_angle=drift,
+            platform_rate=Om, platform_attitude=matrix_quat(R_IP), drift_angle=drift,
             drift_rate=drift_rate, bearing_torques=bearings, motor_torques=motor,
             mount_angles=mount, servo_torque=servo, status=status)
 
-    def _gyro_reference_drift(self, R_IP: Rotation, R_IC: Rotation) -> tuple[np.ndarray, np.ndarray]:
+    def _gyro_reference_drift(self, R_IP: np.ndarray, R_IC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Carried mode: drift of the gyros' own inertial reference, the triad spanned by the
         spin axes of rotors 6 (x) and 11 (y), relative to where it started (rad, rad/s)."""
         wk = self._out_work
@@ -416,13 +437,13 @@ class Simulator:
         yv /= np.linalg.norm(yv)
         z = np.cross(x, yv)
         G_P = np.column_stack([x, yv, z])          # R_PG
-        R_CG = R_IC.inv() * R_IP * Rotation.from_matrix(G_P)
-        drift = R_CG.as_rotvec()
+        R_CG = R_IC.T @ R_IP @ G_P
+        drift = matrix_rotvec(R_CG)
         # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ḃ_inertial = ω_b × b)
         xd = np.cross(w5, e6)
         yd = np.cross(w10, e11)
         zd = np.cross(xd, yv) + np.cross(x, yd)
         w_IG_P = 0.5 * (np.cross(x, xd) + np.cross(yv, yd) + np.cross(z, zd))
         w_IG_G = G_P.T @ w_IG_P
-        rate = w_IG_G - R_CG.inv().apply(self.system.w_IN)
+        rate = w_IG_G - R_CG.T @ self.system.w_IN
         return drift, rate

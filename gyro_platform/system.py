@@ -28,6 +28,9 @@ LAY_OM, LAY_QD, LAY_QIP, LAY_QIB, LAY_Z, LAY_STAB, LAY_NV = range(7)
 # segment array: [t0, dt, w0(3), w1(3), f0(3), f1(3)]
 SEG_N = 14
 STATUS_OK, STATUS_LOCK, STATUS_NOT_PD = 0, 1, 2
+#: LLVM fast-math flags for the hot kernels: reassociation and fused multiply-add only; NaN and
+#: Inf keep their IEEE meaning (the finiteness checks must not be optimised away)
+FASTMATH = {"reassoc", "contract", "arcp"}
 # rows of the small-vector work array V
 V_OM, V_OMD, V_WC, V_TMP, V_FP, V_MP, V_H, V_HD, V_ZERO = range(9)
 N_V = 9
@@ -67,7 +70,7 @@ def chol_solve(M, b, x, work):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=FASTMATH)
 def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
                  R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
     """ẏ of the platform (see module doc). Writes ``yd``; returns a status code

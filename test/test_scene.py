@@ -55,7 +55,7 @@ def test_required_scenes_are_shipped():
 
 def test_valid_scene_fields():
     sc = load(BASE)
-    assert sc.name == "t" and sc.mode == "stabilised" and sc.fidelity == "full"
+    assert sc.name == "t" and sc.mode == "stabilised" and sc.fidelity == "linear"   # default fidelity of a stabilised scene
     assert set(sc.effects) == set(DEFAULT_EFFECTS["stabilised"]) | {"bias_torque"}
     assert sc.options.effects == frozenset(sc.effects)
     assert sc.params.bias_torque[4] == 1e-7

@@ -1,0 +1,355 @@
+"""Benchmarks: what accuracy costs in time.
+
+``gyro-platform bench accuracy`` — work-precision study: every fidelity × integrator × step on
+two standard scenes (a ship rolling and pitching, stabilised, 10 min; an aircraft manoeuvre with
+coordinated turns and rate steps, 2 min; vehicle rates at 1 kHz), each compared with a
+``full``-fidelity reference at a fine step (gimbal angles and drift angle, end and maximum over
+time), timed in CPU seconds per simulated second (median of repeats), as a real-time factor and
+as a speed ratio to the naive baseline a Python user would write (``scipy.integrate.solve_ivp``
+on the ``full`` model over the whole run, input interpolated with ``np.interp``). Writes CSV,
+Markdown and a PNG plot, and names the cheapest configuration that reaches 1e-3, 1e-6 and
+1e-9 rad.
+
+``gyro-platform bench effects`` — the cost of each effect (CPU µs per sample with the effect
+on versus off): what is off costs nothing.
+
+Timing is CPU time (``time.process_time``) of this process; the machine is shared, so medians
+are quoted. Nothing here asserts speed: tests assert physics, benchmarks measure time.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .motions import CoordinatedTurn, RateSteps, Sine, Sinusoidal
+from .options import DEFAULT_EFFECTS, ModelOptions
+from .params import NAV1
+from .simulator import Simulator
+
+SAMPLE_RATE = 1000.0     # Hz, vehicle input
+OUT_EVERY = 100          # compare at 10 Hz
+THRESHOLDS = (1e-3, 1e-6, 1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# scenes
+
+@dataclass
+class BenchScene:
+    name: str
+    description: str
+    t: np.ndarray
+    omega: np.ndarray
+    force: np.ndarray
+    effects: frozenset
+
+
+def ship_scene(duration: float = 600.0) -> BenchScene:
+    """Ship rolling and pitching, 10° at 0.1 Hz (pitch 5° at 0.1 Hz, quarter period later)."""
+    m = Sinusoidal(roll=Sine(math.radians(10.0), 0.1, 0.0), pitch=Sine(math.radians(5.0), 0.1, math.pi / 2))
+    t, w, f = m.arrays(duration, SAMPLE_RATE)
+    eff = DEFAULT_EFFECTS["stabilised"] | {"mass_unbalance"}
+    return BenchScene("ship", f"ship rolling 10° / pitching 5° at 0.1 Hz, stabilised, {duration:g} s", t, w, f, eff)
+
+
+def aircraft_scene(duration: float = 120.0) -> BenchScene:
+    """Aircraft: right coordinated turn (60 m/s, 30° bank), then yaw/roll rate steps."""
+    half = duration / 2
+    turn = CoordinatedTurn(speed=60.0, bank=math.radians(30.0), roll_time=3.0, start=2.0, hold=half - 10.0)
+    t1, w1, f1 = turn.arrays(half, SAMPLE_RATE)
+    steps = RateSteps(times=[0.0, 5.0, 10.0, 15.0, 25.0, 35.0, 45.0],
+                      rates=[[0, 0, 0], [0.5, 0, 0], [0, 0, 0], [0, 0, 0.3], [0, 0, 0], [0, 0.2, 0], [0, 0, 0]])
+    t2, w2, f2 = steps.arrays(half, SAMPLE_RATE)
+    t = np.concatenate([t1, t2[1:] + t1[-1]])
+    w = np.vstack([w1, w2[1:]])
+    f = np.vstack([f1, f2[1:]])
+    eff = DEFAULT_EFFECTS["stabilised"] | {"mass_unbalance"}
+    return BenchScene("aircraft", f"aircraft: coordinated turn then rate steps, stabilised, {duration:g} s",
+                      t, w, f, eff)
+
+
+# ---------------------------------------------------------------------------------------------
+# runs
+
+def _record(outs) -> tuple[np.ndarray, np.ndarray]:
+    return (np.array([o.gimbal_angles for o in outs]), np.array([o.drift_angle for o in outs]))
+
+
+def run_config(sc: BenchScene, fidelity: str, integrator: str, max_step: float, rtol: float = 1e-8,
+               atol: float = 1e-12, repeats: int = 1, duration: float | None = None):
+    """(gimbal (N, 5), drift (N, 3), CPU s per simulated s, simulated s) for one configuration."""
+    n = len(sc.t) if duration is None else int(round(duration * SAMPLE_RATE)) + 1
+    opt = ModelOptions.make("stabilised", fidelity, sc.effects, integrator=integrator, max_step=max_step,
+                            rtol=rtol, atol=atol)
+    times = []
+    rec = None
+    for _ in range(repeats):
+        sim = Simulator(NAV1, opt)
+        sim.push_many(sc.t[:2], sc.omega[:2], sc.force[:2])       # warm-up: compile, matrices
+        sim = Simulator(NAV1, opt)
+        t0 = time.process_time()
+        outs = sim.push_many(sc.t[:n], sc.omega[:n], sc.force[:n], output_every=OUT_EVERY)
+        times.append(time.process_time() - t0)
+        rec = _record(outs)
+    sim_s = sc.t[n - 1] - sc.t[0]
+    return rec[0], rec[1], float(np.median(times)) / sim_s, sim_s
+
+
+def naive_baseline(sc: BenchScene, rtol: float, atol: float, duration: float | None = None):
+    """What a Python user would write: one ``solve_ivp`` (RK45) over the run, ``full`` model,
+    the vehicle rate interpolated with ``np.interp`` in the right-hand side."""
+    from scipy.integrate import solve_ivp
+    n = len(sc.t) if duration is None else int(round(duration * SAMPLE_RATE)) + 1
+    sim = Simulator(NAV1, ModelOptions.make("stabilised", "full", sc.effects))
+    system = sim.system
+    t_s, w_s, f_s = sc.t[:n], sc.omega[:n], sc.force[:n]
+
+    def rhs(t, y):
+        w = np.array([np.interp(t, t_s, w_s[:, i]) for i in range(3)])
+        f = np.array([np.interp(t, t_s, f_s[:, i]) for i in range(3)])
+        system.set_input(t, t + 1.0, w, w, f, f)
+        return system.rhs(t, y)
+
+    y0 = system.rest_state()
+    t_eval = t_s[::OUT_EVERY]
+    t0 = time.process_time()
+    sol = solve_ivp(rhs, (t_s[0], t_s[-1]), y0, method="RK45", rtol=rtol, atol=atol, t_eval=t_eval)
+    cpu = time.process_time() - t0
+    from scipy.spatial.transform import Rotation
+    q = sol.y[0:5].T
+    qIP = sol.y[system.layout.quat_IP].T
+    drift = Rotation.from_quat(qIP).as_rotvec()
+    sim_s = t_s[-1] - t_s[0]
+    return q, drift, cpu / sim_s, sim_s, sol.nfev
+
+
+def errors(g, d, gref, dref) -> dict[str, float]:
+    k = min(len(g), len(gref))
+    eg = np.max(np.abs(g[:k] - gref[:k]), axis=1)
+    ed = np.linalg.norm(d[:k] - dref[:k], axis=1)
+    return {"gimbal_end": float(eg[-1]), "gimbal_max": float(eg.max()), "drift_end": float(ed[-1]),
+            "drift_max": float(ed.max()), "max": float(max(eg.max(), ed.max()))}
+
+
+CONFIGS = [
+    # (fidelity, integrator, max_step s, rtol)
+    *[(fid, "rk4", h, None) for fid in ("full", "linear", "precession") for h in (1e-3, 5e-4, 2.5e-4)],
+    *[(fid, "etd2", h, None) for fid in ("full", "linear", "precession") for h in (1e-3, 5e-4, 2.5e-4)],
+    *[(fid, "etd4", h, None) for fid in ("full", "linear") for h in (1e-3, 5e-4)],
+    ("full", "implicit_midpoint", 1e-3, None),
+    ("full", "dop853", 1e-3, 1e-6),
+    ("full", "dop853", 1e-3, 1e-9),
+]
+#: integrators without a compiled batch path run a shorter window (their cost per simulated
+#: second is what is compared; the error is measured over the same window)
+SLOW = {"implicit_midpoint", "dop853"}
+
+
+def accuracy(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[dict]:
+    scenes = [ship_scene(60.0 if quick else 600.0), aircraft_scene(30.0 if quick else 120.0)]
+    rows: list[dict] = []
+    for sc in scenes:
+        print(f"\n== {sc.name}: {sc.description}", flush=True)
+        g_ref, d_ref, c_ref, _ = run_config(sc, "full", "rk4", 1.25e-4)
+        g_chk, d_chk, _, _ = run_config(sc, "full", "etd4", 1.25e-4)
+        ref_err = errors(g_chk, d_chk, g_ref, d_ref)["max"]
+        print(f"   reference: full, rk4 at 0.125 ms ({1 / c_ref:.0f}× real time); "
+              f"its disagreement with etd4 at 0.125 ms: {ref_err:.2e} rad", flush=True)
+        slow_window = min(20.0 if quick else 60.0, sc.t[-1])
+        base_rows = []
+        for rtol, atol, label in ((1e-3, 1e-6, "default tol"), (1e-10, 1e-13, "tight tol")):
+            win = slow_window if rtol < 1e-6 else None
+            gq, dq, cpu, sim_s, nfev = naive_baseline(sc, rtol, atol, duration=win)
+            e = errors(gq, dq, g_ref, d_ref)
+            base_rows.append(dict(scene=sc.name, fidelity="full", integrator=f"solve_ivp RK45 ({label})",
+                                  step_or_tol=f"rtol {rtol:g}", simulated_s=sim_s, cpu_per_sim_s=cpu,
+                                  rtf=1 / cpu, **e, baseline=True))
+            print(f"   naive solve_ivp {label:11s}: {cpu:9.3e} CPU s/sim s, max err {e['max']:.2e} "
+                  f"({nfev} rhs)", flush=True)
+        base_cpu = base_rows[0]["cpu_per_sim_s"]
+        rows.extend(base_rows)
+        for fid, integ, h, rtol in CONFIGS:
+            win = slow_window if integ in SLOW else None
+            try:
+                g, d, cpu, sim_s = run_config(sc, fid, integ, h, rtol=rtol or 1e-8,
+                                              atol=(rtol or 1e-8) * 1e-4,
+                                              repeats=1 if integ in SLOW else repeats, duration=win)
+            except Exception as ex:   # an unstable configuration is a result too
+                print(f"   {fid:10s} {integ:17s} {h * 1e3:6.3f} ms: FAILED ({type(ex).__name__}: {ex})")
+                rows.append(dict(scene=sc.name, fidelity=fid, integrator=integ,
+                                 step_or_tol=f"{h * 1e3:g} ms", failed=str(ex)[:80]))
+                continue
+            e = errors(g, d, g_ref, d_ref)
+            label = f"rtol {rtol:g}" if rtol else f"{h * 1e3:g} ms"
+            row = dict(scene=sc.name, fidelity=fid, integrator=integ, step_or_tol=label, simulated_s=sim_s,
+                       cpu_per_sim_s=cpu, rtf=1 / cpu, speedup_vs_naive=base_cpu / cpu, **e)
+            rows.append(row)
+            print(f"   {fid:10s} {integ:17s} {label:11s}: {cpu:9.3e} CPU s/sim s  RTF {1 / cpu:8.0f}  "
+                  f"×{base_cpu / cpu:7.0f} vs naive  max err {e['max']:.2e} rad", flush=True)
+    write_outputs(rows, out_dir)
+    return rows
+
+
+def cheapest(rows: list[dict], scene: str, thr: float):
+    ok = [r for r in rows if r.get("scene") == scene and "failed" not in r and r["max"] <= thr]
+    return min(ok, key=lambda r: r["cpu_per_sim_s"]) if ok else None
+
+
+def write_outputs(rows: list[dict], out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    keys = ["scene", "fidelity", "integrator", "step_or_tol", "simulated_s", "cpu_per_sim_s", "rtf",
+            "speedup_vs_naive", "gimbal_end", "gimbal_max", "drift_end", "drift_max", "max", "failed"]
+    with open(out_dir / "accuracy.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    lines = ["| scene | fidelity | integrator | step / tol | sim s | CPU s per sim s | real-time × | × naive | "
+             "max err gimbal (rad) | max err drift (rad) |", "|" + "---|" * 10]
+    for r in rows:
+        if "failed" in r:
+            lines.append(f"| {r['scene']} | {r['fidelity']} | {r['integrator']} | {r['step_or_tol']} | | failed | | | | |")
+            continue
+        sp = r.get("speedup_vs_naive")
+        lines.append(f"| {r['scene']} | {r['fidelity']} | {r['integrator']} | {r['step_or_tol']} | "
+                     f"{r['simulated_s']:.0f} | {r['cpu_per_sim_s']:.2e} | {r['rtf']:.0f} | "
+                     f"{'' if sp is None else f'{sp:.0f}'} | {r['gimbal_max']:.1e} | {r['drift_max']:.1e} |")
+    lines.append("")
+    for sc in sorted({r["scene"] for r in rows}):
+        for thr in THRESHOLDS:
+            c = cheapest(rows, sc, thr)
+            lines.append(f"- {sc}: cheapest reaching {thr:g} rad: " + (
+                "none" if c is None else f"{c['fidelity']} + {c['integrator']} at {c['step_or_tol']} "
+                f"({c['cpu_per_sim_s']:.2e} CPU s per sim s, {c['rtf']:.0f}× real time, error {c['max']:.1e} rad)"))
+    (out_dir / "accuracy.md").write_text("\n".join(lines) + "\n")
+    (out_dir / "accuracy.json").write_text(json.dumps(rows, indent=1, default=float))
+    print("\n" + "\n".join(lines[-2 * len(THRESHOLDS):]))
+    plot(rows, out_dir / "accuracy.png")
+    print(f"\nwrote {out_dir / 'accuracy.csv'}, {out_dir / 'accuracy.md'}, {out_dir / 'accuracy.png'}")
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    scenes = sorted({r["scene"] for r in rows})
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6.5 * len(scenes), 5), squeeze=False)
+    colors = {"full": "tab:blue", "linear": "tab:orange", "precession": "tab:green"}
+    markers = {"rk4": "o", "etd2": "s", "etd4": "D", "implicit_midpoint": "^", "dop853": "v"}
+    for ax, sc in zip(axes[0], scenes):
+        for r in rows:
+            if r["scene"] != sc or "failed" in r:
+                continue
+            err = max(r["max"], 1e-16)
+            if r.get("baseline"):
+                ax.scatter(r["cpu_per_sim_s"], err, marker="X", s=90, c="k")
+                ax.annotate(r["integrator"].replace("solve_ivp ", ""), (r["cpu_per_sim_s"], err), fontsize=7)
+                continue
+            ax.scatter(r["cpu_per_sim_s"], err, c=colors.get(r["fidelity"], "k"),
+                       marker=markers.get(r["integrator"], "o"), s=40, alpha=0.85)
+        for thr in THRESHOLDS:
+            ax.axhline(thr, color="0.7", lw=0.8, ls="--")
+        ax.axvline(1e-3, color="tab:red", lw=0.8, ls=":")
+        ax.text(1e-3, 1e-15, " real time ×1000", color="tab:red", fontsize=7, rotation=90, va="bottom")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("CPU seconds per simulated second")
+        ax.set_ylabel("max error vs full reference (rad): gimbal angles, drift")
+        ax.set_title(sc)
+    handles = [plt.Line2D([], [], ls="", marker="o", c=c, label=f) for f, c in colors.items()]
+    handles += [plt.Line2D([], [], ls="", marker=m, c="0.4", label=i) for i, m in markers.items()]
+    handles += [plt.Line2D([], [], ls="", marker="X", c="k", label="naive solve_ivp")]
+    axes[0][-1].legend(handles=handles, fontsize=7, loc="upper right")
+    fig.suptitle("gyro_platform: what accuracy costs in time (1 kHz vehicle input)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# effects cost
+
+def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
+    """CPU µs per sample (compiled batch, 1 kHz, 20 s ship motion) with each effect on alone
+    on top of the minimum (rotor gyroscopic + servo), per fidelity."""
+    sc = ship_scene(20.0)
+    from .options import EFFECTS
+    rows = []
+    base = {"rotor_gyroscopic", "servo"}
+    for fid in ("full", "linear"):
+        for extra in [None] + sorted(set(EFFECTS) - base - {"vehicle_angular_acceleration"}):
+            eff = frozenset(base | ({extra} if extra else set()))
+            opt = ModelOptions.make("stabilised", fid, eff, integrator="rk4", max_step=1e-3)
+            ts = []
+            for _ in range(repeats):
+                sim = Simulator(NAV1, opt)
+                sim.push_many(sc.t[:2], sc.omega[:2], sc.force[:2])
+                t0 = time.process_time()
+                sim.push_many(sc.t[2:], sc.omega[2:], sc.force[2:])
+                ts.append((time.process_time() - t0) / (len(sc.t) - 2) * 1e6)
+            rows.append({"fidelity": fid, "effect": extra or "(minimum)", "us_per_sample": float(np.median(ts))})
+            print(f"{fid:7s} {extra or '(minimum)':30s} {np.median(ts):6.2f} µs/sample", flush=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "effects.json").write_text(json.dumps(rows, indent=1))
+    return rows
+
+
+def hotpath(repeats: int = 5) -> dict:
+    """µs per sample: Python ``push`` (what the ROS node does per message) and compiled
+    ``push_many``, stabilised default effects, 1 kHz."""
+    sc = ship_scene(10.0)
+    res = {}
+    for fid, integ in (("full", "etd2"), ("linear", "etd2"), ("linear", "rk4"), ("full", "rk4")):
+        opt = ModelOptions.make("stabilised", fid, DEFAULT_EFFECTS["stabilised"], integrator=integ, max_step=1e-3)
+        from .inputs import RateSample
+        tp, tb = [], []
+        for _ in range(repeats):
+            sim = Simulator(NAV1, opt)
+            sim.push_many(sc.t[:3], sc.omega[:3])
+            t0 = time.process_time()
+            for i in range(3, 2003):
+                sim.push(RateSample(float(sc.t[i]), sc.omega[i]))
+            tp.append((time.process_time() - t0) / 2000 * 1e6)
+            sim = Simulator(NAV1, opt)
+            sim.push_many(sc.t[:3], sc.omega[:3])
+            t0 = time.process_time()
+            sim.push_many(sc.t[3:], sc.omega[3:])
+            tb.append((time.process_time() - t0) / (len(sc.t) - 3) * 1e6)
+        res[f"{fid}+{integ}"] = {"push_us": float(np.median(tp)), "batch_us": float(np.median(tb))}
+        print(f"{fid:7s} {integ:5s}  push {np.median(tp):7.2f} µs/sample   batch {np.median(tb):6.2f} µs/sample "
+              f"(real time ×{1e3 / np.median(tb):.0f} at 1 kHz)", flush=True)
+    return res
+
+
+# ---------------------------------------------------------------------------------------------
+# CLI
+
+def add_arguments(p) -> None:
+    p.add_argument("what", choices=["accuracy", "effects", "hotpath"], help="which benchmark")
+    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--quick", action="store_true", help="short scenes (60 s ship, 30 s aircraft)")
+    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
+
+
+def run(args) -> int:
+    out = Path(args.out)
+    if args.what == "accuracy":
+        accuracy(out, quick=args.quick, repeats=args.repeats)
+    elif args.what == "effects":
+        effects_cost(out, repeats=args.repeats)
+    else:
+        res = hotpath(repeats=args.repeats)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "hotpath.json").write_text(json.dumps(res, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run(__import__("argparse").Namespace(what="accuracy", out="results/bench", quick=True, repeats=1)))

@@ -1,0 +1,223 @@
+"""ROS 2 (rclpy, Jazzy) node of the gyro platform: a thin adapter around :class:`core.NodeCore`.
+
+The only module of the package that imports rclpy. Everything the node does with a message —
+mounting, time gate, integration, output grid, diagnostics content, parameter validation —
+is in :mod:`gyro_platform.core` (ROS-free, tested without ROS); this file wires it to rclpy:
+
+* parameters: every entry of ``core.PARAMETERS`` declared with a ``ParameterDescriptor``
+  (description, ``FloatingPointRange``, ``read_only``); a ``scene`` supplies the defaults of the
+  model parameters (declared after it); changes go through ``core.set_parameters``;
+* input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
+  or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
+  sample is integrated in its callback, receive time = the node clock (sim time with
+  ``use_sim_time``);
+* outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
+  ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``;
+* ``/diagnostics`` through ``diagnostic_updater.Updater`` (three tasks filled from the core), or
+  the core's DiagnosticArray published on a timer when diagnostic_updater is not installed;
+* ``~/reset`` (``std_srvs/srv/Trigger``) and a backward jump of the node clock (looped
+  ``ros2 bag play --clock --loop``) restart the simulation.
+
+Run: ``ros2 run gyro_platform platform_node --ros-args --params-file config/platform.yaml``.
+"""
+from __future__ import annotations
+
+import functools
+import sys
+import threading
+from typing import Any
+
+try:
+    import rclpy
+    from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+    from rclpy.clock import JumpThreshold
+    from rclpy.duration import Duration
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+    from std_srvs.srv import Trigger
+except ImportError as e:  # pragma: no cover - depends on the machine
+    raise ImportError(
+        f"gyro_platform.node needs rclpy and the ROS 2 message packages ({e}); source a ROS 2 Jazzy "
+        "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
+        "(gyro_platform.core) / 'gyro-platform node' on plain DDS") from e
+
+from . import core as core_mod
+from .core import PARAMETERS, SPECS, ConfigError, NodeConfig, NodeCore, ParamSpec
+from .messages import HARDWARE_ID, MessageTypes
+
+#: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
+OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
+#: a backward jump of the node clock larger than this resets the simulation
+CLOCK_JUMP_BACK = Duration(nanoseconds=-1_000_000)   # 1 ms
+DIAGNOSTIC_TASKS = ("input", "platform", "node")      # status names "gyro_platform: <task>" of the core
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """ROS parameter descriptor of one ``core.ParamSpec``."""
+    d = ParameterDescriptor(description=spec.description + (f" [{spec.unit}]" if spec.unit else ""),
+                            additional_constraints=spec.constraints(), read_only=spec.read_only)
+    if spec.type == "double" and spec.range is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.range[0]),
+                                                     to_value=float(spec.range[1]), step=0.0)]
+    return d
+
+
+def _ros_value(v: Any) -> Any:
+    """A core default as a ROS parameter value (tuples → lists)."""
+    return list(v) if isinstance(v, tuple) else v
+
+
+class PlatformNode(Node):
+    """The gyro platform node (name ``gyro_platform_node``). ``kwargs`` go to ``rclpy.node.Node``
+    (``cli_args``, ``parameter_overrides``, ``namespace`` …). Raises ``ConfigError`` when the
+    parameters are invalid (the message names the parameter)."""
+
+    def __init__(self, **kwargs: Any):
+        super().__init__(core_mod.NODE_NAME, **kwargs)
+        self._lock = threading.Lock()
+        config = NodeConfig.from_ros_params(self._declare_parameters())
+        self.core = NodeCore(config, MessageTypes.rclpy())
+        types = self.core.types
+
+        self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
+                      for topic, typ in self.core.output_topics().items()}
+        self._sub = self.create_subscription(types[self.core.input_type], self.core.input_topic, self._on_input,
+                                             qos_profile_sensor_data)
+        self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
+        self._setup_diagnostics(config["diagnostics_rate"])
+        self._jump_handle = self.get_clock().create_jump_callback(
+            JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
+            post_callback=self._on_clock_jump)
+        self.add_on_set_parameters_callback(self._on_set_parameters)   # after declaring: only real changes
+        o = config.options
+        self.get_logger().info(
+            f"{self.core.input_type} on {self.resolve_topic_name(self.core.input_topic)} -> "
+            f"{len(self._pubs)} output topics at {config['output_rate']:g} Hz (0 = every sample); "
+            f"{o.mode}/{o.fidelity}, effects {sorted(o.effects)}"
+            + (f", scene {config['scene']}" if config["scene"] else ""))
+
+    # ---- parameters ---------------------------------------------------------------------
+    def _declare_parameters(self) -> dict[str, Any]:
+        """Declare every core parameter (``scene`` first: its model values are the defaults of
+        the others); returns name → value as set (overrides from params file / -p applied)."""
+        scene = self.declare_parameter("scene", SPECS["scene"].default, descriptor(SPECS["scene"])).value
+        defaults = core_mod.parameter_defaults(scene)
+        values: dict[str, Any] = {"scene": scene}
+        for spec in PARAMETERS:
+            if spec.name == "scene":
+                continue
+            default = defaults[spec.name]
+            if spec.type == "string[]" and not default:
+                # an empty list has no ROS type of its own: declare the type, read "unset" as empty
+                self.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, descriptor(spec))
+                p = self.get_parameter_or(spec.name, None)
+                values[spec.name] = [] if p is None or p.value is None else list(p.value)
+            else:
+                values[spec.name] = self.declare_parameter(spec.name, _ros_value(default), descriptor(spec)).value
+        return values
+
+    def _on_set_parameters(self, params: list) -> SetParametersResult:
+        changes = {p.name: p.value for p in params if p.name in SPECS}
+        if not changes:                     # use_sim_time, diagnostic_updater.period, qos overrides …
+            return SetParametersResult(successful=True)
+        with self._lock:
+            ok, reason = self.core.set_parameters(changes)
+        if ok:
+            self.get_logger().info(f"parameters applied: {sorted(changes)}")
+        else:
+            self.get_logger().warning(f"parameters refused: {reason}")
+        return SetParametersResult(successful=ok, reason=reason)
+
+    # ---- input / outputs ----------------------------------------------------------------
+    def _on_input(self, msg: Any) -> None:
+        now = self.get_clock().now().nanoseconds
+        with self._lock:
+            out = self.core.on_message(msg, now)
+        for topic, m in out:
+            self._pubs[topic].publish(m)
+
+    def _on_reset(self, request: Any, response: Any) -> Any:
+        with self._lock:
+            self.core.reset("service")
+        response.success = True
+        response.message = "simulation restarted; the next input sample starts a new time base"
+        self.get_logger().info("reset by ~/reset")
+        return response
+
+    def _on_clock_jump(self, jump: Any) -> None:
+        delta = jump.delta.nanoseconds
+        with self._lock:
+            self.core.on_clock_jump(delta < 0, delta)
+        if delta < 0:
+            self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s"
+                                   + ("; simulation restarted" if self.core.config["reset_on_clock_jump"] else ""))
+
+    # ---- diagnostics --------------------------------------------------------------------
+    def _setup_diagnostics(self, rate_hz: float) -> None:
+        period = 1.0 / rate_hz
+        try:
+            from diagnostic_updater import Updater
+        except ImportError:
+            Updater = None
+        if Updater is None:
+            self.get_logger().info("diagnostic_updater not installed: publishing the core's DiagnosticArray")
+            self._diag_pub = self.create_publisher(self.core.types["diagnostic_msgs/msg/DiagnosticArray"],
+                                                   core_mod.DIAGNOSTICS_TOPIC, OUTPUT_QOS)
+            self._diag_timer = self.create_timer(period, self._publish_diagnostics)
+            self._updater = None
+            return
+        try:
+            self._updater = Updater(self, period=period)
+        except TypeError:                    # older diagnostic_updater: no period argument
+            self._updater = Updater(self)
+        self._updater.setHardwareID(HARDWARE_ID)
+        for task in DIAGNOSTIC_TASKS:
+            self._updater.add(task, functools.partial(self._fill_status, task))
+
+    def _core_diagnostics(self) -> Any:
+        now = self.get_clock().now().nanoseconds
+        with self._lock:
+            return self.core.diagnostics(now)
+
+    def _publish_diagnostics(self) -> None:
+        self._diag_pub.publish(self._core_diagnostics())
+
+    def _fill_status(self, task: str, stat: Any) -> Any:
+        """diagnostic_updater task: copy the core's ``gyro_platform: <task>`` status."""
+        name = f"{HARDWARE_ID}: {task}"
+        for st in self._core_diagnostics().status:
+            if st.name == name:
+                stat.summary(st)                 # level and message
+                for kv in st.values:
+                    stat.add(kv.key, kv.value)
+                break
+        return stat
+
+
+def main(args: list[str] | None = None) -> int:
+    """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C."""
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = PlatformNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ConfigError, ValueError, InvalidParameterTypeException, InvalidParameterValueException) as e:
+        # bad parameters or a model that cannot be built: one clear line, no traceback
+        print(f"gyro_platform_node: cannot start: {e}", file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

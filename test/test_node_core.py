@@ -1,0 +1,467 @@
+"""The node core without ROS: rosbags Jazzy messages in, (topic, message) pairs out.
+
+Drives :class:`gyro_platform.core.NodeCore` the way the rclpy node and the DDS adapter do —
+one message per call with its receive time — with scripted rate samples at 1 kHz and 100 Hz,
+and checks the published topics, types, stamps and values against the physics (spec O6, O9b),
+the handling of bad input (counted, never raised), live parameters, resets and the config files.
+Callback timing uses a fake clock (25 µs per callback), so no assertion depends on wall time.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import subprocess
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyro_platform import core as C
+from gyro_platform.core import ConfigError, NodeConfig, NodeCore
+from gyro_platform.messages import MessageTypes, jazzy_typestore, stamp_ns
+from gyro_platform.params import NAV1, PlatformParams
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = sorted((ROOT / "config" / "scenes").glob("*.yaml"))
+TYPES = MessageTypes.rosbags()
+T = jazzy_typestore().types
+BASE = 1_700_000_000 * 10**9            # ns, a bag-like epoch stamp
+MS = 10**6
+L11 = NAV1.L[2]                         # N m s, rotor 11
+Q10 = 1e-4                              # N m, bias torque on beta10
+DRIFT = -Q10 / L11                      # rad/s, spec O9(b): −1.98944e-3
+
+
+# ---- message builders (rosbags Jazzy classes) ---------------------------------------------
+def _stamp(t_ns: int):
+    sec, nsec = divmod(int(t_ns), 10**9)
+    return T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+
+
+def _v3(v):
+    return T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def imu(t_ns: int, w=(0.0, 0.0, 0.0), acc=(0.0, 0.0, 9.81), frame="base_link", cov_w=0.0, cov_a=0.0):
+    cw, ca = np.zeros(9), np.zeros(9)
+    cw[0], ca[0] = cov_w, cov_a
+    return T["sensor_msgs/msg/Imu"](
+        header=T["std_msgs/msg/Header"](stamp=_stamp(t_ns), frame_id=frame),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=np.zeros(9), angular_velocity=_v3(w), angular_velocity_covariance=cw,
+        linear_acceleration=_v3(acc), linear_acceleration_covariance=ca)
+
+
+def twist(w):
+    return T["geometry_msgs/msg/Twist"](linear=_v3((0, 0, 0)), angular=_v3(w))
+
+
+def twist_stamped(t_ns: int, w, frame="base_link"):
+    return T["geometry_msgs/msg/TwistStamped"](header=T["std_msgs/msg/Header"](stamp=_stamp(t_ns), frame_id=frame),
+                                               twist=twist(w))
+
+
+def make_core(**params) -> NodeCore:
+    """A core from ros__parameters (nested dicts allowed), timed by a fake clock: 25 µs per callback."""
+    return NodeCore(NodeConfig.from_ros_params(params), TYPES, clock_ns=itertools.count(0, 25_000).__next__)
+
+
+def statuses(arr) -> dict[str, tuple[int, str, dict[str, str]]]:
+    return {s.name: (s.level, s.message, {kv.key: kv.value for kv in s.values}) for s in arr.status}
+
+
+STABILISED_BIAS = dict(effects=["rotor_gyroscopic", "coriolis", "servo", "bias_torque"],
+                       physics={"bias_torque": [0.0, 0.0, 0.0, 0.0, Q10]})
+
+
+# =========================================================================================
+# scenarios
+# =========================================================================================
+def test_stabilised_bias_torque_drift_at_1khz_every_sample_published():
+    """O9(b) through the node: Q10 = 1e-4 N m drags the platform at Ω3 = −Q10/L11."""
+    core = make_core(output_rate=0.0, **STABILISED_BIAS)
+    expected_topics = core.output_topics()
+    t, drift_z, rate_z = [], [], []
+    for k in range(1001):
+        stamp = BASE + k * MS
+        out = core.on_message(imu(stamp), stamp + 200_000)        # received 0.2 ms after its stamp
+        assert [topic for topic, _ in out] == list(expected_topics)
+        for topic, m in out:
+            assert m.__msgtype__ == expected_topics[topic]
+            assert stamp_ns(m.header.stamp) == stamp                 # the sample's own time, exact ns
+        d = dict(out)
+        assert d["drift/angle"].header.frame_id == "platform"
+        assert d["bearing/gimbal4/torque"].header.frame_id == "gyro_frame4"
+        assert list(d["gimbal/joint_states"].name[:5]) == ["alpha4", "beta5", "beta7", "alpha9", "beta10"]
+        t.append(k * 1e-3)
+        drift_z.append(d["drift/angle"].vector.z)
+        rate_z.append(d["drift/rate"].vector.z)
+    t, drift_z, rate_z = map(np.asarray, (t, drift_z, rate_z))
+    late = t >= 0.5                      # after the servo transient; 1 kHz resolves the 122 Hz nutation
+    assert DRIFT == pytest.approx(-1.98944e-3, rel=1e-5)
+    assert np.polyfit(t[late], drift_z[late], 1)[0] == pytest.approx(DRIFT, rel=1e-4)
+    assert np.mean(rate_z[late]) == pytest.approx(DRIFT, rel=2e-3)
+    snap = core.snapshot()
+    assert snap["accepted"] == 1001 and snap["dropped"] == 0 and snap["outputs_published"] == 1001
+    assert snap["simulator"] == {"pushed": 1001}
+
+
+def test_carried_free_gyro_at_100hz_twist_stamped_outputs_on_a_10hz_grid():
+    """O6: a free gyro keeps its direction, so under Ω2 = 0.5 rad/s alpha4 = −0.5 t."""
+    core = make_core(mode="carried", input_type="twist_stamped", output_rate=10.0)
+    assert core.input_topics() == {"twist": "geometry_msgs/msg/TwistStamped"}
+    published = []
+    for k in range(401):                                          # 4 s at 100 Hz
+        stamp = BASE + k * 10 * MS
+        out = core.on_message(twist_stamped(stamp, (0.0, 0.5, 0.0)), stamp)
+        if out:
+            js = dict(out)["gimbal/joint_states"]
+            published.append(k)
+            assert stamp_ns(js.header.stamp) == stamp
+            assert js.position[0] == pytest.approx(-0.5 * k * 0.01, abs=1e-9)
+            assert np.max(np.abs(np.asarray(js.position[1:5]))) < 1e-9
+            assert len(js.name) == 5                               # carried: no mount joints
+    assert published == list(range(0, 401, 10))                   # first sample, then one per 0.1 s slot
+
+
+def test_twist_without_header_is_timed_by_the_receive_clock():
+    core = make_core(mode="carried", input_type="twist", output_rate=0.0)
+    for k in range(101):
+        rx = BASE + k * 10 * MS
+        out = core.on_message(twist((0.0, 0.5, 0.0)), rx)
+        js = dict(out)["gimbal/joint_states"]
+        assert stamp_ns(js.header.stamp) == rx
+    assert js.position[0] == pytest.approx(-0.5, abs=1e-9)
+    snap = core.gate.snapshot()
+    assert snap["time_source"] == "receive" and snap["notes"]["receive_time"] == 101
+    # without a receive time there is no time: dropped as no_time, never raised
+    assert core.on_message(twist((0.0, 0.5, 0.0)), None) == []
+    assert core.gate.snapshot()["dropped_by_reason"] == {"no_time": 1}
+
+
+def test_sensor_mounting_rotates_the_input_into_the_vehicle_frame():
+    core = make_core(mode="carried", output_rate=0.0, sensor_mountings=["imu_link=0.0,0.0,1.5707963267948966"],
+                     unknown_frame="reject")
+    core.on_message(imu(BASE, w=(0.5, 0.0, 0.0), frame="imu_link"), BASE)
+    np.testing.assert_allclose(core.gate.last.sample.omega, [0.0, 0.5, 0.0], atol=1e-12)   # yaw 90°: x → y
+    core.on_message(imu(BASE + MS, w=(0.5, 0.0, 0.0), frame="camera_link"), BASE + MS)
+    assert core.gate.snapshot()["dropped_by_reason"] == {"unknown_frame": 1}
+
+
+def test_frame_prefix_is_put_before_every_output_frame():
+    core = make_core(output_rate=0.0, frame_prefix="robot1/")
+    d = dict(core.on_message(imu(BASE), BASE))
+    assert d["drift/rate"].header.frame_id == "robot1/platform"
+    assert d["bearing/rotor11/torque"].header.frame_id == "robot1/gyro_housing10"
+    assert d["gimbal/joint_states"].header.frame_id == ""          # joint space has no frame
+
+
+# =========================================================================================
+# bad input: counted, never raised
+# =========================================================================================
+def test_bad_input_is_counted_by_reason_and_never_raises():
+    core = make_core(output_rate=0.0, unknown_frame="reject")
+    good = lambda k: core.on_message(imu(BASE + k * MS), BASE + k * MS)
+    for k in range(5):
+        assert good(k)
+    bad = [
+        imu(BASE + 5 * MS, w=(math.nan, 0.0, 0.0)),              # non_finite
+        imu(BASE + 5 * MS, acc=(0.0, math.inf, 9.81)),           # non_finite (specific force)
+        imu(BASE + 5 * MS, w=(100.0, 0.0, 0.0)),                 # over_rate (> 35 rad/s)
+        imu(0),                                                  # zero_stamp
+        imu(BASE + 2 * MS),                                      # backward_stamp (2 ms back)
+        imu(BASE + 4 * MS),                                      # repeated_stamp
+        imu(BASE + 5 * MS, frame="nowhere"),                     # unknown_frame
+        imu(BASE + 5 * MS, cov_w=-1.0),                          # no_rate
+        "not a message",                                         # bad_message
+        T["std_msgs/msg/Header"](stamp=_stamp(BASE), frame_id=""),   # bad_message (wrong type)
+    ]
+    for m in bad:
+        assert core.on_message(m, BASE + 5 * MS) == []
+    assert good(6)                                               # still integrating afterwards
+    assert core.on_message(imu(BASE + 3 * 10**9), BASE + 3 * 10**9)          # gap 3 s > max_gap: reset
+    assert core.on_message(imu(BASE - 60 * 10**9), BASE + 3 * 10**9 + MS)  # looped bag: jump back, reset
+    snap = core.snapshot()
+    assert snap["dropped_by_reason"] == {"non_finite": 2, "over_rate": 1, "zero_stamp": 1, "backward_stamp": 1,
+                                         "repeated_stamp": 1, "unknown_frame": 1, "no_rate": 1, "bad_message": 2}
+    assert snap["stamp_anomalies"] == {"zero_stamp": 1, "backward_stamp": 1, "repeated_stamp": 1, "gap": 1,
+                                       "jump_back": 1}
+    assert snap["resets_by_reason"] == {"gap": 1, "jump_back": 1}
+    assert snap["internal_errors"] == 0
+    st = statuses(core.diagnostics(BASE + 4 * 10**9))
+    level, _, values = st["gyro_platform: input"]
+    assert values["dropped_by_reason.over_rate"] == "1" and values["resets_by_reason.jump_back"] == "1"
+    assert st["gyro_platform: node"][2]["dropped_by_reason.bad_message"] == "2"
+
+
+def test_sample_the_simulator_rejects_is_counted_and_warned():
+    """mass_unbalance needs the specific force; an Imu that does not report it is rejected."""
+    core = make_core(output_rate=0.0, effects=["defaults", "mass_unbalance"])
+    assert core.on_message(imu(BASE), BASE)
+    assert core.on_message(imu(BASE + MS, cov_a=-1.0), BASE + MS) == []
+    assert core.snapshot()["simulator"] == {"pushed": 1, "rejected": 1}
+    level, message, _ = statuses(core.diagnostics(BASE + 2 * MS))["gyro_platform: node"]
+    assert level == 1 and "rejected" in message
+
+
+def test_gimbal_lock_proximity_is_reported():
+    core = make_core(mode="carried", input_type="twist_stamped", output_rate=10.0)   # full fidelity: no singularity
+    for k in range(221):                                          # beta10 = −0.7 t → −1.54 rad at 2.2 s
+        core.on_message(twist_stamped(BASE + k * 10 * MS, (0.7, 0.0, 0.0)), BASE + k * 10 * MS)
+    level, message, values = statuses(core.diagnostics(BASE + 2210 * MS))["gyro_platform: node"]
+    assert float(values["gimbal_lock_margin"]) == pytest.approx(abs(math.cos(0.7 * 2.2)), abs=1e-6)
+    assert level == 1 and "gimbal lock" in message
+
+
+# =========================================================================================
+# diagnostics
+# =========================================================================================
+def test_diagnostics_content_levels_and_cdr_round_trip():
+    core = make_core(output_rate=0.0)
+    st = statuses(core.diagnostics(BASE))
+    assert set(st) == {"gyro_platform: input", "gyro_platform: platform", "gyro_platform: node"}
+    assert st["gyro_platform: node"][0] == 3 and st["gyro_platform: platform"][0] == 3      # STALE: no input
+    for k in range(200):
+        core.on_message(imu(BASE + k * MS), BASE + k * MS)
+    arr = core.diagnostics(BASE + 200 * MS)
+    assert stamp_ns(arr.header.stamp) == BASE + 200 * MS
+    store = jazzy_typestore()
+    raw = store.serialize_cdr(arr, arr.__msgtype__)
+    assert store.serialize_cdr(store.deserialize_cdr(raw, arr.__msgtype__), arr.__msgtype__) == raw
+    st = statuses(arr)
+    level, message, v = st["gyro_platform: node"]
+    assert (level, message) == (0, "ok")
+    for key in ("input_rate_hz", "input_period_ms", "callback_time_mean_ms", "callback_time_max_ms",
+                "real_time_margin", "integrator", "integrator_steps", "integrator_error_estimate_max",
+                "gimbal_lock_margin", "resets", "outputs_published", "since_last_input_s"):
+        assert key in v, key
+    assert float(v["input_rate_hz"]) == pytest.approx(1000.0)
+    # real-time margin = 1 − callback time / input period; the fake clock makes it 1 − 25 µs / 1 ms
+    assert float(v["real_time_margin"]) == pytest.approx(0.975)
+    # auto rule: NAV-1 nutation 808.6 rad/s × 1 ms = 0.81 < 1.5 (RK4 stable with margin) → rk4
+    assert int(v["integrator_steps"]) == 199 and v["integrator"] == "rk4"
+    assert float(st["gyro_platform: platform"][2]["gimbal_lock_margin"]) > 0.99
+    # nothing for longer than max_gap: STALE
+    assert statuses(core.diagnostics(BASE + 5 * 10**9))["gyro_platform: node"][0] == 3
+
+
+def test_real_time_margin_goes_negative_when_callbacks_outlast_the_input_period():
+    core = NodeCore(NodeConfig.from_ros_params({"output_rate": 0.0}), TYPES,
+                    clock_ns=itertools.count(0, 1_500_000).__next__)        # 1.5 ms per callback at 1 kHz
+    for k in range(50):
+        core.on_message(imu(BASE + k * MS), BASE + k * MS)
+    assert core.real_time_margin() == pytest.approx(-0.5)
+    level, message, _ = statuses(core.diagnostics(BASE + 50 * MS))["gyro_platform: node"]
+    assert level == 2 and "behind real time" in message
+
+
+# =========================================================================================
+# parameters
+# =========================================================================================
+def test_live_parameter_changes_apply_at_once():
+    core = make_core(output_rate=0.0, **STABILISED_BIAS)
+    for k in range(100):
+        core.on_message(imu(BASE + k * MS), BASE + k * MS)
+    # output rate: 0 (every sample) → 100 Hz
+    assert core.set_parameters({"output_rate": 100.0}) == (True, "")
+    n = sum(bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(100, 200))
+    assert n == 10
+    # gate limit: 40 rad/s is over the default 35 rad/s, accepted after raising max_rate
+    assert core.on_message(imu(BASE + 200 * MS, w=(40.0, 0.0, 0.0)), BASE + 200 * MS) == []
+    assert core.set_parameters({"gate.max_rate": 50.0}) == (True, "")
+    core.on_message(imu(BASE + 201 * MS, w=(40.0, 0.0, 0.0)), BASE + 201 * MS)
+    assert core.gate.last.reason == "ok"
+    # effects and servo gains rebuild the model; the integration goes on from the same state
+    t_before, q_before = core.sim.t, core.sim.y.copy()
+    ok, reason = core.set_parameters({"effects": ["rotor_gyroscopic", "coriolis", "servo"],
+                                      "physics.servo_kp": 1000.0})
+    assert (ok, reason) == (True, "")
+    assert "bias_torque" not in core.sim.options.effects and core.sim.params.servo_kp == 1000.0
+    assert core.sim.t == t_before and np.array_equal(core.sim.y, q_before)
+    assert core.on_message(imu(BASE + 210 * MS), BASE + 210 * MS)
+    assert core.snapshot()["parameter_changes"] == 3
+
+
+@pytest.mark.parametrize("changes, named, says", [
+    ({"output_rate": -1.0}, "output_rate", "outside the allowed range"),
+    ({"output_rate": 20}, "output_rate", "write 20.0"),
+    ({"gate.max_gap": 0.0}, "gate.max_gap", "outside the allowed range"),
+    ({"gate.on_gap": "ignore"}, "gate.on_gap", "allowed: reset, integrate"),
+    ({"effects": ["warp_drive"]}, "effects", "not allowed"),
+    ({"effects": ["defaults", "none"]}, "effects", "only entry"),
+    ({"physics.servo_limit": 0.0}, "physics.servo_limit", "outside the allowed range"),
+    ({"sensor_mountings": ["imu_link=1,2"]}, "sensor_mountings", "quaternion"),
+    ({"mode": "carried"}, "mode", "read-only"),
+    ({"physics.rotor_speed": [1.0, 2.0, 3.0]}, "physics.rotor_speed", "read-only"),
+    ({"scene": "coning"}, "scene", "read-only"),
+    ({"no_such_parameter": 1.0}, "no_such_parameter", "unknown parameter"),
+])
+def test_bad_or_read_only_parameter_changes_are_refused_with_a_reason(changes, named, says):
+    core = make_core(output_rate=5.0)
+    before = core.config
+    ok, reason = core.set_parameters({"gate.max_rate": 20.0, **changes})    # atomic: nothing applied
+    assert not ok
+    assert f"'{named}'" in reason and says in reason
+    assert core.config is before and core.gate.config.max_rate == 35.0
+
+
+def test_unchanged_read_only_value_is_accepted():
+    core = make_core()
+    assert core.set_parameters({"mode": "stabilised", "output_rate": 5.0}) == (True, "")
+
+
+def test_effect_needing_specific_force_is_refused_on_a_twist_input():
+    core = make_core(input_type="twist")
+    ok, reason = core.set_parameters({"effects": ["defaults", "anisoelastic"]})
+    assert not ok and "'effects'" in reason and "specific force" in reason
+    with pytest.raises(ConfigError, match="specific force"):
+        NodeConfig.from_ros_params({"input_type": "twist_stamped", "effects": ["defaults", "mass_unbalance"]})
+
+
+@pytest.mark.parametrize("params, named", [
+    ({"output_rat": 5.0}, "output_rat"),
+    ({"gate": {"max_gapp": 1.0}}, "gate.max_gapp"),
+    ({"output_rate": "fast"}, "output_rate"),
+    ({"input_type": "odometry"}, "input_type"),
+    ({"physics": {"rotor_C": [1.0, 1.0]}}, "physics.rotor_C"),
+    ({"physics": {"rotor_C": [5.0e-5, 5.0e-5, 5.0e-5]}}, "physics.rotor_C"),     # C > 2A: not a rigid body
+    ({"physics": {"mounting": [0.0, 0.0, 0.0, 2.0]}}, "physics.mounting"),
+    ({"mode": "carried", "effects": ["defaults", "servo"]}, "effects"),           # servo needs stabilised
+    ({"scene": "no_such_scene"}, "scene"),
+    ({"reset_on_clock_jump": 1}, "reset_on_clock_jump"),
+])
+def test_config_errors_name_the_parameter(params, named):
+    with pytest.raises(ConfigError) as e:
+        NodeConfig.from_ros_params(params)
+    assert e.value.parameter == named and f"'{named}'" in str(e.value)
+
+
+def test_unknown_key_suggests_the_closest_name_and_ros_keys_are_accepted():
+    with pytest.raises(ConfigError, match="did you mean 'output_rate'"):
+        NodeConfig.from_ros_params({"output_rat": 5.0})
+    cfg = NodeConfig.from_ros_params({"use_sim_time": True, "qos_overrides": {"/imu": {"subscription": {"depth": 5}}},
+                                      "diagnostic_updater": {"period": 1.0}})
+    assert cfg.values == C.parameter_defaults()
+
+
+# =========================================================================================
+# reset and clock jumps
+# =========================================================================================
+def test_reset_restarts_the_simulation_and_the_time_base():
+    core = make_core(mode="carried", input_type="twist_stamped", output_rate=0.0)
+    for k in range(101):
+        core.on_message(twist_stamped(BASE + k * 10 * MS, (0.0, 0.5, 0.0)), BASE + k * 10 * MS)
+    assert core.sim.outputs().gimbal_angles[0] == pytest.approx(-0.5)
+    core.reset("service")
+    later = BASE + 50 * 10**9
+    js = dict(core.on_message(twist_stamped(later, (0.0, 0.5, 0.0)), later))["gimbal/joint_states"]
+    assert js.position[0] == 0.0 and stamp_ns(js.header.stamp) == later
+    assert core.gate.last.reason == "start"
+    assert core.snapshot()["resets_by_reason"] == {"service": 1}
+    assert core.snapshot()["last_reset_reason"] == "service"
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_clock_jump_back_resets_when_enabled(enabled):
+    core = make_core(mode="carried", input_type="twist", output_rate=0.0, reset_on_clock_jump=enabled)
+    for k in range(101):
+        core.on_message(twist((0.0, 0.5, 0.0)), BASE + k * 10 * MS)
+    core.on_clock_jump(False, 5 * 10**9)                          # forward: never a reset
+    core.on_clock_jump(True, -60 * 10**9)                         # looped bag: /clock back 60 s
+    assert core.snapshot()["clock_jumps"] == {"forward": 1, "back": 1}
+    js = dict(core.on_message(twist((0.0, 0.5, 0.0)), BASE - 59 * 10**9))["gimbal/joint_states"]
+    if enabled:
+        assert core.snapshot()["resets_by_reason"] == {"clock_jump_back": 1}
+        assert js.position[0] == 0.0                              # a fresh start at the new time
+    else:
+        # no reset from the clock; the gate still sees the time jump back and restarts itself
+        assert core.snapshot()["resets_by_reason"] == {"jump_back": 1}
+
+
+# =========================================================================================
+# configuration files, scenes, docs
+# =========================================================================================
+def test_platform_yaml_loads_and_documents_every_parameter():
+    path = ROOT / "config" / "platform.yaml"
+    cfg = NodeConfig.from_yaml(path)
+    assert cfg.values == C.parameter_defaults()
+    text = path.read_text()
+    for p in C.PARAMETERS:
+        key = p.name.rpartition(".")[2]
+        assert f" {key}: " in text or f"# {key}: " in text, p.name
+    for key in ("output_rate", "mode", "effects"):               # scene keys stay commented out
+        assert f"\n    # {key}: " in text
+
+
+def test_params_file_sections_merge_wildcard_then_node(tmp_path):
+    f = tmp_path / "p.yaml"
+    f.write_text("/**:\n  ros__parameters:\n    output_rate: 5.0\n    gate:\n      max_gap: 2.0\n"
+                 "/robot1/gyro_platform_node:\n  ros__parameters:\n    output_rate: 25.0\n"
+                 "other_node:\n  ros__parameters:\n    whatever: 1\n")
+    cfg = NodeConfig.from_yaml(f)
+    assert cfg["output_rate"] == 25.0 and cfg.gate.max_gap == 2.0
+    f.write_text("/**:\n  ros__parameters:\n    output_rate: 5\n")
+    with pytest.raises(ConfigError, match=r"'output_rate'.*write 5.0"):
+        NodeConfig.from_yaml(f)
+
+
+@pytest.mark.parametrize("scene_file", SCENES, ids=[p.stem for p in SCENES])
+def test_every_scene_file_configures_the_node(scene_file):
+    from gyro_platform.scene import load_scene
+
+    scene = load_scene(scene_file)
+    for name in (str(scene_file), scene_file.stem):               # by path and by name
+        cfg = NodeConfig.from_ros_params({"scene": name})
+        assert cfg.options == scene.options
+        assert cfg.params == scene.params
+        assert cfg["output_rate"] == scene.output_rate
+    core = NodeCore(cfg, TYPES)
+    for k in range(3):
+        stamp = BASE + k * 10 * MS
+        core.on_message(imu(stamp, w=(0.01, -0.02, 0.005)), stamp)
+    snap = core.snapshot()
+    assert snap["accepted"] == 3 and snap["simulator"].get("pushed") == 3 and snap["internal_errors"] == 0
+
+
+def test_explicit_parameters_override_the_scene():
+    cfg = NodeConfig.from_ros_params({"scene": "default", "output_rate": 50.0, "physics": {"servo_kp": 1000.0}})
+    assert cfg["output_rate"] == 50.0 and cfg.params.servo_kp == 1000.0
+    assert cfg.params.bias_torque == (0.0, 0.0, 0.0, 0.0, 1.0e-7)          # from the scene
+    assert "bias_torque" in cfg.options.effects
+
+
+def test_every_platform_parameter_is_a_documented_node_parameter():
+    for f in fields(PlatformParams):
+        assert f.name in C.PHYSICS_DOCS, f"document PlatformParams.{f.name} in core.PHYSICS_DOCS"
+        assert C.SPECS[C.PHYSICS_PREFIX + f.name].read_only == (f.name not in C.LIVE_PHYSICS)
+    for p in C.PARAMETERS:
+        assert p.description and p.default is not None
+        assert p.coerce(p.default) == p.default                    # every default passes its own checks
+
+
+def test_docs_carry_the_current_parameter_and_topic_tables():
+    doc = (ROOT / "docs" / "ros2.md").read_text()
+    hint = ("docs/ros2.md is stale: paste gyro_platform.core.parameters_markdown() / topics_markdown() "
+            "between its <!-- parameters --> / <!-- topics --> markers")
+    assert C.parameters_markdown() in doc, hint
+    assert C.topics_markdown() in doc, hint
+
+
+def test_importing_the_package_and_core_does_not_import_rclpy():
+    code = ("import sys, gyro_platform, gyro_platform.core, gyro_platform.messages; "
+            "assert 'rclpy' not in sys.modules; print('ok')")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode == 0 and "ok" in res.stdout, res.stderr
+
+
+def test_node_module_without_rclpy_fails_with_a_clear_import_error():
+    try:
+        import rclpy  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        pytest.skip("rclpy is installed here")
+    with pytest.raises(ImportError, match="rclpy"):
+        import gyro_platform.node  # noqa: F401

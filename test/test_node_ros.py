@@ -1,0 +1,218 @@
+"""The rclpy node, driven through topics (ROS 2 Jazzy needed; skipped elsewhere).
+
+Each test starts ``PlatformNode`` in-process with ``config/platform.yaml`` (``--params-file``)
+plus per-test overrides, publishes scripted rate samples from a driver node, waits until the
+platform node has taken each one, and checks the published outputs with the same expectations
+as the ROS-free ``test_node_core.py`` (spec O6, O9b). Stamps are scripted, so nothing depends on
+wall-clock timing except the waits (which have generous timeouts).
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip(
+    "rclpy", reason="rclpy is not installed (ROS 2 Jazzy needed); the same behaviour is tested ROS-free in "
+                    "test_node_core.py")
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import TwistStamped, Vector3, Vector3Stamped  # noqa: E402
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import Imu, JointState  # noqa: E402
+from std_msgs.msg import Header  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from gyro_platform.node import PlatformNode  # noqa: E402
+from gyro_platform.params import NAV1  # noqa: E402
+
+PARAMS = Path(__file__).resolve().parents[1] / "config" / "platform.yaml"
+BASE = 1_700_000_000 * 10**9
+MS = 10**6
+Q10 = 1e-4
+DRIFT = -Q10 / NAV1.L[2]                 # rad/s, −1.98944e-3
+RELIABLE_DEEP = QoSProfile(depth=2000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def stamp(t_ns: int) -> Time:
+    sec, nsec = divmod(int(t_ns), 10**9)
+    return Time(sec=sec, nanosec=nsec)
+
+
+def ns(t: Time) -> int:
+    return t.sec * 10**9 + t.nanosec
+
+
+def imu(t_ns: int, w=(0.0, 0.0, 0.0)) -> Imu:
+    m = Imu(header=Header(stamp=stamp(t_ns), frame_id="base_link"))
+    m.angular_velocity = Vector3(x=float(w[0]), y=float(w[1]), z=float(w[2]))
+    m.linear_acceleration = Vector3(x=0.0, y=0.0, z=9.81)
+    return m
+
+
+def twist_stamped(t_ns: int, w) -> TwistStamped:
+    m = TwistStamped(header=Header(stamp=stamp(t_ns), frame_id="base_link"))
+    m.twist.angular = Vector3(x=float(w[0]), y=float(w[1]), z=float(w[2]))
+    return m
+
+
+class Harness:
+    """The platform node, a driver node publishing the input, and subscriptions to the outputs."""
+
+    def __init__(self, context: Context, msg_type: type = Imu, input_topic: str = "imu", **overrides):
+        self.node = PlatformNode(context=context, cli_args=["--ros-args", "--params-file", str(PARAMS)],
+                                 parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.driver = Node("scenario_driver", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.driver)
+        self.pub = self.driver.create_publisher(msg_type, input_topic, qos_profile_sensor_data)
+        self.got: dict[str, list] = {"gimbal/joint_states": [], "drift/angle": [], "drift/rate": [],
+                                     "/diagnostics": []}
+        for topic, typ in (("gimbal/joint_states", JointState), ("drift/angle", Vector3Stamped),
+                           ("drift/rate", Vector3Stamped), ("/diagnostics", DiagnosticArray)):
+            self.driver.create_subscription(typ, topic, self.got[topic].append, RELIABLE_DEEP)
+        self.wait(lambda: self.pub.get_subscription_count() > 0
+                  and self.node._pubs["gimbal/joint_states"].get_subscription_count() > 0, what="discovery")
+
+    def wait(self, cond, timeout: float = 20.0, what: str = "condition") -> None:
+        end = time.monotonic() + timeout
+        while not cond():
+            if time.monotonic() > end:
+                raise AssertionError(f"timed out waiting for {what}")
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def send(self, msg) -> None:
+        """Publish one input and wait until the platform node has taken it."""
+        n = self.node.core.received
+        self.pub.publish(msg)
+        self.wait(lambda: self.node.core.received > n, what="the node to take the input")
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.driver.destroy_node()
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture
+def harness(context):
+    made = []
+
+    def make(**kw) -> Harness:
+        h = Harness(context, **kw)
+        made.append(h)
+        return h
+
+    yield make
+    for h in made:
+        h.close()
+
+
+def test_bias_torque_drift_through_topics_at_1khz(harness):
+    h = harness(effects=["rotor_gyroscopic", "coriolis", "servo", "bias_torque"],
+                **{"physics.bias_torque": [0.0, 0.0, 0.0, 0.0, Q10], "output_rate": 0.0})
+    stamps = [BASE + k * MS for k in range(1001)]
+    for s in stamps:
+        h.send(imu(s))
+    h.wait(lambda: len(h.got["drift/angle"]) == 1001 and len(h.got["drift/rate"]) == 1001, what="1001 outputs")
+    assert [ns(m.header.stamp) for m in h.got["drift/angle"]] == stamps
+    assert all(m.header.frame_id == "platform" for m in h.got["drift/angle"])
+    t = np.array([(ns(m.header.stamp) - BASE) * 1e-9 for m in h.got["drift/angle"]])
+    z = np.array([m.vector.z for m in h.got["drift/angle"]])
+    late = t >= 0.5
+    assert np.polyfit(t[late], z[late], 1)[0] == pytest.approx(DRIFT, rel=1e-4)
+    assert np.mean([m.vector.z for m in h.got["drift/rate"]][500:]) == pytest.approx(DRIFT, rel=2e-3)
+
+
+def test_carried_free_gyro_through_topics_at_100hz(harness):
+    h = harness(msg_type=TwistStamped, input_topic="twist", mode="carried", input_type="twist_stamped",
+                output_rate=10.0)
+    for k in range(401):
+        h.send(twist_stamped(BASE + k * 10 * MS, (0.0, 0.5, 0.0)))
+    h.wait(lambda: len(h.got["gimbal/joint_states"]) == 41, what="41 joint states")
+    for i, js in enumerate(h.got["gimbal/joint_states"]):
+        assert ns(js.header.stamp) == BASE + i * 100 * MS          # the 10 Hz grid of sample times
+        assert js.position[0] == pytest.approx(-0.5 * i * 0.1, abs=1e-9)
+        assert list(js.name) == ["alpha4", "beta5", "beta7", "alpha9", "beta10"]
+
+
+def test_bad_input_is_counted_and_the_node_goes_on(harness):
+    h = harness(output_rate=0.0)
+    h.send(imu(BASE))
+    h.send(imu(BASE + MS, w=(math.nan, 0.0, 0.0)))
+    h.send(imu(0))
+    h.send(imu(BASE + 2 * MS, w=(100.0, 0.0, 0.0)))
+    h.send(imu(BASE + 3 * MS))
+    h.wait(lambda: len(h.got["gimbal/joint_states"]) == 2, what="2 outputs")
+    assert h.node.core.snapshot()["dropped_by_reason"] == {"non_finite": 1, "zero_stamp": 1, "over_rate": 1}
+
+
+def test_parameters_have_descriptors_and_are_validated(harness):
+    h = harness()
+    d = h.node.describe_parameter("output_rate")
+    assert d.floating_point_range[0].from_value == 0.0 and not d.read_only and "Hz" in d.description
+    assert h.node.describe_parameter("mode").read_only
+    assert h.node.describe_parameter("physics.servo_kp").floating_point_range
+    res = h.node.set_parameters([Parameter("output_rate", value=-1.0)])[0]
+    assert not res.successful                                   # rclpy's range check
+    res = h.node.set_parameters([Parameter("mode", value="carried")])[0]
+    assert not res.successful and "read-only" in res.reason
+    res = h.node.set_parameters([Parameter("effects", value=["warp_drive"])])[0]
+    assert not res.successful and "'effects'" in res.reason       # the core's check
+    res = h.node.set_parameters([Parameter("output_rate", value=50.0), Parameter("gate.max_rate", value=20.0)])
+    assert all(r.successful for r in res)
+    assert h.node.core.config["output_rate"] == 50.0 and h.node.core.gate.config.max_rate == 20.0
+
+
+def test_scene_parameter_sets_the_model(harness):
+    h = harness(scene="coning")
+    assert h.node.get_parameter("output_rate").value == 20.0      # the scene's output rate
+    assert h.node.core.config.options.mode == "stabilised"
+
+
+def test_reset_service(harness):
+    h = harness()
+    h.send(imu(BASE))
+    client = h.driver.create_client(Trigger, "/gyro_platform_node/reset")
+    h.wait(lambda: client.service_is_ready(), what="the reset service")
+    future = client.call_async(Trigger.Request())
+    h.wait(future.done, what="the reset response")
+    assert future.result().success
+    assert h.node.core.snapshot()["resets_by_reason"] == {"service": 1}
+
+
+def test_clock_jump_back_resets(harness, context):
+    h = harness(use_sim_time=True)
+    clock_pub = h.driver.create_publisher(Clock, "/clock", 10)
+    h.wait(lambda: clock_pub.get_subscription_count() > 0, what="the node's /clock subscription")
+    clock_pub.publish(Clock(clock=stamp(BASE + 100 * 10**9)))
+    h.wait(lambda: h.node.get_clock().now().nanoseconds == BASE + 100 * 10**9, what="sim time")
+    clock_pub.publish(Clock(clock=stamp(BASE + 10 * 10**9)))      # ros2 bag play --loop starts over
+    h.wait(lambda: h.node.core.snapshot()["clock_jumps"].get("back") == 1, what="the jump callback")
+    assert h.node.core.snapshot()["resets_by_reason"] == {"clock_jump_back": 1}
+
+
+def test_diagnostics_are_published(harness):
+    h = harness()
+    h.send(imu(BASE))
+    h.wait(lambda: any(s.name.endswith("node") for a in h.got["/diagnostics"] for s in a.status),
+           timeout=10.0, what="/diagnostics")
+    names = {s.name for a in h.got["/diagnostics"] for s in a.status}
+    assert any(n.endswith("input") for n in names) and any(n.endswith("platform") for n in names)
