@@ -165,7 +165,7 @@ def validate(p: PlatformParams) -> None:
     """Reject unphysical parameters with a message naming the parameter and its range."""
     for name in ("rotor_C", "rotor_A", "housing5", "housing7", "housing10", "frame4", "frame9"):
         _check(name, getattr(p, name), 0.0, 1e3)
-    _check("rotor_speed", p.rotor_speed, -1e5, 1e5)
+    _check("rotor_speed", p.rotor_speed, -1e6, 1e6)
     # rigid-body triangle inequality for every principal-moment triple
     for name in ("housing5", "housing7", "housing10", "frame4", "frame9"):
         a, b, c = getattr(p, name)

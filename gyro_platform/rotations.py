@@ -82,17 +82,28 @@ def quat_matrix(q) -> np.ndarray:
     return R
 
 
+@njit(cache=True)
 def rotvec_matrix(v) -> np.ndarray:
     """Rotation matrix of the rotation vector v (rad), Rodrigues."""
-    v = np.asarray(v, dtype=float)
-    th = math.sqrt(float(v @ v))
+    th = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    R = np.eye(3)
     if th < 1e-300:
-        return np.eye(3)
-    k = v / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
+        return R
+    kx, ky, kz = v[0] / th, v[1] / th, v[2] / th
+    s, c = math.sin(th), 1.0 - math.cos(th)
+    R[0, 0] += c * (-ky * ky - kz * kz)
+    R[1, 1] += c * (-kx * kx - kz * kz)
+    R[2, 2] += c * (-kx * kx - ky * ky)
+    R[0, 1] += -s * kz + c * kx * ky
+    R[1, 0] += s * kz + c * kx * ky
+    R[0, 2] += s * ky + c * kx * kz
+    R[2, 0] += -s * ky + c * kx * kz
+    R[1, 2] += -s * kx + c * ky * kz
+    R[2, 1] += s * kx + c * ky * kz
+    return R
 
 
+@njit(cache=True)
 def matrix_rotvec(R) -> np.ndarray:
     """Rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for small
     and large angles alike)."""
@@ -112,10 +123,12 @@ def matrix_rotvec(R) -> np.ndarray:
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     n = math.sqrt(x * x + y * y + z * z)
+    out = np.zeros(3)
     if n < 1e-300:
-        return np.zeros(3)
-    ang = 2.0 * math.atan2(n, w)
-    return np.array([x, y, z]) * (ang / n)
+        return out
+    ang = 2.0 * math.atan2(n, w) / n
+    out[0], out[1], out[2] = x * ang, y * ang, z * ang
+    return out
 
 
 def matrix_quat(R) -> np.ndarray:
@@ -127,9 +140,11 @@ def matrix_quat(R) -> np.ndarray:
     return np.concatenate([v / th * math.sin(th / 2), [math.cos(th / 2)]])
 
 
+@njit(cache=True)
 def euler_xyz(R) -> np.ndarray:
     """Intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c): the mount's roll, pitch, yaw."""
-    b = math.asin(max(-1.0, min(1.0, R[0, 2])))
-    a = math.atan2(-R[1, 2], R[2, 2])
-    c = math.atan2(-R[0, 1], R[0, 0])
-    return np.array([a, b, c])
+    out = np.empty(3)
+    out[1] = math.asin(max(-1.0, min(1.0, R[0, 2])))
+    out[0] = math.atan2(-R[1, 2], R[2, 2])
+    out[2] = math.atan2(-R[0, 1], R[0, 0])
+    return out
