@@ -166,6 +166,14 @@ def linear_coefficients(p: PlatformParams) -> np.ndarray:
 # precession fidelity: spec 7.1 (unit B explicit; unit A with β7 caged)
 
 @njit(cache=True)
+def _gyro_pair_rates(d_outer, d_inner, g, r1, r2):
+    """Rates (outer, inner) of one two-axis gyro in the precession model: the 2×2 system
+    [d_o, g; −g, d_i] [ṙ_o; ṙ_i] = [r1; r2] (g = L cos β, d = viscous dampers)."""
+    det = d_outer * d_inner + g * g
+    return (r1 * d_inner - g * r2) / det, (d_outer * r2 + g * r1) / det
+
+
+@njit(cache=True)
 def precession_rates(L, q, Om, Q, dvisc, out):
     """Gimbal rates (rad/s) of the precession model. ``Q`` applied torques without the viscous
     part ``dvisc`` (N m s/rad, per gimbal), which is solved for implicitly (2×2 per unit).
@@ -179,24 +187,15 @@ def precession_rates(L, q, Om, Q, dvisc, out):
     w = O1 * sa - O2 * ca
     g = L[2] * cb
     # [d9, g; -g, d10] [α̇; β̇] = [Q9 − g u; Q10 + g Ω3 + L sβ w]
-    m11, m12, m21, m22 = dvisc[3], g, -g, dvisc[4]
-    r1 = Q[3] - g * u
-    r2 = Q[4] + g * O3 + L[2] * sb * w
-    det = m11 * m22 - m12 * m21
-    out[3] = (r1 * m22 - m12 * r2) / det
-    out[4] = (m11 * r2 - m21 * r1) / det
+    out[3], out[4] = _gyro_pair_rates(dvisc[3], dvisc[4], g, Q[3] - g * u, Q[4] + g * O3 + L[2] * sb * w)
     # unit A, β7 caged:  L6 cβ5 (β̇5 + v) − L8 v = Q4 − d4 α̇4 ; −L6 (cβ5 (α̇4 + Ω2) − sβ5 x) = Q5 − d5 β̇5
     cb5, sb5 = math.cos(b5), math.sin(b5)
     ca4, sa4 = math.cos(a4), math.sin(a4)
     v = O1 * sa4 + O3 * ca4
     x = O1 * ca4 - O3 * sa4
     g5 = L[0] * cb5
-    m11, m12, m21, m22 = dvisc[0], g5, -g5, dvisc[1]
-    r1 = Q[0] - g5 * v + L[1] * v
-    r2 = Q[1] + g5 * O2 - L[0] * sb5 * x
-    det = m11 * m22 - m12 * m21
-    out[0] = (r1 * m22 - m12 * r2) / det
-    out[1] = (m11 * r2 - m21 * r1) / det
+    out[0], out[1] = _gyro_pair_rates(dvisc[0], dvisc[1], g5, Q[0] - g5 * v + L[1] * v,
+                                      Q[1] + g5 * O2 - L[0] * sb5 * x)
     out[2] = 0.0
     return min(abs(cb), abs(cb5))
 
