@@ -26,7 +26,7 @@ setup(
         "rosbags>=0.10",
         "pytest>=7",
     ],
-    extras_require={"dds": ["cyclonedds>=0.10.5"]},
+    extras_require={"dds": ["cyclonedds>=11.0.1"]},
     zip_safe=True,
     maintainer="gyro_platform developers",
     maintainer_email="gyro-platform@example.com",
