@@ -442,8 +442,8 @@ def test_every_platform_parameter_is_a_documented_node_parameter():
 
 
 def test_docs_carry_the_current_parameter_and_topic_tables():
-    doc = (ROOT / "docs" / "ros2.md").read_text()
-    hint = ("docs/ros2.md is stale: paste gyro_platform.core.parameters_markdown() / topics_markdown() "
+    doc = (ROOT / "README.md").read_text()
+    hint = ("README.md is stale: paste gyro_platform.core.parameters_markdown() / topics_markdown() "
             "between its <!-- parameters --> / <!-- topics --> markers")
     assert C.parameters_markdown() in doc, hint
     assert C.topics_markdown() in doc, hint
