@@ -277,3 +277,47 @@ def rest_matrices(p: PlatformParams) -> tuple[np.ndarray, np.ndarray]:
                      np.zeros((6, 3)), wk.wd, wk.f)
         generalised(tree.jtype, tree.axis, tree.vidx, True, wk.f, G0[:, j])
     return M0, G0
+
+
+# ---------------------------------------------------------------------------------------------
+# the paper's matrix form ([M76] eqs. 2, 3, 12–14), for analysis and as a cross-check of the tree
+
+def structure_matrix(q) -> np.ndarray:
+    """B(q) (3 × 8): row r is the carrier rate about rotor r's spin axis per unit ẋ,
+    ``w_r = b_r ẋ`` (spec 2.3, exact), rotors 6, 8, 11; ẋ = (Ω1..3, α̇4, β̇5, β̇7, α̇9, β̇10)."""
+    a4, b5, b7, a9, b10 = q
+    c, s = math.cos, math.sin
+    return np.array([
+        [c(a4) * c(b5), s(b5), -s(a4) * c(b5), s(b5), 0.0, 0.0, 0.0, 0.0],
+        [-c(a4) * c(b7), s(b7), s(a4) * c(b7), s(b7), 0.0, 0.0, 0.0, 0.0],
+        [-s(a9) * c(b10), c(a9) * c(b10), s(b10), 0.0, 0.0, 0.0, s(b10), 0.0],
+    ])
+
+
+def paper_matrices(p: PlatformParams, q) -> dict[str, np.ndarray]:
+    """The matrices the paper builds the equations from, at gimbal angles q (rad):
+
+    ``B`` structure matrix (3 × 8), ``A_R`` = diag(C6, C8, C11), ``A_star`` = A* (8 × 8, frozen
+    rotors, from the body tree), ``A`` = A* − Bᵀ A_R B (rotors' axial inertia removed),
+    ``L`` relative rotor momenta, and ``G_R`` (8 × 8, skew) with the gyroscopic forces
+    ``G_R ẋ`` of ``T1 = Lᵀ B(q) ẋ``: ``G_R[i, j] = ∂β_i/∂x_j − ∂β_j/∂x_i``, β = Bᵀ L, where only
+    the gimbal angles are coordinates (the platform rates are quasi-velocities)."""
+    q = np.asarray(q, dtype=float)
+    tree = platform_tree(p, root_dynamic=True)
+    wk = TreeWork(tree)
+    kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, True, q, np.zeros(8), np.zeros(3),
+               wk.R, wk.w, wk.J)
+    A_star = np.zeros((8, 8))
+    mass_matrix(wk.J, tree.inertia, A_star)
+    B = structure_matrix(q)
+    A_R = np.diag(p.rotor_C)
+    L = p.L
+    dbeta = np.zeros((8, 8))                       # dbeta[i, 3 + k] = ∂β_i/∂q_k
+    for k in range(5):
+        h = 1e-6
+        qp, qm = q.copy(), q.copy()
+        qp[k] += h
+        qm[k] -= h
+        dbeta[:, 3 + k] = (structure_matrix(qp).T @ L - structure_matrix(qm).T @ L) / (2 * h)
+    G_R = dbeta - dbeta.T
+    return {"B": B, "A_R": A_R, "A_star": A_star, "A": A_star - B.T @ A_R @ B, "L": L, "G_R": G_R}
