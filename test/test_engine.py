@@ -212,8 +212,11 @@ def test_O4b_all_gimbals_linear_and_nonlinear_equilibria():
     # linear (27) values: the paper model (coriolis off) gives the printed closed forms
     s = carried("linear", ("rotor_gyroscopic", "gimbal_springs"))
     s.set_input(0.0, 1.0, Om, Om)
+    # start from the closed forms of (27) (O4 b) so that the solver converges cleanly
+    closed = np.array([0.0, L * Om[1] / (0.5 + L * Om[0]), L * Om[1] / (0.5 - L * Om[0]),
+                       -L * Om[0] / (0.5 + L * Om[1]), L * Om[2] / (0.5 + L * Om[1])])
     lin27 = fsolve(lambda x: s.rhs(0.0, np.concatenate([x, np.zeros(5), s.rest_state()[10:]]))[5:10],
-                   np.zeros(5), xtol=1e-14)
+                   closed, xtol=1e-14)
     np.testing.assert_allclose(lin27, [0.0, 0.010002817, 0.010103884, -0.004976519, -0.007962430], atol=2e-9)
     np.testing.assert_allclose(nl, [-2.38e-8, 0.010002297, 0.010103387, -0.004976281, -0.007961951], atol=2e-9)
     assert np.max(np.abs(lin - nl)) < 1e-5          # 6.1 and the exact model agree to 2nd order
