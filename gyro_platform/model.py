@@ -28,11 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from . import effects as fx
-from .errors import GimbalLockError, PrecessionInvalidError
+from .errors import PrecessionInvalidError
 from .options import ModelOptions
 from .params import PlatformParams
-from .rotations import quat_rate, quat_to_matrix
 from .tree import REVOLUTE, ROOT, BodyTree, TreeWork, kinematics, mass_matrix, newton_euler, generalised
 
 E1, E2, E3 = np.eye(3)
@@ -234,7 +232,6 @@ def check_precession_valid(p: PlatformParams, options: ModelOptions) -> None:
             raise PrecessionInvalidError(
                 f"fidelity 'precession' is invalid: {name} has zero spin momentum L = {Lr:g} N m s, "
                 "so det G_R = 0 (use fidelity 'full' or 'linear' for a rotor at rest)")
-    d = np.asarray(p.damper) if options.has("gimbal_dampers") else np.zeros(5)
     J = p.lumped()
     # repeated roots / frequency separation: the nutation frequency must dominate the restraint
     if options.has("gimbal_springs"):
@@ -248,7 +245,6 @@ def check_precession_valid(p: PlatformParams, options: ModelOptions) -> None:
                     f"fidelity 'precession' is invalid for {lab}: spring frequency {wspring:.3g} rad/s is "
                     f"not well below the nutation frequency {wn:.3g} rad/s (need < 0.3·ω_n; the "
                     "precession and nutation roots would nearly coincide)")
-    _ = d
 
 
 # ---------------------------------------------------------------------------------------------

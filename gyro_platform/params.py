@@ -7,7 +7,7 @@ parallel to them in the normal position (all gimbal angles zero). Housings are g
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -146,9 +146,6 @@ class PlatformParams:
         return PlatformParams(**kw)
 
 
-NAV1 = None  # set below (module constant: the reference parameter set of the spec)
-
-
 def _check(name: str, values, lo: float, hi: float = math.inf, *, lo_open: bool = False) -> None:
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     for i, x in enumerate(arr):
@@ -200,4 +197,5 @@ def validate(p: PlatformParams) -> None:
                              f"(norm {np.linalg.norm(q):.9g}; allowed |q| = 1 ± 1e-6)")
 
 
+#: the reference parameter set NAV-1 of the spec (section 3.2)
 NAV1 = PlatformParams()

@@ -9,7 +9,6 @@ that at the output rate, not at every sample. Internally time runs from the firs
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -18,11 +17,11 @@ from . import effects as fx
 from .errors import GimbalLockError, InputError, SimulationError
 from .inputs import RateSample
 from .integrators import Integrator, make_integrator
-from .model import BODY_OF_GIMBAL, GIMBAL_AXES, LOCK_COS, SPIN_AXES
+from .model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
 from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
-from .outputs import BEARING_NAMES, Outputs
+from .outputs import Outputs
 from .params import NAV1, PlatformParams
-from .system import FULL, LINEAR, PRECESSION, PlatformSystem
+from .system import PRECESSION, PlatformSystem
 from .rotations import euler_xyz, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
 from .tree import TreeWork, tree_inverse_dynamics
 
@@ -348,7 +347,6 @@ class Simulator:
             raise SimulationError("no sample pushed yet")
         st = self.layout
         sys_ = self.system
-        p = self.params
         y = self.y
         q = y[st.q].copy()
         v, a = self._accelerations()
