@@ -449,6 +449,32 @@ def _is_ros_standard(name: str) -> bool:
 
 
 @dataclass(frozen=True)
+def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
+    """Flattened ``ros__parameters`` of a params file for one node: the ``/**`` section first,
+    then the sections whose last name is ``node_name`` (``gyro_platform_node``,
+    ``/ns/gyro_platform_node``), later ones overriding — as rcl merges them."""
+    import yaml
+
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise ConfigError("params_file", f"{path}: {e}") from None
+    if not isinstance(doc, dict):
+        raise ConfigError("params_file", f"{path}: expected a mapping of node names")
+    keys = [k for k in doc if k == "/**"] + [k for k in doc if k != "/**" and
+                                             str(k).rstrip("/").split("/")[-1] == node_name]
+    if not keys:
+        raise ConfigError("params_file", f"{path}: no section '/**' or '{node_name}'")
+    merged: dict[str, Any] = {}
+    for k in keys:
+        sec = doc[k]
+        if not isinstance(sec, dict) or "ros__parameters" not in sec:
+            raise ConfigError("params_file", f"{path}: section {k!r} has no 'ros__parameters'")
+        merged.update(_flatten(sec["ros__parameters"] or {}))
+    return merged
+
+
 class NodeConfig:
     """Validated values of every parameter of :data:`PARAMETERS` (``values[name]``), and the
     scene they were built on (None without ``scene``). Build with :meth:`from_ros_params`."""
@@ -483,28 +509,8 @@ class NodeConfig:
 
     @staticmethod
     def from_yaml(path: str | Path, node_name: str = NODE_NAME) -> "NodeConfig":
-        """Config from a params file: the ``/**`` section, then sections whose last name is
-        ``node_name`` (``gyro_platform_node``, ``/ns/gyro_platform_node``), merged in that order."""
-        import yaml
-
-        path = Path(path)
-        try:
-            doc = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as e:
-            raise ConfigError("params_file", f"{path}: {e}") from None
-        if not isinstance(doc, dict):
-            raise ConfigError("params_file", f"{path}: expected a mapping of node names")
-        merged: dict[str, Any] = {}
-        keys = [k for k in doc if k == "/**"] + [k for k in doc if k != "/**" and str(k).rstrip("/").split("/")[-1]
-                                                 == node_name]
-        if not keys:
-            raise ConfigError("params_file", f"{path}: no section '/**' or '{node_name}'")
-        for k in keys:
-            sec = doc[k]
-            if not isinstance(sec, dict) or "ros__parameters" not in sec:
-                raise ConfigError("params_file", f"{path}: section {k!r} has no 'ros__parameters'")
-            merged.update(_flatten(sec["ros__parameters"] or {}))
-        return NodeConfig.from_ros_params(merged)
+        """Config from a params file (sections selected by ``load_params_file``)."""
+        return NodeConfig.from_ros_params(load_params_file(path, node_name))
 
     @staticmethod
     def _build(values: dict[str, Any], scene: Any) -> "NodeConfig":

@@ -54,37 +54,9 @@ def _log(name: str) -> Callable[[str], None]:
 # =========================================================================================
 # parameters
 # =========================================================================================
-def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
-    """Flattened ``ros__parameters`` of a params file for the node: the ``/**`` section first,
-    then sections whose last name is ``node_name`` (``node``, ``/ns/node``; later ones
-    override) — the selection of :meth:`gyro_platform.core.NodeConfig.from_yaml`."""
-    import yaml
-
-    from .core import ConfigError, _flatten
-
-    path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise ConfigError("params_file", f"{path}: {e}") from None
-    if not isinstance(doc, dict):
-        raise ConfigError("params_file", f"{path}: expected a mapping of node names")
-    keys = [k for k in doc if k == "/**"] + [k for k in doc if k != "/**" and
-                                             str(k).rstrip("/").split("/")[-1] == node_name]
-    if not keys:
-        raise ConfigError("params_file", f"{path}: no section '/**' or '{node_name}'")
-    merged: dict[str, Any] = {}
-    for k in keys:
-        sec = doc[k]
-        if not isinstance(sec, dict) or "ros__parameters" not in sec:
-            raise ConfigError("params_file", f"{path}: section {k!r} has no 'ros__parameters'")
-        merged.update(_flatten(sec["ros__parameters"] or {}))
-    return merged
-
-
 def build_config(args: argparse.Namespace, node_name: str) -> Any:
     """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value)."""
-    from .core import NodeConfig
+    from .core import NodeConfig, load_params_file
 
     params = load_params_file(args.params_file, node_name) if args.params_file else {}
     if args.scene:
