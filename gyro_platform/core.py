@@ -448,7 +448,6 @@ def _is_ros_standard(name: str) -> bool:
     return name in ROS_STANDARD_PARAMETERS or name.startswith(ROS_STANDARD_PREFIXES)
 
 
-@dataclass(frozen=True)
 def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
     """Flattened ``ros__parameters`` of a params file for one node: the ``/**`` section first,
     then the sections whose last name is ``node_name`` (``gyro_platform_node``,
@@ -475,6 +474,7 @@ def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, 
     return merged
 
 
+@dataclass(frozen=True)
 class NodeConfig:
     """Validated values of every parameter of :data:`PARAMETERS` (``values[name]``), and the
     scene they were built on (None without ``scene``). Build with :meth:`from_ros_params`."""
