@@ -112,32 +112,31 @@ def gyro_torquers(L, wc, Q):
 
 
 @njit(cache=True)
-def servo_torque(k, y, yd, z, out):
-    """PID pick-off servo on the mount axes (spec 9.3): M = sat(K_P y + K_D ẏ + K_I z),
-    y = (β10, α4, α9) rad, saturated at ±limit per axis. Writes out (3,) N m, platform axes.
-    Returns a bit mask of the saturated axes (used for anti-windup)."""
+def servo_axis(k, y, yd, z):
+    """PID pick-off servo of one mount axis (spec 9.3): M = sat(K_P y + K_D ẏ + K_I z) (N m),
+    saturated at ±limit. Returns (M, saturated); a saturated axis stops integrating (anti-windup)."""
     lim = k[K_LIMIT]
-    mask = 0
-    for i in range(3):
-        m = k[K_KP] * y[i] + k[K_KD] * yd[i] + k[K_KI] * z[i]
-        if m > lim:
-            m = lim
-            mask |= 1 << i
-        elif m < -lim:
-            m = -lim
-            mask |= 1 << i
-        out[i] = m
-    return mask
+    m = k[K_KP] * y + k[K_KD] * yd + k[K_KI] * z
+    if m > lim:
+        return lim, True
+    if m < -lim:
+        return -lim, True
+    return m, False
 
 
 @njit(cache=True)
-def support_friction(k, Om, wB_P, M):
-    """Mount bearing friction dragging the platform towards the vehicle rate (offset, not
-    drift): M −= D_s (Ω − ω_B) + μ_s sat((Ω − ω_B)/ε_s), rates in platform axes."""
-    eps = k[K_EPS_S]
+def servo_torque(k, y, yd, z, out):
+    """``servo_axis`` on the three mount axes, y = (β10, α4, α9) rad. Writes out (3,) N m,
+    platform axes."""
     for i in range(3):
-        d = Om[i] - wB_P[i]
-        M[i] -= k[K_DS] * d + k[K_MUS] * sat(d / eps)
+        out[i] = servo_axis(k, y[i], yd[i], z[i])[0]
+
+
+@njit(cache=True)
+def support_friction_axis(k, rel):
+    """Mount bearing friction about one platform axis (offset, not drift), N m:
+    −D_s rel − μ_s sat(rel/ε_s), rel = Ω − ω_B (rad/s, platform axes)."""
+    return -(k[K_DS] * rel + k[K_MUS] * sat(rel / k[K_EPS_S]))
 
 
 @njit(cache=True)

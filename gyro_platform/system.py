@@ -201,11 +201,9 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     # --- platform torque (stabilised): support friction; servo after the gimbal rates ------
     MP0, MP1, MP2 = 0.0, 0.0, 0.0
     if stab and on[fx.SUPPORT]:
-        eps = k[fx.K_EPS_S]
-        r0, r1, r2 = Om0 - wBP0, Om1 - wBP1, Om2 - wBP2
-        MP0 -= k[fx.K_DS] * r0 + k[fx.K_MUS] * fx.sat(r0 / eps)
-        MP1 -= k[fx.K_DS] * r1 + k[fx.K_MUS] * fx.sat(r1 / eps)
-        MP2 -= k[fx.K_DS] * r2 + k[fx.K_MUS] * fx.sat(r2 / eps)
+        MP0 += fx.support_friction_axis(k, Om0 - wBP0)
+        MP1 += fx.support_friction_axis(k, Om1 - wBP1)
+        MP2 += fx.support_friction_axis(k, Om2 - wBP2)
     # gimbal torques of the effects (precession: dampers solved implicitly, friction iterated)
     if fid == 2:
         saved_d = on[fx.DAMPERS]
@@ -237,19 +235,10 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     if stab:
         iz = lay[LAY_Z]
         if on[fx.SERVO]:
-            lim = k[fx.K_LIMIT]
-            pk, dk, ik = k[fx.K_KP], k[fx.K_KD], k[fx.K_KI]
             # pick-offs y = (β10, α4, α9) drive mount axes 1, 2, 3 (spec 9.3)
             for ax in range(3):
                 g = 4 if ax == 0 else (0 if ax == 1 else 3)
-                m = pk * y[g] + dk * qd[g] + ik * y[iz + ax]
-                saturated = False
-                if m > lim:
-                    m = lim
-                    saturated = True
-                elif m < -lim:
-                    m = -lim
-                    saturated = True
+                m, saturated = fx.servo_axis(k, y[g], qd[g], y[iz + ax])
                 yd[iz + ax] = 0.0 if saturated else y[g]     # conditional integration (anti-windup)
                 if ax == 0:
                     MP0 += m
