@@ -29,16 +29,6 @@ def quat_to_matrix(q, R):
 
 
 @njit(cache=True)
-def quat_rate(q, w, out):
-    """out = q̇ = ½ q ⊗ (ω, 0) for body rate ω (rad/s, body axes)."""
-    x, y, z, s = q[0], q[1], q[2], q[3]
-    out[0] = 0.5 * (s * w[0] + y * w[2] - z * w[1])
-    out[1] = 0.5 * (s * w[1] + z * w[0] - x * w[2])
-    out[2] = 0.5 * (s * w[2] + x * w[1] - y * w[0])
-    out[3] = -0.5 * (x * w[0] + y * w[1] + z * w[2])
-
-
-@njit(cache=True)
 def quat_rate_at(y, i, wx, wy, wz, out):
     """out[i:i+4] = ½ q ⊗ (ω, 0) for q = y[i:i+4] (no array views: hot path)."""
     x, yy, z, s = y[i], y[i + 1], y[i + 2], y[i + 3]
@@ -62,15 +52,6 @@ def quat_to_matrix_at(y, i, RR, k):
     RR[k, 2, 0] = s * (x * z - yy * w)
     RR[k, 2, 1] = s * (yy * z + x * w)
     RR[k, 2, 2] = 1.0 - s * (x * x + yy * yy)
-
-
-def quat_exp_rate(w: np.ndarray, t: float) -> np.ndarray:
-    """Quaternion of a constant body rate w (rad/s) held for time t (s)."""
-    th = float(np.linalg.norm(w)) * t
-    if th < 1e-300:
-        return np.array([0.0, 0.0, 0.0, 1.0])
-    ax = w / np.linalg.norm(w)
-    return np.concatenate([ax * np.sin(th / 2), [np.cos(th / 2)]])
 
 
 # ---- small numpy helpers for the output path (no scipy Rotation objects: ~µs, not ~50 µs) ----

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from . import effects as fx
 from .errors import GimbalLockError, InputError, SimulationError
@@ -279,11 +278,6 @@ class Simulator:
             return self.y[st.Om].copy()
         return self.system.R_PB @ self._last.omega
 
-    def attitudes(self) -> tuple[Rotation, Rotation]:
-        """(R_IB vehicle, R_IP platform) as scipy Rotations."""
-        R_IB, R_IP = self.attitude_matrices()
-        return Rotation.from_matrix(R_IB), Rotation.from_matrix(R_IP)
-
     def attitude_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(R_IB, R_IP) rotation matrices (vehicle → inertial, platform → inertial)."""
         st = self.layout
@@ -291,11 +285,8 @@ class Simulator:
         R_IP = quat_matrix(self.y[st.quat_IP]) if st.quat_IP is not None else R_IB @ self.system.R_BP
         return R_IB, R_IP
 
-    def reference(self) -> Rotation:
-        """R_IC: the frame the platform should hold (inertial, or local level with Earth rate)."""
-        return Rotation.from_rotvec(self.system.w_IN * self.t_rel)
-
     def reference_matrix(self) -> np.ndarray:
+        """R_IC: the frame the platform should hold (inertial, or local level with Earth rate)."""
         return rotvec_matrix(self.system.w_IN * self.t_rel)
 
     def invariants(self) -> dict[str, float]:

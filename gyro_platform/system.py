@@ -442,7 +442,8 @@ class PlatformSystem:
         self._W = np.zeros((5, 8))
         self.n_rhs = 0
         self.last_status = 0
-        self._lin = None
+        self._lin: dict[int, tuple] = {}      # linear part per friction regime
+        self._A_rest: np.ndarray | None = None
 
     # ---- input -------------------------------------------------------------------------
     def set_input(self, t0: float, t1: float, w0, w1, f0=None, f1=None) -> None:
@@ -505,8 +506,6 @@ class PlatformSystem:
         rows left to the remainder, plus, for every mount axis in its stick zone (``regime``),
         the slope μ_s/ε of the regularised support friction: that stiffness (~5e4 1/s) must be
         in A, or an explicit remainder turns it into a false drift. Cached per regime."""
-        if self._lin is None:
-            self._lin = {}
         r = self.regime
         if r not in self._lin:
             A = self._rest_jacobian().copy()
@@ -524,7 +523,7 @@ class PlatformSystem:
         return self._lin[r]
 
     def _rest_jacobian(self) -> np.ndarray:
-        if getattr(self, "_A_rest", None) is None:
+        if self._A_rest is None:
             saved = self.on.copy(), self.seg.copy(), self.k.copy(), self.n_rhs
             self.on[fx.EARTH] = 0
             self.k[fx.K_COULOMB:fx.K_COULOMB + 5] = 0.0
