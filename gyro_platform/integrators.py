@@ -77,6 +77,8 @@ class Integrator(ABC):
     """Base class. Subclasses set ``name``, ``order`` and ``adaptive`` and implement ``_advance``."""
 
     name: str = ""
+    #: the method consults ``system.linear_part()`` (so the system keeps it current per step)
+    uses_linear_part: bool = False
     order: int = 0
     adaptive: bool = False
 
@@ -206,6 +208,8 @@ class _ETD(_FixedStep):
     (key, h): one matrix-vector product per stage, ``g`` is never formed.
     """
 
+    uses_linear_part = True
+
     c: tuple[float, ...] = ()
 
     @staticmethod
@@ -331,6 +335,8 @@ class ImplicitMidpoint(_FixedStep):
     only. If Newton fails within 10 iterations the substep is halved for the rest of the
     call (``StepStats.n_halvings``); after 12 halvings ``SimulationError`` is raised.
     """
+
+    uses_linear_part = True
 
     name, order = "implicit_midpoint", 2
 
@@ -507,6 +513,8 @@ class RK45(_Scipy):
 class Radau(_Scipy):
     """Radau IIA order 5 (scipy ``Radau``); Jacobian from ``system.jacobian``, else the constant
     ``linear_part`` A, else scipy's finite differences. No error estimate is exposed (nan)."""
+
+    uses_linear_part = True
 
     name, order, solver_cls = "radau", 5, scipy.integrate.Radau
 

@@ -131,7 +131,8 @@ class Simulator:
         last = self._last
         self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
                               sample.specific_force)
-        self.system.update_regime(self.y)
+        if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
+            self.system.update_regime(self.y)
         try:
             y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
         except (FloatingPointError, np.linalg.LinAlgError) as e:
