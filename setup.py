@@ -24,15 +24,17 @@ setup(
         "matplotlib>=3.6",
         "pyyaml>=6",
         "rosbags>=0.10",
-        "pytest>=7",
     ],
-    extras_require={"dds": ["cyclonedds>=11.0.1"]},
+    extras_require={
+        "dds": ["cyclonedds>=11.0.1"],
+        # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests
+        "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6"],
+    },
     zip_safe=True,
     maintainer="gyro_platform developers",
     maintainer_email="gyro-platform@example.com",
     description="Gyro-stabilised three-gyro platform simulator (ROS 2 Jazzy node + ROS-free core)",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "gyro-platform = gyro_platform.cli:main",
