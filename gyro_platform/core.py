@@ -27,7 +27,7 @@ from __future__ import annotations
 import difflib
 import math
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field, fields as dc_fields
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -625,6 +625,52 @@ class _Timing:
         self.ema_ns = float(dt) if self.ema_ns is None else self.ema_ns + a * (dt - self.ema_ns)
 
 
+class InputLoss:
+    """Input samples lost before the node took them: reported by the transport (rclpy QoS
+    message-lost events, DDS queue overwrites) and inferred from gaps in the input stamps.
+
+    Stamp gaps: the nominal input period is the median of the last ``WINDOW`` stamp steps of
+    accepted samples (robust while fewer than half are lost); a step of ``k`` nominal periods
+    (``k`` ≥ 2, rounded) counts ``k − 1`` missing samples. Longer gaps than ``max_gap`` are the
+    gate's (a pause, not an overload) and are not counted."""
+
+    WINDOW = 64
+
+    def __init__(self) -> None:
+        self.transport = 0                 # samples the transport says it lost
+        self.stamp_gaps = 0                # samples missing between consecutive stamps
+        self.last_rx_ns: int | None = None  # receive time of the last loss (node clock)
+        self._steps: deque[int] = deque(maxlen=self.WINDOW)
+        self._last_stamp: int | None = None
+
+    @property
+    def total(self) -> int:
+        return self.transport + self.stamp_gaps
+
+    def on_transport_loss(self, count: int, rx_ns: int | None) -> None:
+        if count > 0:
+            self.transport += int(count)
+            self.last_rx_ns = rx_ns
+
+    def on_stamp(self, stamp_ns: int, rx_ns: int | None, max_gap_s: float) -> None:
+        last, self._last_stamp = self._last_stamp, stamp_ns
+        if last is None or stamp_ns <= last:
+            return
+        step = stamp_ns - last
+        if len(self._steps) >= 8 and step <= max_gap_s * NS:
+            period = float(np.median(self._steps))
+            k = int(round(step / period)) if period > 0 else 1
+            if k >= 2:
+                self.stamp_gaps += k - 1
+                self.last_rx_ns = rx_ns
+        self._steps.append(step)
+
+    def restart(self) -> None:
+        """A new time base (reset): stamp steps across it are not gaps."""
+        self._steps.clear()
+        self._last_stamp = None
+
+
 class NodeCore:
     """Input message → gate → simulator → output messages, with diagnostics and parameters.
 
@@ -657,6 +703,7 @@ class NodeCore:
         self._last_rx_ns: int | None = None
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
+        self.loss = InputLoss()
 
     # ---- topics ---------------------------------------------------------------------
     @property
@@ -696,7 +743,11 @@ class NodeCore:
             decision = self.gate.offer(reading, rx)
             outcome = apply_decision(self.sim, decision)
             self.outcomes[outcome] += 1
+            if outcome == "pushed":
+                self.loss.on_stamp(decision.stamp_ns, rx if rx is not None else self._last_rx_ns,
+                                   self.config["gate.max_gap"])
             if outcome in ("reset", "restarted"):
+                self.loss.restart()
                 self._slot = None
                 reason = decision.reason if outcome == "reset" else "integration_failed"
                 self.resets[reason] += 1
@@ -752,6 +803,7 @@ class NodeCore:
         counters are kept, the reset is counted under ``reason``."""
         self.sim.reset()
         self.gate.restart()
+        self.loss.restart()
         self._slot = None
         self.resets[reason] += 1
         self.last_reset_reason = reason
@@ -821,6 +873,9 @@ class NodeCore:
             "dropped": g["dropped"],
             "dropped_by_reason": g["dropped_by_reason"],
             "stamp_anomalies": stamp_anomalies,
+            "input_lost": self.loss.total,
+            "input_lost_transport": self.loss.transport,
+            "input_lost_stamp_gaps": self.loss.stamp_gaps,
             "simulator": dict(self.outcomes),
             "outputs_published": self.published,
             "output_rate_hz": self.config["output_rate"],
@@ -882,6 +937,9 @@ class NodeCore:
         lock = snap["gimbal_lock_margin"]
         if lock is not None and lock < GIMBAL_LOCK_WARN:
             return 1, f"near gimbal lock (min |cos| of inner gimbals {lock:.3g})"
+        if recent(self.loss.last_rx_ns):
+            return 1, (f"input overload: samples lost (transport {self.loss.transport}, stamp gaps "
+                       f"{self.loss.stamp_gaps}); the node or its transport is slower than the input")
         if recent(self._last_rejected_rx):
             return 1, "simulator rejected or restarted a sample recently"
         if margin is not None and margin < MARGIN_WARN:

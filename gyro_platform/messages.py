@@ -10,11 +10,13 @@ Topics (names relative to the node namespace, except ``/diagnostics``; copy this
 | --- | --- | --- | --- |
 | `imu` (in) | `sensor_msgs/msg/Imu` | angular_velocity rad/s; linear_acceleration m/s² as specific force (+9.81 up at rest, REP-145); `angular_velocity_covariance[0] == -1`: sample rejected (`no_rate`); `linear_acceleration_covariance[0] == -1`: no specific force | sensor frame, rotated to `base_link` by the configured mounting |
 | `twist` (in) | `geometry_msgs/msg/Twist` or `geometry_msgs/msg/TwistStamped` | angular part rad/s (linear part ignored; no specific force) | Twist: `base_link`; TwistStamped: header frame, rotated to `base_link` |
-| `gimbal/joint_states` (out) | `sensor_msgs/msg/JointState` | gimbals `alpha4, beta5, beta7, alpha9, beta10`: position rad, velocity rad/s, effort = axial torque N m; then `mount_roll, mount_pitch, mount_yaw` (stabilised mode): position rad, velocity and effort NaN (not reported) | `""` (joint space) |
+| `gimbal/joint_states` (out) | `sensor_msgs/msg/JointState` | gimbals `alpha4, beta5, beta7, alpha9, beta10`: position rad, velocity rad/s, effort = axial torque N m; then `mount_roll, mount_pitch, mount_yaw` (stabilised mode, intrinsic X-Y-Z base_link → platform): position rad, velocity rad/s, effort = servo torque about the joint axis N m; then `rotor6, rotor8, rotor11`: spin angle rad (wrapped), spin rate rad/s, motor torque N m. Never NaN; names = the URDF's moving joints | `""` (joint space) |
 | `drift/angle` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift angle, rotation vector, rad | `platform` |
 | `drift/rate` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift rate, rad/s | `platform` |
-| `bearing/<name>/torque` (out, one per bearing: `support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11`) | `geometry_msgs/msg/WrenchStamped` | torque = bearing reaction torque N m; force = 0 | `BEARING_FRAMES[name]`: `platform, gyro_frame4, gyro_housing5, gyro_housing7, gyro_frame9, gyro_housing10, gyro_housing5, gyro_housing7, gyro_housing10` |
-| `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | status `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz) and `gyro_platform: platform` (`Outputs.status`) | `""` |
+| `bearing/<name>/torque` (out, one per bearing: `support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11`) | `geometry_msgs/msg/WrenchStamped` | torque = bearing reaction torque N m; force always 0: the model is torque-only (rotational dynamics about coincident gimbal centres), bearing forces are not computed | `BEARING_FRAMES[name]`: `platform, gyro_frame4, gyro_housing5, gyro_housing7, gyro_frame9, gyro_housing10, gyro_housing5, gyro_housing7, gyro_housing10` |
+| `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | statuses `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz), `gyro_platform: platform` (`Outputs.status`), `gyro_platform: node` (counters, real-time margin, input lost; WARN on overload) and `gyro_platform: transport` (the transport's counters) — the same names on rclpy and on plain DDS | `""` |
+| `/robot_description` (out, transient local) | `std_msgs/msg/String` | URDF of the platform (`gyro_platform.urdf`), generated from the parameters | - |
+| `/tf`, `/tf_static` (out; DDS transport, under rclpy via robot_state_publisher) | `tf2_msgs/msg/TFMessage` | transforms of every joint of the URDF (`/tf_static`: fixed joints, transient local) | REP-105: `base_link` → platform → gimbals → rotors |
 
 Output stamps are in the input's time base (the sample's header stamp, or its receive time when
 the stamps are not set), see :mod:`gyro_platform.timebase`.
@@ -30,6 +32,7 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .rotations import euler_xyz_axes
 from .outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 # ---- names -------------------------------------------------------------------------------
@@ -320,20 +323,58 @@ _DEFAULT_MOUNTING = Mounting()
 
 
 # ---- outputs -----------------------------------------------------------------------------
+#: continuous joints of the rotors 6, 8, 11 (housing → rotor), in JointState after the mount joints
+ROTOR_JOINT_NAMES: tuple[str, ...] = ("rotor6", "rotor8", "rotor11")
+
+
+def wrap_angle(x: float) -> float:
+    """Angle wrapped to [-π, π) (rad)."""
+    return (float(x) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def joint_positions(out: Outputs) -> dict[str, float]:
+    """Joint name → position (rad) of every moving joint of the URDF (:mod:`gyro_platform.urdf`):
+    the gimbals, the mount joints (stabilised mode) and the rotors (spin angle ``ω_r t`` of
+    the ideal speed control, wrapped to [-π, π)). Every value is finite for finite outputs."""
+    pos = dict(zip(GIMBAL_NAMES, (float(x) for x in out.gimbal_angles)))
+    if out.mount_angles is not None:
+        pos.update(zip(MOUNT_NAMES, (float(x) for x in out.mount_angles)))
+    if out.rotor_rates is not None:
+        pos.update(zip(ROTOR_JOINT_NAMES, (wrap_angle(w * out.t) for w in out.rotor_rates)))
+    return pos
+
+
 def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
-    """``sensor_msgs/JointState``: gimbals (rad, rad/s, axial torque N m), then the mount joints
-    (position rad; velocity and effort NaN = not reported, as ros2_control does) if present."""
-    names = list(GIMBAL_NAMES)
-    pos = [float(x) for x in out.gimbal_angles]
+    """``sensor_msgs/JointState`` of every moving joint of the URDF, no NaN anywhere:
+
+    * gimbals ``alpha4 … beta10``: position rad, velocity rad/s, effort = applied axial torque N m;
+    * mount joints ``mount_roll, mount_pitch, mount_yaw`` (stabilised mode; intrinsic X-Y-Z
+      from ``base_link`` to ``platform``): position rad, velocity = angle rates rad/s, effort =
+      servo torque about each joint axis N m (0 with the servo effect off);
+    * rotors ``rotor6, rotor8, rotor11``: spin angle rad (wrapped), spin rate rad/s, motor
+      torque N m.
+
+    Velocity and effort are left empty (as the message definition allows) only when the outputs
+    lack the mount rates (outputs built by an older producer); positions are always complete."""
+    pos = joint_positions(out)
     vel = [float(x) for x in out.gimbal_rates]
     eff = [float(x) for x in out.gimbal_axial_torques]
+    complete = True
     if out.mount_angles is not None:
-        names += MOUNT_NAMES
-        pos += [float(x) for x in out.mount_angles]
-        vel += [math.nan] * len(MOUNT_NAMES)
-        eff += [math.nan] * len(MOUNT_NAMES)
+        if out.mount_rates is None:
+            complete = False
+        else:
+            vel += [float(x) for x in out.mount_rates]
+            axes = euler_xyz_axes(out.mount_angles)
+            servo = np.zeros(3) if out.servo_torque is None else np.asarray(out.servo_torque, float)
+            eff += [float(x) for x in axes.T @ servo]
+    if out.rotor_rates is not None:
+        vel += [float(x) for x in out.rotor_rates]
+        eff += [float(x) for x in out.motor_torques]
     fa = types.float_array
-    return types[JOINT_STATE](header=header(types, t_ns), name=names, position=fa(pos),
+    if not complete:
+        vel, eff = [], []
+    return types[JOINT_STATE](header=header(types, t_ns), name=list(pos), position=fa(list(pos.values())),
                               velocity=fa(vel), effort=fa(eff))
 
 
@@ -416,6 +457,18 @@ def diagnostic_array(gate: Mapping[str, Any] | None, out: Outputs | None, types:
     return types[DIAGNOSTIC_ARRAY](header=header(types, t_ns), status=statuses)
 
 
+#: name of the transport's own diagnostic status (the same on rclpy and on plain DDS)
+TRANSPORT_STATUS = f"{HARDWARE_ID}: transport"
+
+
+def transport_status(types: MessageTypes, values: Mapping[str, Any], warn: str = "") -> Any:
+    """``DiagnosticStatus`` ``gyro_platform: transport`` with the transport's counters; WARN
+    with ``warn`` as its message when not empty, else OK."""
+    cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
+    return cls(level=cls.WARN if warn else cls.OK, name=TRANSPORT_STATUS, message=warn or "ok",
+               hardware_id=HARDWARE_ID, values=_key_values(types, values.items()))
+
+
 def _flatten(d: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
     res: list[tuple[str, Any]] = []
     for k, v in d.items():
@@ -434,3 +487,34 @@ def output_messages(out: Outputs, types: MessageTypes, t_ns: int, namespace: str
            (resolve("drift/rate", namespace), drift_rate(out, types, t_ns))]
     res += [(resolve(bearing_topic(b), namespace), m) for b, m in bearing_wrenches(out, types, t_ns).items()]
     return res
+
+
+# ---- TF and robot description (the DDS transport publishes these itself) --------------------
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+STRING = "std_msgs/msg/String"
+
+
+def tf_message(model: Any, positions: Mapping[str, float], types: MessageTypes, t_ns: int,
+               frame_prefix: str = "", static: bool = False) -> Any:
+    """``tf2_msgs/TFMessage`` of the joints of a :class:`gyro_platform.urdf.PlatformModel`: the
+    fixed joints when ``static`` (for ``/tf_static``), else the moving ones at ``positions``
+    (rad; for ``/tf``), as robot_state_publisher sends them: header frame = parent link,
+    child frame = child link, both with ``frame_prefix``; translation m, rotation x, y, z, w."""
+    T = types
+    transforms = []
+    for joint, xyz, quat in model.transforms(positions):
+        if (joint.type == "fixed") != static:
+            continue
+        tf = T["geometry_msgs/msg/Transform"](
+            translation=_vector3(T, xyz),
+            rotation=T["geometry_msgs/msg/Quaternion"](x=float(quat[0]), y=float(quat[1]), z=float(quat[2]),
+                                                       w=float(quat[3])))
+        transforms.append(T["geometry_msgs/msg/TransformStamped"](
+            header=header(T, t_ns, frame_prefix + joint.parent), child_frame_id=frame_prefix + joint.child,
+            transform=tf))
+    return T[TF_MESSAGE](transforms=transforms)
+
+
+def string_message(text: str, types: MessageTypes) -> Any:
+    """``std_msgs/String`` (``/robot_description``)."""
+    return types[STRING](data=text)

@@ -56,6 +56,8 @@ class Outputs:
     bearing_torques: dict[str, np.ndarray]         # name -> (3,) N m in BEARING_FRAMES[name]
     motor_torques: np.ndarray                      # (3,) N m, rotor 6, 8, 11 about their spin axes
     mount_angles: np.ndarray | None = None         # (3,) rad, stabilised mode only
+    mount_rates: np.ndarray | None = None          # (3,) rad/s, d/dt mount_angles (stabilised mode)
+    rotor_rates: np.ndarray | None = None          # (3,) rad/s, rotors 6, 8, 11 relative to their housings
     servo_torque: np.ndarray | None = None         # (3,) N m, platform axes, stabilised mode
     status: dict[str, float] = field(default_factory=dict)  # health figures (gimbal-lock margin …)
 

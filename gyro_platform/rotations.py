@@ -129,3 +129,23 @@ def euler_xyz(R) -> np.ndarray:
     out[0] = math.atan2(-R[1, 2], R[2, 2])
     out[2] = math.atan2(-R[0, 1], R[0, 0])
     return out
+
+
+def euler_xyz_axes(angles) -> np.ndarray:
+    """Joint axes of the intrinsic X-Y-Z chain ``R = Rx(a) Ry(b) Rz(c)`` (the mount joints
+    ``mount_roll``, ``mount_pitch``, ``mount_yaw``), as the columns of a 3×3 matrix in the axes
+    of the last body (the platform): ``ω_rel = A (ȧ, ḃ, ċ)`` and a torque ``τ`` (child axes)
+    has the joint torques ``Aᵀ τ``."""
+    a, b, c = (float(x) for x in angles)
+    cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+    return np.array([[cb * cc, sc, 0.0],
+                     [-cb * sc, cc, 0.0],
+                     [sb, 0.0, 1.0]])
+
+
+def euler_xyz_rates(angles, omega) -> np.ndarray:
+    """Rates (rad/s) of the intrinsic X-Y-Z angles for the relative angular velocity ``omega``
+    (rad/s, child axes). At the chain's singularity (cos b = 0) the minimum-norm solution,
+    so the result is always finite for finite input."""
+    A = euler_xyz_axes(angles)
+    return np.linalg.lstsq(A, np.asarray(omega, float), rcond=1e-12)[0]

@@ -21,7 +21,7 @@ from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
 from .outputs import Outputs
 from .params import NAV1, PlatformParams
 from .system import PRECESSION, PlatformSystem
-from .rotations import euler_xyz, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
+from .rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
 from .tree import TreeWork, tree_inverse_dynamics
 
 #: ``integrator: auto`` takes RK4 (4th order, the cheapest per step) where it is stable with
@@ -394,10 +394,11 @@ class Simulator:
                 ydp = np.array([qd[4], qd[0], qd[3]])
                 fx.servo_torque(sys_.k, yp, ydp, y[st.z], servo)
             mount = euler_xyz(sys_.R_PB @ (R_IB.T @ R_IP))
+            mount_rates = euler_xyz_rates(mount, Om - R_IP.T @ (R_IB @ wB))
         else:
             drift, drift_rate = self._gyro_reference_drift(R_IP, R_IC)
             servo = None
-            mount = None
+            mount = mount_rates = None
         cos_inner = np.cos(q[[1, 2, 4]])
         status = {
             "gimbal_lock_margin": float(np.min(np.abs(cos_inner))),
@@ -408,7 +409,8 @@ class Simulator:
             t=float(self.t), gimbal_angles=q, gimbal_rates=qd, gimbal_axial_torques=Q,
             platform_rate=Om, platform_attitude=matrix_quat(R_IP), drift_angle=drift,
             drift_rate=drift_rate, bearing_torques=bearings, motor_torques=motor,
-            mount_angles=mount, servo_torque=servo, status=status)
+            mount_angles=mount, mount_rates=mount_rates, servo_torque=servo, status=status,
+            rotor_rates=np.asarray(self.params.rotor_speed, dtype=float))
 
     def _gyro_reference_drift(self, R_IP: np.ndarray, R_IC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Carried mode: drift of the gyros' own inertial reference, the triad spanned by the

@@ -11,6 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gyro_platform import messages as m
+from gyro_platform.rotations import euler_xyz_axes
 from gyro_platform.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
@@ -33,7 +34,9 @@ def make_outputs(mount: bool = True, t: float = 1.25) -> Outputs:
         bearing_torques={b: rng.normal(size=3) * 1e-3 for b in BEARING_NAMES},
         motor_torques=np.zeros(3),
         mount_angles=rng.normal(size=3) * 0.1 if mount else None,
-        servo_torque=np.zeros(3) if mount else None,
+        mount_rates=rng.normal(size=3) * 1e-3 if mount else None,
+        servo_torque=rng.normal(size=3) * 1e-2 if mount else None,
+        rotor_rates=np.array([2513.0, -2400.0, 2600.0]),
         status={"gimbal_lock_margin": 1.4, "steps": 12.0},
     )
 
@@ -77,11 +80,23 @@ def test_every_output_message_round_trips_through_cdr():
         assert m.stamp_ns(back.header.stamp) == t_ns               # exact ns, no float rounding
 
     js = roundtrip(m.joint_state(out, TYPES, t_ns))
-    assert js.name == [*GIMBAL_NAMES, *MOUNT_NAMES]
-    np.testing.assert_array_equal(js.position, np.r_[out.gimbal_angles, out.mount_angles])
-    np.testing.assert_array_equal(js.velocity[:5], out.gimbal_rates)
+    assert js.name == [*GIMBAL_NAMES, *MOUNT_NAMES, *m.ROTOR_JOINT_NAMES]
+    for arr in (js.position, js.velocity, js.effort):
+        assert len(arr) == len(js.name) and np.all(np.isfinite(arr))
+    np.testing.assert_array_equal(js.position[:8], np.r_[out.gimbal_angles, out.mount_angles])
+    np.testing.assert_array_equal(js.velocity[:8], np.r_[out.gimbal_rates, out.mount_rates])
     np.testing.assert_array_equal(js.effort[:5], out.gimbal_axial_torques)
-    assert np.all(np.isnan(js.velocity[5:])) and np.all(np.isnan(js.effort[5:]))
+    # mount effort: the servo torque's generalised force on the X-Y-Z joint axes (virtual work:
+    # τ · ω_rel = Σ effort_i rate_i for any joint rates)
+    rates = np.array([0.3, -0.2, 0.7])
+    omega_rel = euler_xyz_axes(out.mount_angles) @ rates
+    assert js.effort[5:8] @ rates == pytest.approx(out.servo_torque @ omega_rel, rel=1e-12)
+    # rotors: ideal speed control, angle = rate · t wrapped to [-π, π)
+    np.testing.assert_allclose(np.cos(js.position[8:]), np.cos(out.rotor_rates * out.t), atol=1e-9)
+    np.testing.assert_allclose(np.sin(js.position[8:]), np.sin(out.rotor_rates * out.t), atol=1e-9)
+    assert np.all(np.abs(js.position[8:]) <= math.pi)
+    np.testing.assert_array_equal(js.velocity[8:], out.rotor_rates)
+
 
     for name, w in m.bearing_wrenches(out, TYPES, t_ns).items():
         w = roundtrip(w)
@@ -96,11 +111,19 @@ def test_every_output_message_round_trips_through_cdr():
         np.testing.assert_array_equal([v.vector.x, v.vector.y, v.vector.z], vec)
 
 
+def test_joint_state_without_mount_rates_leaves_velocity_and_effort_empty():
+    out = make_outputs()
+    out.mount_rates = None                              # an Outputs from an older producer
+    js = m.joint_state(out, TYPES, 5)
+    assert len(js.position) == len(js.name) == 11 and np.all(np.isfinite(js.position))
+    assert len(js.velocity) == 0 and len(js.effort) == 0   # "all arrays … same size, or empty"
+
+
 def test_joint_state_without_mount_and_missing_bearings():
     out = make_outputs(mount=False)
     del out.bearing_torques["rotor8"]
     js = roundtrip(m.joint_state(out, TYPES, 5))
-    assert js.name == list(GIMBAL_NAMES) and len(js.position) == len(js.velocity) == len(js.effort) == 5
+    assert js.name == [*GIMBAL_NAMES, *m.ROTOR_JOINT_NAMES] and len(js.position) == len(js.velocity) == len(js.effort) == 8
     assert np.all(np.isfinite(js.velocity)) and np.all(np.isfinite(js.effort))
     assert "rotor8" not in m.bearing_wrenches(out, TYPES, 5)
 

@@ -150,7 +150,7 @@ def test_carried_free_gyro_through_topics_at_100hz(harness):
     for i, js in enumerate(h.got["gimbal/joint_states"]):
         assert ns(js.header.stamp) == BASE + i * 100 * MS          # the 10 Hz grid of sample times
         assert js.position[0] == pytest.approx(-0.5 * i * 0.1, abs=1e-9)
-        assert list(js.name) == ["alpha4", "beta5", "beta7", "alpha9", "beta10"]
+        assert list(js.name) == ["alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"]
 
 
 def test_bad_input_is_counted_and_the_node_goes_on(harness):

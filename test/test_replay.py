@@ -176,12 +176,12 @@ def test_output_stamps_follow_the_input_time_base(run):
 def test_output_values_finite_and_bounded(run):
     out = read_output(run["out"])
     for _, js in out["/gimbal/joint_states"]:
-        assert js.name == [*GIMBAL_NAMES, *MOUNT_NAMES]                # stabilised: mount joints too
+        assert js.name[:8] == [*GIMBAL_NAMES, *MOUNT_NAMES]            # stabilised: mount joints too (then rotors)
         assert np.all(np.isfinite(js.position))
         assert np.max(np.abs(js.position[:5])) < 1e-3                 # servo holds the pick-offs (rad)
         assert np.max(np.abs(js.position[5:])) < math.pi + 1e-9
         assert np.all(np.isfinite(js.velocity[:5])) and np.all(np.isfinite(js.effort[:5]))
-        assert np.all(np.isnan(js.velocity[5:])) and np.all(np.isnan(js.effort[5:]))   # not reported
+        assert np.all(np.isfinite(js.velocity)) and np.all(np.isfinite(js.effort))   # no NaN (issue 14)
     for name in BEARING_NAMES:
         for _, w in out[f"/bearing/{name}/torque"]:
             assert w.header.frame_id == BEARING_FRAMES[name]
@@ -460,7 +460,7 @@ def test_scene_sets_model_and_output_rate(tmp_path):
     assert cli.main(["replay", str(bag), "--out", str(out), "--scene", str(scene), "--quiet", "--no-plot"]) == 0
     s = json.loads(rp.sidecar_paths(out)[0].read_text())
     assert s["simulator"]["mode"] == "carried" and s["output"]["output_rate_hz"] == 25.0
-    assert len(read_output(out)["/gimbal/joint_states"][0][1].name) == 5      # carried: no mount joints
+    assert len(read_output(out)["/gimbal/joint_states"][0][1].name) == 8      # carried: gimbals and rotors, no mount joints
 
 
 def test_cli_errors_are_clear(tmp_path, capsys):
