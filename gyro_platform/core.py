@@ -190,6 +190,12 @@ PHYSICS_DOCS: dict[str, tuple[str, str]] = {
 #: physics parameters applied live (servo gains); every other physics.* is read-only
 LIVE_PHYSICS = {"servo_kp": (0.0, 1e9), "servo_kd": (0.0, 1e9), "servo_ki": (0.0, 1e9),
                 "servo_limit": (1e-9, 1e6)}
+#: ranges (inclusive) of the other scalar physics parameters: those ``params.validate`` enforces
+#: (an open bound 0 becomes 1e-12), so ``ros2 param describe`` shows them as FloatingPointRange
+PHYSICS_RANGES = {"friction_rate_eps": (1e-12, 1.0), "support_rate_eps": (1e-12, 1.0),
+                  "support_viscous": (0.0, 1e9), "support_coulomb": (0.0, 1e9), "gyro_mass": (0.0, 1e9),
+                  "unbalance": (-1.0, 1e9), "anisoelastic": (0.0, 1e9),
+                  "latitude": (-math.pi / 2, math.pi / 2), "earth_rate": (0.0, 1e-2)}
 PHYSICS_PREFIX = "physics."
 
 
@@ -210,7 +216,7 @@ def _physics_specs() -> list[ParamSpec]:
         else:
             live = f.name in LIVE_PHYSICS
             specs.append(ParamSpec(PHYSICS_PREFIX + f.name, "double", float(default), doc, unit,
-                                   range=LIVE_PHYSICS.get(f.name), read_only=not live))
+                                   range=LIVE_PHYSICS.get(f.name) or PHYSICS_RANGES.get(f.name), read_only=not live))
     return specs
 
 
@@ -629,9 +635,10 @@ class InputLoss:
     """Input samples lost before the node took them: reported by the transport (rclpy QoS
     message-lost events, DDS queue overwrites) and inferred from gaps in the input stamps.
 
-    Stamp gaps: the nominal input period is the median of the last ``WINDOW`` stamp steps of
-    accepted samples (robust while fewer than half are lost); a step of ``k`` nominal periods
-    (``k`` ≥ 2, rounded) counts ``k − 1`` missing samples. Longer gaps than ``max_gap`` are the
+    Stamp gaps: the nominal input period is the mean of the single steps among the last
+    ``WINDOW`` stamp steps of accepted samples, single = shorter than 1.5 × their lower quartile
+    (robust while fewer than ~3/4 of the steps span a loss, and unbiased by jitter); a step of
+    ``k`` nominal periods (``k`` ≥ 2, rounded) counts ``k − 1`` missing samples. Longer gaps than ``max_gap`` are the
     gate's (a pause, not an overload) and are not counted."""
 
     WINDOW = 64
@@ -658,7 +665,9 @@ class InputLoss:
             return
         step = stamp_ns - last
         if len(self._steps) >= 8 and step <= max_gap_s * NS:
-            period = float(np.median(self._steps))
+            steps = np.fromiter(self._steps, float)
+            q = float(np.percentile(steps, 25))
+            period = float(np.mean(steps[steps < 1.5 * q]))      # mean of the single steps
             k = int(round(step / period)) if period > 0 else 1
             if k >= 2:
                 self.stamp_gaps += k - 1
@@ -743,7 +752,7 @@ class NodeCore:
             decision = self.gate.offer(reading, rx)
             outcome = apply_decision(self.sim, decision)
             self.outcomes[outcome] += 1
-            if outcome == "pushed":
+            if outcome == "pushed" and self.gate.time_source == "header":   # receive times say nothing
                 self.loss.on_stamp(decision.stamp_ns, rx if rx is not None else self._last_rx_ns,
                                    self.config["gate.max_gap"])
             if outcome in ("reset", "restarted"):

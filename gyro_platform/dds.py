@@ -736,25 +736,18 @@ class PlatformDdsNode:
         self._lost_reported = 0
 
     def warm_up(self) -> None:
-        """Run two synthetic input samples through a throwaway core of the same configuration
-        and encode its outputs (not sent), so that loading the compiled kernels and building
-        the CDR encoders does not stall the first real samples (which the keep-last-5 input
-        queue would then drop)."""
+        """Compile/load the kernels and build the CDR encoders before the first real sample
+        (:func:`gyro_platform.node_main.warm_up`; outputs encoded, not sent), so that the
+        first samples are not stalled (and dropped by the keep-last-5 input queue)."""
+        from .node_main import warm_up
+
+        def encode(topic: str, msg: Any) -> None:
+            if topic in self.publishers:
+                self.publishers[topic]._to(msg).serialize(use_version_2=False)
+
         try:
-            core = type(self.core)(self.core.config, self.core.types)
-            t0 = time.time_ns()
-            for k in range(3):
-                msg = zero_message(self.node.types.typestore, self.core.input_type)
-                header = getattr(msg, "header", None)
-                if header is not None:
-                    header.stamp.sec, header.stamp.nanosec = 1 + k, 0
-                    header.frame_id = self.core.config["vehicle_frame"]
-                if hasattr(msg, "linear_acceleration"):
-                    msg.linear_acceleration.z = 9.81
-                for topic, out in core.on_message(msg, t0 + k * NS) or ():
-                    if topic in self.publishers:
-                        self.publishers[topic]._to(out).serialize(use_version_2=False)
-            self.publishers["/diagnostics"]._to(core.diagnostics(time.time_ns())).serialize(use_version_2=False)
+            warm_up(self.core, lambda: zero_message(self.node.types.typestore, self.core.input_type), encode)
+            encode("/diagnostics", self.core.diagnostics(time.time_ns()))
         except Exception as e:  # noqa: BLE001 - warming up is an optimisation only
             self.log(f"warm-up skipped: {type(e).__name__}: {e}")
 

@@ -5,26 +5,36 @@ mounting, time gate, integration, output grid, diagnostics content, parameter va
 is in :mod:`gyro_platform.core` (ROS-free, tested without ROS); this file wires it to rclpy:
 
 * parameters: every entry of ``core.PARAMETERS`` declared with a ``ParameterDescriptor``
-  (description, ``FloatingPointRange``, ``read_only``); a ``scene`` supplies the defaults of the
-  model parameters (declared after it); changes go through ``core.set_parameters``;
+  (description, ``FloatingPointRange`` for every double, ``read_only``); a ``scene`` supplies
+  the defaults of the model parameters (declared after it); changes go through
+  ``core.set_parameters``. An empty string array (``sensor_mountings``) is declared by type
+  and then set to ``[]`` explicitly, so ``ros2 param dump`` / ``get`` see a value;
+* warm-up: before subscribing, a throwaway core runs a few synthetic samples
+  (``node_main.warm_up``), so numba compiles or loads every kernel and the first real Imu is
+  answered at once; "ready" is logged after that;
 * input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
-  ``use_sim_time``);
+  ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps) is
+  counted by ``core.InputLoss`` and turns ``gyro_platform: node`` WARN;
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
-  ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``;
-* ``/diagnostics`` through ``diagnostic_updater.Updater`` (three tasks filled from the core), or
-  the core's DiagnosticArray published on a timer when diagnostic_updater is not installed;
+  ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
+  come from ``robot_state_publisher`` (started by the launch file with the URDF of
+  :mod:`gyro_platform.urdf`) fed by ``gimbal/joint_states``;
+* ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a timer —
+  the same status names as the plain-DDS transport;
 * ``~/reset`` (``std_srvs/srv/Trigger``) and a backward jump of the node clock (looped
   ``ros2 bag play --clock --loop``) restart the simulation.
 
 Run: ``ros2 run gyro_platform platform_node --ros-args --params-file config/platform.yaml``.
+Ctrl-C (also the second SIGINT ``ros2 launch`` sends) ends it quietly with exit code 0.
 """
 from __future__ import annotations
 
-import functools
+import signal
 import sys
 import threading
+import time
 from typing import Any
 
 try:
@@ -46,14 +56,14 @@ except ImportError as e:  # pragma: no cover - depends on the machine
 
 from . import core as core_mod
 from .core import PARAMETERS, SPECS, ConfigError, NodeConfig, NodeCore, ParamSpec
-from .messages import HARDWARE_ID, MessageTypes
+from .messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from .node_main import warm_up
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 #: a backward jump of the node clock larger than this resets the simulation
 CLOCK_JUMP_BACK = Duration(nanoseconds=-1_000_000)   # 1 ms
-DIAGNOSTIC_TASKS = ("input", "platform", "node")      # status names "gyro_platform: <task>" of the core
 
 
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -82,23 +92,45 @@ class PlatformNode(Node):
         config = NodeConfig.from_ros_params(self._declare_parameters())
         self.core = NodeCore(config, MessageTypes.rclpy())
         types = self.core.types
+        t0 = time.monotonic()
+        warm_up(self.core, types[self.core.input_type])
+        warm_s = time.monotonic() - t0
+        self.processed = 0
+        self.published = 0
+        self.lost_events = 0
 
         self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
                       for topic, typ in self.core.output_topics().items()}
-        self._sub = self.create_subscription(types[self.core.input_type], self.core.input_topic, self._on_input,
-                                             qos_profile_sensor_data)
+        self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], core_mod.DIAGNOSTICS_TOPIC, OUTPUT_QOS)
+        self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics)
         self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
-        self._setup_diagnostics(config["diagnostics_rate"])
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
             post_callback=self._on_clock_jump)
         self.add_on_set_parameters_callback(self._on_set_parameters)   # after declaring: only real changes
+        self._sub = self._subscribe(types[self.core.input_type])        # last: the node is ready
         o = config.options
         self.get_logger().info(
-            f"{self.core.input_type} on {self.resolve_topic_name(self.core.input_topic)} -> "
+            f"ready: {self.core.input_type} on {self.resolve_topic_name(self.core.input_topic)} -> "
             f"{len(self._pubs)} output topics at {config['output_rate']:g} Hz (0 = every sample); "
             f"{o.mode}/{o.fidelity}, effects {sorted(o.effects)}"
-            + (f", scene {config['scene']}" if config["scene"] else ""))
+            + (f", scene {config['scene']}" if config["scene"] else "")
+            + f"; kernels warmed up in {warm_s:.1f} s")
+
+    def _subscribe(self, msg_type: type) -> Any:
+        """The input subscription with a QoS message-lost callback (when the RMW supports it)."""
+        try:
+            from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
+        except ImportError:  # pragma: no cover - older rclpy
+            SubscriptionEventCallbacks = UnsupportedEventTypeError = None
+        if SubscriptionEventCallbacks is not None:
+            try:
+                return self.create_subscription(
+                    msg_type, self.core.input_topic, self._on_input, qos_profile_sensor_data,
+                    event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_message_lost))
+            except UnsupportedEventTypeError:
+                self.get_logger().info("this RMW reports no message-lost events; input loss is seen in stamp gaps only")
+        return self.create_subscription(msg_type, self.core.input_topic, self._on_input, qos_profile_sensor_data)
 
     # ---- parameters ---------------------------------------------------------------------
     def _declare_parameters(self) -> dict[str, Any]:
@@ -112,10 +144,15 @@ class PlatformNode(Node):
                 continue
             default = defaults[spec.name]
             if spec.type == "string[]" and not default:
-                # an empty list has no ROS type of its own: declare the type, read "unset" as empty
+                # rclpy infers an empty list as a byte array: declare the type, then give an
+                # unset parameter the value [] (an unset one makes GetParameters, hence
+                # 'ros2 param dump', answer nothing at all)
                 self.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, descriptor(spec))
                 p = self.get_parameter_or(spec.name, None)
-                values[spec.name] = [] if p is None or p.value is None else list(p.value)
+                if p is None or p.value is None:
+                    self.set_parameters([Parameter(spec.name, Parameter.Type.STRING_ARRAY, [])])
+                    p = None
+                values[spec.name] = [] if p is None else list(p.value)
             else:
                 values[spec.name] = self.declare_parameter(spec.name, _ros_value(default), descriptor(spec)).value
         return values
@@ -137,8 +174,17 @@ class PlatformNode(Node):
         now = self.get_clock().now().nanoseconds
         with self._lock:
             out = self.core.on_message(msg, now)
+            self.processed += 1
         for topic, m in out:
             self._pubs[topic].publish(m)
+        self.published += len(out)
+
+    def _on_message_lost(self, info: Any) -> None:
+        """QoS event: the middleware lost ``total_count_change`` input samples."""
+        n = int(getattr(info, "total_count_change", 0))
+        with self._lock:
+            self.lost_events += n
+            self.core.loss.on_transport_loss(n, self.get_clock().now().nanoseconds)
 
     def _on_reset(self, request: Any, response: Any) -> Any:
         with self._lock:
@@ -157,49 +203,32 @@ class PlatformNode(Node):
                                    + ("; simulation restarted" if self.core.config["reset_on_clock_jump"] else ""))
 
     # ---- diagnostics --------------------------------------------------------------------
-    def _setup_diagnostics(self, rate_hz: float) -> None:
-        period = 1.0 / rate_hz
-        try:
-            from diagnostic_updater import Updater
-        except ImportError:
-            Updater = None
-        if Updater is None:
-            self.get_logger().info("diagnostic_updater not installed: publishing the core's DiagnosticArray")
-            self._diag_pub = self.create_publisher(self.core.types["diagnostic_msgs/msg/DiagnosticArray"],
-                                                   core_mod.DIAGNOSTICS_TOPIC, OUTPUT_QOS)
-            self._diag_timer = self.create_timer(period, self._publish_diagnostics)
-            self._updater = None
-            return
-        try:
-            self._updater = Updater(self, period=period)
-        except TypeError:                    # older diagnostic_updater: no period argument
-            self._updater = Updater(self)
-        self._updater.setHardwareID(HARDWARE_ID)
-        for task in DIAGNOSTIC_TASKS:
-            self._updater.add(task, functools.partial(self._fill_status, task))
-
-    def _core_diagnostics(self) -> Any:
+    def _publish_diagnostics(self) -> None:
+        """The core's DiagnosticArray (input, platform, node) plus ``gyro_platform: transport``."""
         now = self.get_clock().now().nanoseconds
         with self._lock:
-            return self.core.diagnostics(now)
+            arr = self.core.diagnostics(now)
+            topic = self.resolve_topic_name(self.core.input_topic)
+            values = {"transport": "rclpy", "input_topic": topic,
+                      "input_publishers_matched": self.count_publishers(topic),
+                      "samples_lost_reported_by_rmw": self.lost_events, "processed": self.processed,
+                      "published": self.published}
+        arr.status.append(transport_status(self.core.types, values))
+        self._diag_pub.publish(arr)
 
-    def _publish_diagnostics(self) -> None:
-        self._diag_pub.publish(self._core_diagnostics())
 
-    def _fill_status(self, task: str, stat: Any) -> Any:
-        """diagnostic_updater task: copy the core's ``gyro_platform: <task>`` status."""
-        name = f"{HARDWARE_ID}: {task}"
-        for st in self._core_diagnostics().status:
-            if st.name == name:
-                stat.summary(st)                 # level and message
-                for kv in st.values:
-                    stat.add(kv.key, kv.value)
-                break
-        return stat
+def _ignore_further_interrupts() -> None:
+    """After the first Ctrl-C: a second SIGINT (``ros2 launch`` sends one on shutdown) must not
+    raise KeyboardInterrupt inside ``destroy_node``; the node is stopping anyway."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):  # pragma: no cover - not the main thread
+        pass
 
 
 def main(args: list[str] | None = None) -> int:
-    """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C."""
+    """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
+    with one line on stderr when the parameters are invalid."""
     rclpy.init(args=args)
     node = None
     code = 0
@@ -213,9 +242,13 @@ def main(args: list[str] | None = None) -> int:
         print(f"gyro_platform_node: cannot start: {e}", file=sys.stderr)
         code = 2
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _ignore_further_interrupts()
+        try:
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+        except KeyboardInterrupt:  # pragma: no cover - a signal between the two statements
+            pass
     return code
 
 

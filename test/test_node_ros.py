@@ -216,3 +216,45 @@ def test_diagnostics_are_published(harness):
            timeout=10.0, what="/diagnostics")
     names = {s.name for a in h.got["/diagnostics"] for s in a.status}
     assert any(n.endswith("input") for n in names) and any(n.endswith("platform") for n in names)
+    assert names == {"gyro_platform: input", "gyro_platform: platform", "gyro_platform: node",
+                     "gyro_platform: transport"}                  # the same names as the DDS transport
+
+
+def test_every_parameter_has_a_value_for_param_dump(harness):
+    """GetParameters (``ros2 param dump``) answers for every declared parameter: none is unset."""
+    h = harness()
+    names = h.node.list_parameters([], 10).names
+    assert "sensor_mountings" in names and "physics.servo_kp" in names
+    for name in names:
+        assert h.node.get_parameter(name).type_ != Parameter.Type.NOT_SET, name
+    p = h.node.get_parameter("sensor_mountings")
+    assert p.type_ == Parameter.Type.STRING_ARRAY and list(p.value) == []
+    for spec_name in ("physics.latitude", "physics.earth_rate", "physics.gyro_mass", "gate.max_gap"):
+        assert h.node.describe_parameter(spec_name).floating_point_range, spec_name
+
+
+def test_joint_state_is_finite_and_matches_the_urdf(harness):
+    from gyro_platform.urdf import config_model
+
+    h = harness()
+    for k in range(3):
+        h.send(imu(BASE + k * 10 * MS, w=(0.1, -0.2, 0.3)))
+    h.wait(lambda: h.got["gimbal/joint_states"], what="a JointState")
+    js = h.got["gimbal/joint_states"][-1]
+    assert sorted(js.name) == sorted(config_model(h.node.core.config).moving_joints)
+    for arr in (js.position, js.velocity, js.effort):
+        assert len(arr) == len(js.name) and all(math.isfinite(x) for x in arr)
+
+
+def test_lost_input_turns_the_node_status_warn(harness):
+    """Every third stamp of a 1 kHz stream missing: counted as stamp gaps, status WARN."""
+    h = harness()
+    for k in range(60):
+        if k % 3 != 2:
+            h.send(imu(BASE + k * MS))
+    snap = h.node.core.snapshot()
+    assert snap["input_lost_stamp_gaps"] >= 15                 # all but the first few (period not yet known)
+    n = len(h.got["/diagnostics"])
+    h.wait(lambda: len(h.got["/diagnostics"]) > n, timeout=5.0, what="/diagnostics")
+    node = [s for s in h.got["/diagnostics"][-1].status if s.name == "gyro_platform: node"][0]
+    assert node.level == node.WARN and "overload" in node.message

@@ -1,0 +1,118 @@
+"""Overload reporting (issue 14): lost input is counted and turns /diagnostics WARN.
+
+ROS-free: the core's InputLoss fed by stamp gaps (what a slow rclpy node sees when its
+keep-last-5 queue overwrites samples) and by the transport (QoS message-lost events, DDS
+queue overwrites)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gyro_platform.core import InputLoss, NodeConfig, NodeCore
+from gyro_platform.messages import MessageTypes, jazzy_typestore
+
+T = jazzy_typestore().types
+TYPES = MessageTypes.rosbags()
+BASE = 1_700_000_000 * 10**9
+MS = 10**6
+
+
+def imu(t_ns: int):
+    sec, nsec = divmod(t_ns, 10**9)
+    v = T["geometry_msgs/msg/Vector3"]
+    q = T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+    return T["sensor_msgs/msg/Imu"](
+        header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id="base_link"),
+        orientation=q, orientation_covariance=np.zeros(9), angular_velocity=v(x=0.0, y=0.0, z=0.01),
+        angular_velocity_covariance=np.zeros(9), linear_acceleration=v(x=0.0, y=0.0, z=9.81),
+        linear_acceleration_covariance=np.zeros(9))
+
+
+def make_core(**params) -> NodeCore:
+    """A core whose callbacks take no time (a frozen callback clock): the real-time margin
+    stays 1, so what the node status reports is the input loss alone."""
+    return NodeCore(NodeConfig.from_ros_params({"output_rate": 0.0, **params}), TYPES, clock_ns=lambda: 0)
+
+
+def status(core: NodeCore, now_ns: int, name: str = "gyro_platform: node"):
+    return next(s for s in core.diagnostics(now_ns).status if s.name == name)
+
+
+def run(core: NodeCore, ks, period_ns: int = MS) -> int:
+    for k in ks:
+        core.on_message(imu(BASE + k * period_ns), BASE + k * period_ns)
+    return BASE + ks[-1] * period_ns
+
+
+@pytest.mark.parametrize("pattern", ["every_third", "random_35pct"])
+def test_missing_stamps_are_counted_once_the_period_is_known(pattern):
+    rng = np.random.default_rng(5)
+    n = 600
+    if pattern == "every_third":
+        ks = [k for k in range(n) if k % 3 != 2]
+    else:
+        ks = [k for k in range(n) if k < 2 or rng.random() > 0.35]
+    core = make_core()
+    now = run(core, ks)
+    # oracle: the stamps missing after the window that fixes the nominal period (8 steps)
+    first_counted = ks[8]
+    missing = sum(1 for k in range(first_counted, ks[-1]) if k not in set(ks))
+    snap = core.snapshot(now)
+    assert snap["input_lost_stamp_gaps"] == missing
+    assert snap["input_lost"] == missing and snap["input_lost_transport"] == 0
+    st = status(core, now)
+    assert st.level == st.WARN and "overload" in st.message
+
+
+def test_jitter_is_no_loss_a_short_gap_counts_and_a_long_pause_is_the_gates():
+    core = make_core()
+    now = run(core, list(range(300)))
+    rng = np.random.default_rng(1)
+    t = now
+    for _ in range(300):                                        # ±20 % jitter of the period
+        t += int(MS * (1.0 + rng.uniform(-0.2, 0.2)))
+        core.on_message(imu(t), t)
+    assert core.snapshot(t)["input_lost"] == 0
+    st = status(core, t)
+    assert st.level == st.OK, st.message
+    t += 501 * MS                                               # 0.5 s < max_gap: 500 samples missing
+    core.on_message(imu(t), t)
+    lost = core.snapshot(t)["input_lost_stamp_gaps"]
+    assert abs(lost - 500) <= 25           # the period is estimated from 64 jittered steps: ±5 %
+    for _ in range(20):
+        t += MS
+        core.on_message(imu(t), t)
+    t += 3 * 10**9                                              # 3 s > max_gap 1 s: a pause (gate reset)
+    for _ in range(20):
+        t += MS
+        core.on_message(imu(t), t)
+    snap = core.snapshot(t)
+    assert snap["input_lost_stamp_gaps"] == lost and snap["resets_by_reason"].get("gap") == 1
+    later = t + 11 * 10**9                                      # RECENT_S later: OK again
+    for _ in range(20):
+        later += MS
+        core.on_message(imu(later), later)
+    st = status(core, later)
+    assert st.level == st.OK, st.message
+
+
+def test_transport_losses_are_reported():
+    core = make_core()
+    now = run(core, list(range(20)))
+    assert status(core, now).level == status(core, now).OK
+    core.loss.on_transport_loss(7, now)
+    snap = core.snapshot(now)
+    assert snap["input_lost_transport"] == 7 and snap["input_lost"] == 7
+    st = status(core, now)
+    assert st.level == st.WARN and "transport 7" in st.message
+
+
+def test_input_loss_restart_forgets_the_period():
+    loss = InputLoss()
+    for k in range(20):
+        loss.on_stamp(k * MS, k * MS, 1.0)
+    loss.restart()
+    loss.on_stamp(100 * MS, 100 * MS, 1.0)        # first stamp of a new time base: no gap
+    loss.on_stamp(105 * MS, 105 * MS, 1.0)        # period unknown again: not counted
+    assert loss.stamp_gaps == 0
