@@ -24,7 +24,7 @@ so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
   ``ros2 node list`` show the node.
 * **The platform node** (:class:`PlatformDdsNode`): the thin adapter around
   :class:`gyro_platform.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
-  ``/diagnostics`` periodically (plus a ``gyro_platform: dds transport`` status), ``~/reset``
+  ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node), ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of :mod:`gyro_platform.urdf`), ``~/reset``
   (``std_msgs/msg/Empty``) instead of the rclpy reset service, wall-clock jumps forwarded to
   the core.
 
@@ -33,7 +33,8 @@ than the node cannot build a backlog (latency ≤ 5 samples' processing) nor gro
 overwrites the oldest. DDS does not report such overwrites, so a second, data-less reader on
 the input topic counts arrivals in C (as rejections of a KEEP_ALL reader with room for one
 sample) and the node counts what it takes; the difference is reported as ``samples_lost`` in the
-transport diagnostics (WARN while it grows). No Python runs in Cyclone's threads (no listeners):
+transport diagnostics and fed to the core's ``InputLoss`` (``gyro_platform: node`` WARN "input
+overload" while it grows). No Python runs in Cyclone's threads (no listeners):
 the node sleeps in a WaitSet.
 """
 from __future__ import annotations
@@ -158,6 +159,59 @@ def domain_id_from_env(value: int | str | None = None) -> int:
     if not 0 <= dom <= MAX_DOMAIN_ID:
         raise ValueError(f"ROS_DOMAIN_ID = {dom} outside 0..{MAX_DOMAIN_ID}")
     return dom
+
+
+# =========================================================================================
+# discovery without multicast
+# =========================================================================================
+IFF_UP, IFF_LOOPBACK, IFF_MULTICAST = 0x1, 0x8, 0x1000
+#: rmw_cyclonedds' configuration for ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, in Cyclone XML:
+#: loopback only, no multicast, unicast discovery to localhost on the ports of participant
+#: indices 0..32 — what both sides need on a host without a multicast-capable interface
+LOCALHOST_DISCOVERY_XML = (
+    '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General><Interfaces>'
+    '<NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast>'
+    '</General><Discovery><ParticipantIndex>auto</ParticipantIndex>'
+    '<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address="localhost"/></Peers>'
+    '</Discovery></Domain></CycloneDDS>')
+
+
+def interface_flags(sys_class_net: str = "/sys/class/net") -> dict[str, int]:
+    """Network interface name → kernel flags (IFF_*), read from sysfs (empty if unreadable)."""
+    flags: dict[str, int] = {}
+    try:
+        names = os.listdir(sys_class_net)
+    except OSError:
+        return flags
+    for name in names:
+        try:
+            with open(os.path.join(sys_class_net, name, "flags")) as f:
+                flags[name] = int(f.read().strip(), 16)
+        except (OSError, ValueError):
+            continue
+    return flags
+
+
+def multicast_discovery_possible(flags: dict[str, int]) -> bool:
+    """True when an up interface supports multicast (Cyclone's default SPDP then works)."""
+    return any(f & IFF_UP and f & IFF_MULTICAST for f in flags.values())
+
+
+def default_discovery(environ: dict[str, str], flags: dict[str, int]) -> tuple[str | None, str]:
+    """(CYCLONEDDS_URI to use or None to keep Cyclone's default, one-line hint) for a node
+    started without ``--cyclonedds-config``. An explicit ``CYCLONEDDS_URI`` is kept; on a host
+    where no up interface supports multicast (e.g. a loopback-only network namespace whose
+    ``lo`` lacks MULTICAST), Cyclone's default multicast discovery finds nobody, so the
+    localhost unicast configuration of rmw_cyclonedds' LOCALHOST discovery range is used and
+    the hint says what the ROS side must set to meet it."""
+    if environ.get("CYCLONEDDS_URI", "").strip():
+        return None, ""
+    if not flags or multicast_discovery_possible(flags):
+        return None, ""
+    return LOCALHOST_DISCOVERY_XML, (
+        "no network interface with multicast: using unicast discovery on 127.0.0.1 (participant indices "
+        "0-32); ROS 2 nodes beside this one need the same: export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST "
+        "(rmw_cyclonedds) or CYCLONEDDS_URI=file://<share>/gyro_platform/config/cyclonedds_loopback.xml")
 
 
 # =========================================================================================
@@ -380,7 +434,9 @@ class QosProfile:
 SENSOR_DATA = QosProfile("best_effort", "volatile", 5)     # rclpy qos_profile_sensor_data
 DEFAULT = QosProfile("reliable", "volatile", 10)           # rclpy default (depth 10)
 DISCOVERY_INFO = QosProfile("reliable", "transient_local", 1)
-PROFILES = {"sensor_data": SENSOR_DATA, "default": DEFAULT}
+TF = QosProfile("reliable", "volatile", 100)             # tf2_ros TransformBroadcaster / listener
+LATCHED = QosProfile("reliable", "transient_local", 1)     # /tf_static, /robot_description (as robot_state_publisher)
+PROFILES = {"sensor_data": SENSOR_DATA, "default": DEFAULT, "tf": TF, "latched": LATCHED}
 
 
 def dds_qos(profile: QosProfile, user_data: bytes | None = None) -> Any:
@@ -591,7 +647,10 @@ class DdsNode:
 
         if self._discovery_writer is None:
             t = Topic(self.participant, DISCOVERY_TOPIC, self.types.idl_class(DISCOVERY_TYPE))
-            self._discovery_writer = DataWriter(self.participant, t, qos=dds_qos(DISCOVERY_INFO))
+            # with the type hash in the user data, as rmw_cyclonedds' own ros_discovery_info
+            # endpoints (else every ROS process warns "Failed to parse type hash … '(null)'")
+            self._discovery_writer = DataWriter(self.participant, t, qos=dds_qos(
+                DISCOVERY_INFO, type_hash_user_data(self.types.type_hash(DISCOVERY_TYPE))))
         T = self.types.typestore.types
 
         def gid(b: bytes) -> Any:
@@ -688,7 +747,7 @@ class PlatformDdsNode:
     """The platform node on DDS, a thin adapter around :class:`gyro_platform.core.NodeCore`:
     one subscription on the core's input topic (sensor-data QoS), one reliable publisher per
     output topic and ``/diagnostics`` every ``1 / diagnostics_rate`` s (the core's statuses plus
-    ``gyro_platform: dds transport``), ``~/reset`` (``std_msgs/msg/Empty``) →
+    ``gyro_platform: transport``), ``~/reset`` (``std_msgs/msg/Empty``) →
     ``core.reset("reset_topic")``, wall-clock jumps → ``core.on_clock_jump``.
 
     Receive times are the wall clock (``time.time_ns``), as an rclpy node's ROS time without
@@ -702,7 +761,8 @@ class PlatformDdsNode:
     TAKE_BATCH = 64
 
     def __init__(self, core: Any, node: DdsNode, *, diagnostics_period: float = 1.0,
-                 log: Callable[[str], None] | None = None, reset_topic: bool = True):
+                 log: Callable[[str], None] | None = None, reset_topic: bool = True,
+                 robot_description: bool = True):
         from .messages import DIAGNOSTIC_ARRAY
 
         self.core = core
@@ -733,7 +793,11 @@ class PlatformDdsNode:
         self.max_batch = 0
         self.last_error = ""
         self.unknown_topics: set[str] = set()
-        self._lost_reported = 0
+        self._lost_fed = 0
+        self.model = None
+        self.frame_prefix = core.config["frame_prefix"]
+        if robot_description:
+            self._setup_robot_description()
 
     def warm_up(self) -> None:
         """Compile/load the kernels and build the CDR encoders before the first real sample
@@ -772,7 +836,35 @@ class PlatformDdsNode:
         self.max_batch = max(self.max_batch, len(batch))
         for msg, _info in batch:
             self._process(msg, time.time_ns())
+        lost = self.input.lost
+        if lost > self._lost_fed:
+            self.core.loss.on_transport_loss(lost - self._lost_fed, time.time_ns())
+            self._lost_fed = lost
         return len(batch)
+
+    # ---- robot description and TF ---------------------------------------------------
+    def _setup_robot_description(self) -> None:
+        """``/robot_description`` (URDF, transient local) and ``/tf_static`` (fixed joints)
+        published once, latched; ``/tf`` (moving joints) with every JointState output."""
+        from .messages import STRING, TF_MESSAGE, string_message, tf_message
+        from .urdf import config_model, config_urdf
+
+        self.model = config_model(self.core.config)
+        self.publishers["robot_description"] = self.node.create_publisher(STRING, "robot_description", LATCHED)
+        self.publishers["/tf_static"] = self.node.create_publisher(TF_MESSAGE, "/tf_static", LATCHED)
+        self.publishers["/tf"] = self.node.create_publisher(TF_MESSAGE, "/tf", TF)
+        self.publishers["robot_description"].publish(string_message(config_urdf(self.core.config), self.core.types))
+        static = tf_message(self.model, {}, self.core.types, time.time_ns(), self.frame_prefix, static=True)
+        if static.transforms:
+            self.publishers["/tf_static"].publish(static)
+
+    def _publish_tf(self, joint_state: Any) -> None:
+        from .messages import stamp_ns, tf_message
+
+        positions = dict(zip(joint_state.name, (float(x) for x in joint_state.position)))
+        msg = tf_message(self.model, positions, self.core.types, stamp_ns(joint_state.header.stamp), self.frame_prefix)
+        self.publishers["/tf"].publish(msg)
+        self.published += 1
 
     def _process(self, msg: Any, receive_ns: int) -> None:
         try:
@@ -791,6 +883,8 @@ class PlatformDdsNode:
             try:
                 pub.publish(out)
                 self.published += 1
+                if self.model is not None and topic == "gimbal/joint_states":
+                    self._publish_tf(out)
             except Exception as e:  # noqa: BLE001 - e.g. a value out of range for its CDR type
                 self._error(f"publish {pub.topic}: {type(e).__name__}: {e}")
 
@@ -815,25 +909,16 @@ class PlatformDdsNode:
         return d
 
     def diagnostics(self) -> Any:
-        """The core's DiagnosticArray (stamped now) plus the ``gyro_platform: dds transport`` status:
-        WARN while input samples are being lost (overwritten in the DDS queue: the node is slower
-        than its input), or after a transport error."""
+        """The core's DiagnosticArray (stamped now) plus ``gyro_platform: transport`` (the same
+        status names as the rclpy node): WARN after a transport error. Lost input (samples DDS
+        overwrote in the keep-last queue: the node is slower than its input) is fed to the
+        core's ``InputLoss`` in :meth:`poll` and makes ``gyro_platform: node`` WARN."""
+        from .messages import transport_status
+
         arr = self.core.diagnostics(time.time_ns())
-        T = self.node.types.typestore.types
-        st = T["diagnostic_msgs/msg/DiagnosticStatus"]
-        kv = T["diagnostic_msgs/msg/KeyValue"]
-        stats = self.transport_status()
-        lost = self.input.lost
-        level, message = st.OK, "ok"
-        if lost > self._lost_reported:
-            level = st.WARN
-            message = (f"input overload: {lost - self._lost_reported} samples dropped since the last report "
-                       f"({lost} in all; the node is slower than its input)")
-        elif self.errors:
-            level, message = st.WARN, f"{self.errors} transport error(s); last: {self.last_error}"
-        self._lost_reported = lost
-        arr.status.append(st(level=level, name="gyro_platform: dds transport", message=message,
-                             hardware_id="gyro_platform", values=[kv(key=k, value=str(v)) for k, v in stats.items()]))
+        warn = f"{self.errors} transport error(s); last: {self.last_error}" if self.errors else ""
+        arr.status.append(transport_status(self.core.types,
+                                           {"transport": "dds", **self.transport_status()}, warn))
         return arr
 
     def publish_diagnostics(self) -> None:

@@ -153,6 +153,10 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
     except ImportError as e:
         log(f"error: {e}")
         return EXIT_FAILED
+    uri, hint = dds.default_discovery(dict(os.environ), dds.interface_flags())
+    if uri is not None:
+        os.environ["CYCLONEDDS_URI"] = uri
+        log(hint)
     try:
         config = build_config(args, name)
         dds.validate_node_name(name)

@@ -1,49 +1,48 @@
-"""Launch the gyro platform node.
+"""Launch the gyro platform node and robot_state_publisher.
 
     ros2 launch gyro_platform platform.launch.py [params_file:=FILE] [scene:=NAME|FILE]
-        [input_topic:=/imu/data] [input_type:=imu|twist|twist_stamped] [use_sim_time:=true]
-        [namespace:=robot1]
+        [input_topic:=/imu/data] [input_type:=imu|twist|twist_stamped] [output_rate:=HZ]
+        [use_sim_time:=true] [namespace:=robot1] [frame_prefix:=robot1/] [log_level:=debug]
+        [robot_state_publisher:=false]
 
-``params_file`` defaults to the package's ``config/platform.yaml``. ``scene``, ``input_topic``
-and ``input_type`` override the params file only when given (an empty value keeps the file's);
-``input_topic`` sets both ``imu_topic`` and ``twist_topic`` (only the one of the input type is
-used). Replaying a bag: ``ros2 bag play BAG --clock`` with ``use_sim_time:=true``.
+``params_file`` defaults to the package's ``config/platform.yaml``. ``scene``, ``input_topic``,
+``input_type`` and ``output_rate`` override the params file only when given (an empty value
+keeps the file's); ``input_topic`` sets both ``imu_topic`` and ``twist_topic`` (only the one of
+the input type is used). ``frame_prefix`` defaults to ``<namespace>/`` when a namespace is given
+(``frame_prefix:=/`` for none). robot_state_publisher gets the URDF of the same parameters
+(``gyro_platform.urdf``) and the node's ``gimbal/joint_states``, and publishes
+``/robot_description``, ``/tf`` and ``/tf_static``. Replaying a bag: ``ros2 bag play BAG --clock``
+with ``use_sim_time:=true``. What is started is computed by ``gyro_platform.launch_setup.plan``.
 """
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from launch_ros.substitutions import FindPackageShare
+from ament_index_python.packages import get_package_share_directory
 
-ARGUMENTS = (
-    ("params_file", PathJoinSubstitution([FindPackageShare("gyro_platform"), "config", "platform.yaml"]),
-     "parameters file of the node"),
-    ("scene", "", "scene file or name in config/scenes (coning, default …) giving the model defaults; "
-                  "empty: the params file's"),
-    ("input_topic", "", "input topic (Imu or Twist/TwistStamped); empty: the params file's"),
-    ("input_type", "", "imu, twist or twist_stamped; empty: the params file's"),
-    ("use_sim_time", "false", "use /clock (true when replaying a bag with 'ros2 bag play --clock')"),
-    ("namespace", "", "namespace of the node and its topics"),
-)
+from gyro_platform.launch_setup import ARGUMENTS, plan
 
 
-def _node(context, *args, **kwargs):
-    """The node, with only the overrides that were given (evaluated at launch time)."""
-    cfg = {name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS}
-    overrides = {"use_sim_time": cfg["use_sim_time"].strip().lower() in ("true", "1", "yes", "on")}
-    if cfg["scene"]:
-        overrides["scene"] = cfg["scene"]
-    if cfg["input_type"]:
-        overrides["input_type"] = cfg["input_type"]
-    if cfg["input_topic"]:
-        overrides["imu_topic"] = cfg["input_topic"]
-        overrides["twist_topic"] = cfg["input_topic"]
-    parameters = ([cfg["params_file"]] if cfg["params_file"] else []) + [overrides]
-    return [Node(package="gyro_platform", executable="platform_node", name="gyro_platform_node",
-                 namespace=cfg["namespace"] or None, parameters=parameters, output="screen", emulate_tty=True)]
+def _nodes(context, *args, **kwargs):
+    """The node (and robot_state_publisher), from the argument values at launch time."""
+    values = {name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS}
+    default_params = get_package_share_directory("gyro_platform") + "/config/platform.yaml"
+    try:
+        p = plan(values, default_params)
+    except ValueError as e:            # LaunchArgumentError / ConfigError: one line, no traceback
+        return [LogInfo(msg=f"gyro_platform: not started: {e}")]
+    actions = [Node(package="gyro_platform", executable="platform_node", name="gyro_platform_node",
+                    namespace=p.namespace, parameters=p.node_parameters, arguments=["--ros-args", *p.ros_arguments],
+                    output="screen", emulate_tty=True)]
+    if p.rsp_parameters is not None:
+        actions.append(Node(package="robot_state_publisher", executable="robot_state_publisher",
+                            name="robot_state_publisher", namespace=p.namespace, parameters=[p.rsp_parameters],
+                            remappings=p.rsp_remappings, arguments=["--ros-args", *p.ros_arguments],
+                            output="screen"))
+    return actions
 
 
 def generate_launch_description():
     return LaunchDescription(
         [DeclareLaunchArgument(name, default_value=default, description=desc) for name, default, desc in ARGUMENTS]
-        + [OpaqueFunction(function=_node)])
+        + [OpaqueFunction(function=_nodes)])

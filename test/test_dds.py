@@ -486,7 +486,7 @@ def connect(driver: Driver, inputs: list, outputs: list, timeout: float = WAIT, 
         if "/diagnostics" not in driver.subs:
             driver.subscribe(m.DIAGNOSTIC_ARRAY, "/diagnostics")
             assert dds.wait_matched([driver.subs["/diagnostics"]], timeout)
-        driver.diagnostics_status("gyro_platform: dds transport",
+        driver.diagnostics_status("gyro_platform: transport",
                                   lambda v: v["input_publishers_matched"] == str(publishers), timeout)
 
 
@@ -664,7 +664,7 @@ def test_twist_stamped_input_namespace_qos_and_graph(start_node, driver_factory)
     writers = {bytes(g.data) for g in entry.writer_gid_seq}
     readers = {bytes(g.data) for g in entry.reader_gid_seq}
     assert w.key.bytes in writers and {r.key.bytes, c.key.bytes} <= readers
-    assert len(writers) == len(m.output_topics()) and len(readers) == 3     # outputs + diagnostics; input, counter, reset
+    assert len(writers) == len(m.output_topics()) + 3 and len(readers) == 3  # outputs + diagnostics + robot_description, /tf, /tf_static; input, counter, reset
 
     # -- another domain sees nothing
     other = driver_factory(1 + (node.domain % 100), "/veh", name="other_domain")
@@ -711,7 +711,7 @@ def test_bad_input_over_the_wire_is_dropped_and_counted(start_node, driver_facto
     time.sleep(0.5)
     drv.pump()
     assert len(drv.got[JS]) == n_js and node.alive()
-    transport = drv.diagnostics_status("gyro_platform: dds transport", lambda v: True)
+    transport = drv.diagnostics_status("gyro_platform: transport", lambda v: True)
     assert transport["input_publishers_matched"] == "1" and transport["samples_undecodable"] == "0"
     gate = drv.diagnostics_status("gyro_platform: input")
     assert gate["received"] == "18"                          # the intruder's samples never reached the core
@@ -772,12 +772,12 @@ def test_flooding_publisher_is_dropped_with_a_diagnostic_not_queued(start_node, 
     marker = drv.wait_for(JS, lambda o: abs(stamp_s(o) - t_marker) < 1e-9, timeout=WAIT)
     catch_up = time.perf_counter() - t0
     assert marker.position[0] == pytest.approx(-0.5 * (t_marker - 100.0), abs=1e-6)   # gaps integrated, exact
-    st = drv.diagnostics_status("gyro_platform: dds transport", lambda v: int(v["processed"]) >= 51, timeout=WAIT)
+    st = drv.diagnostics_status("gyro_platform: transport", lambda v: int(v["processed"]) >= 51, timeout=WAIT)
     lost, processed, arrived = int(st["samples_lost"]), int(st["processed"]), int(st["samples_arrived"])
     assert processed < sent / 2, f"processed {processed} of {sent}: the flood was not fast enough to test"
     assert lost > sent / 4 and lost <= arrived - processed
     warned = [s for a in drv.got[DIAG] for s in a.status
-              if s.name == "gyro_platform: dds transport" and s.level == s.WARN and "input overload" in s.message]
+              if s.name == "gyro_platform: node" and s.level == s.WARN and "input overload" in s.message]
     assert warned, "no WARN 'input overload' in /diagnostics"
     rss1 = rss_kib(node.proc.pid)
     assert peak[0] - rss0 < 30 * 1024 and rss1 - rss0 < 30 * 1024, (rss0, peak[0], rss1)
@@ -803,7 +803,7 @@ def test_publisher_that_disappears_and_comes_back(start_node, driver_factory):
     t0 = 300.0
     lockstep(drv, pub, [imu(t0 + k * 0.01, w) for k in range(50)])
     first.close()                                          # the publisher disappears
-    st = drv.diagnostics_status("gyro_platform: dds transport", lambda v: v["input_publishers_matched"] == "0")
+    st = drv.diagnostics_status("gyro_platform: transport", lambda v: v["input_publishers_matched"] == "0")
     assert int(st["processed"]) == 50
     stale = drv.diagnostics_status("gyro_platform: node", lambda v: v["_level"] == 3, timeout=WAIT)  # STALE
     assert "no input" in stale["_message"]
@@ -831,7 +831,7 @@ def test_signals_and_duration_stop_the_node_cleanly(start_node, driver_factory):
         drv = driver_factory(node.domain)
         diag = drv.subscribe(m.DIAGNOSTIC_ARRAY, "/diagnostics")
         assert dds.wait_matched([diag], WAIT)
-        drv.diagnostics_status("gyro_platform: dds transport")            # the periodic one
+        drv.diagnostics_status("gyro_platform: transport")            # the periodic one
         assert node.stop(sig, timeout=20.0) == 0, node.log
         assert "stopped after" in node.log
         drv.pump()
@@ -943,3 +943,86 @@ def test_wall_clock_jumps_are_detected(monkeypatch):
     assert watch.check()[0] == "forward"
     offset[0] += dds.NS // 100
     assert watch.check() is None
+
+
+def test_robot_description_and_tf_from_the_dds_node(start_node, driver_factory):
+    """The DDS node publishes what robot_state_publisher would under rclpy: the URDF on
+    robot_description and the fixed joints on /tf_static (both latched: a late reader gets
+    them), and with every JointState the moving joints on /tf, stamped like it, chaining
+    base_link → platform to the simulated platform attitude (URDF forward kinematics at the
+    published joint positions); frames carry frame_prefix."""
+    from scipy.spatial.transform import Rotation
+    from urdf_parser_py.urdf import URDF
+
+    from gyro_platform.params import NAV1
+    from gyro_platform.urdf import platform_model
+
+    mounting = (0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8))      # 45° about z
+    node = start_node({"mode": "carried", "output_rate": 0.0, "frame_prefix": "robot1/",
+                       "physics": {"mounting": list(mounting)}},
+                      "--namespace", "robot1")
+    drv = driver_factory(node.domain, "/robot1")
+    time.sleep(1.0)                                              # late joiners: latched topics still arrive
+    desc = drv.subscribe("std_msgs/msg/String", "robot_description", dds.LATCHED)
+    static = drv.subscribe("tf2_msgs/msg/TFMessage", "/tf_static", dds.LATCHED)
+    tf = drv.subscribe("tf2_msgs/msg/TFMessage", "/tf", COLLECT)
+    js = drv.subscribe(m.JOINT_STATE, "gimbal/joint_states")
+    pub = drv.publisher(m.IMU, "imu")
+    connect(drv, [pub], [desc, static, tf, js])
+    robot = URDF.from_xml_string(drv.wait_for("/robot1/robot_description", lambda s: True).data)
+    assert robot.get_root() == "base_link"
+    st = drv.wait_for("/tf_static", lambda s: True)
+    (mount,) = st.transforms                                     # carried: base_link → platform, fixed
+    assert (mount.header.frame_id, mount.child_frame_id) == ("robot1/base_link", "robot1/platform")
+    q = mount.transform.rotation
+    assert Rotation.from_quat([q.x, q.y, q.z, q.w]).as_euler("xyz")[2] == pytest.approx(math.pi / 4, abs=1e-12)
+    for k in range(5):
+        pub.publish(imu(10.0 + 0.01 * k, w=(0.2, -0.1, 0.3)))
+    last = drv.wait_for("/robot1/gimbal/joint_states", lambda j: stamp_s(j) == pytest.approx(10.04, abs=1e-9))
+    moving = drv.wait_for("/tf", lambda t: stamp_s(t.transforms[0]) == stamp_s(last))
+    model = platform_model(NAV1.with_(mounting=mounting), stabilised=False)
+    assert sorted(t.child_frame_id for t in moving.transforms) == sorted(
+        "robot1/" + j.child for j in model.joints if j.type != "fixed")
+    pos = dict(zip(last.name, last.position))
+    for t in moving.transforms:
+        joint = next(j for j in model.joints if "robot1/" + j.child == t.child_frame_id)
+        r = t.transform.rotation
+        np.testing.assert_allclose(Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix(),
+                                   Rotation.from_rotvec(np.asarray(joint.axis) * pos[joint.name]).as_matrix(),
+                                   atol=1e-12)
+        assert t.header.frame_id == "robot1/" + joint.parent
+
+
+def test_default_discovery_without_multicast_is_localhost_unicast():
+    """A host whose only up interface is a loopback without MULTICAST (flags 0x9, as in a
+    loopback-only network namespace): unicast localhost discovery and a hint naming what the
+    ROS side sets; an explicit CYCLONEDDS_URI or a multicast interface keeps Cyclone's default."""
+    lo_only = {"lo": dds.IFF_UP | dds.IFF_LOOPBACK}
+    uri, hint = dds.default_discovery({}, lo_only)
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in hint
+    import xml.etree.ElementTree as ET
+
+    ns = {"c": "https://cdds.io/config"}
+    root = ET.fromstring(uri)
+    assert root.findtext(".//c:AllowMulticast", namespaces=ns) == "false"
+    assert root.find(".//c:Peers/c:Peer", ns).get("address") == "localhost"
+    assert root.findtext(".//c:ParticipantIndex", namespaces=ns) == "auto"
+    assert dds.default_discovery({"CYCLONEDDS_URI": "file:///x.xml"}, lo_only) == (None, "")
+    eth = {**lo_only, "eth0": dds.IFF_UP | dds.IFF_MULTICAST}
+    assert dds.default_discovery({}, eth) == (None, "")
+    down = {**lo_only, "eth0": dds.IFF_MULTICAST}                    # multicast-capable but down
+    assert dds.default_discovery({}, down)[0] is not None
+    flags = dds.interface_flags()                                    # this host, read from sysfs
+    assert "lo" in flags and flags["lo"] & dds.IFF_LOOPBACK
+
+
+def test_discovery_writer_carries_the_type_hash():
+    """ros_discovery_info is written with rmw's typehash user data (else ROS processes warn
+    "Failed to parse type hash for topic 'ros_discovery_info' … USER_DATA '(null)'")."""
+    from cyclonedds.core import Policy
+
+    with dds.DdsNode("hash_probe", "/", next_domain(), types=IDL) as node:
+        node.create_publisher(m.JOINT_STATE, "probe")
+        ud = node._discovery_writer.get_qos()[Policy.Userdata].data
+        assert ud == f"typehash={IDL.type_hash(dds.DISCOVERY_TYPE)};".encode()
+        assert ud.startswith(b"typehash=RIHS01_") and len(ud) == len("typehash=RIHS01_;") + 64
