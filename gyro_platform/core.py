@@ -300,9 +300,16 @@ def topics_markdown() -> str:
             qos = "sensor data: best effort, keep last 5, volatile"
         else:
             typ, name = f"`{t.type}`", f"`{t.name}`"
-            qos = "reliable, keep last 10, volatile" if t.name != DIAGNOSTICS_TOPIC else \
-                "reliable, volatile (diagnostic_updater: keep last 1)"
+            qos = "reliable, keep last 10, volatile"
         rows.append(f"| {name} | {t.direction} | {typ} | {t.units} | {t.frame or '-'} | {qos} |")
+    rows += [  # robot_state_publisher's under rclpy (launch file), the node's own on DDS
+        "| `robot_description` | out | `std_msgs/msg/String` | URDF (gyro_platform.urdf) | - | reliable, keep last 1, "
+        "transient local |",
+        "| `/tf` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | every moving joint: parent → child link | "
+        "reliable, keep last 100, volatile |",
+        "| `/tf_static` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | fixed joints | reliable, keep last 1, "
+        "transient local |",
+    ]
     return "\n".join(rows) + "\n"
 
 
