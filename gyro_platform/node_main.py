@@ -16,6 +16,10 @@
 * ``--domain-id`` (default ``ROS_DOMAIN_ID``, else 0), ``--namespace`` (default ``/``),
   ``--cyclonedds-config`` (sets ``CYCLONEDDS_URI`` for this process; e.g.
   ``config/cyclonedds_loopback.xml``), ``--duration`` (s: stop by itself after that long).
+  Without either, on a host with no multicast-capable interface the DDS transport uses
+  localhost unicast discovery and logs what the ROS side must set (``dds.default_discovery``).
+* Both transports warm up (:func:`warm_up`: the numba kernels compiled or loaded) before they
+  subscribe and log ``ready``.
 * SIGINT / SIGTERM stop the node cleanly (final diagnostics, DDS entities deleted); exit 0.
   Exit 2 on a bad parameter or argument, 1 when the transport cannot start.
 """
