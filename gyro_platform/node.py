@@ -120,9 +120,11 @@ class PlatformNode(Node):
     def _subscribe(self, msg_type: type) -> Any:
         """The input subscription with a QoS message-lost callback (when the RMW supports it)."""
         try:
-            from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
+            from rclpy import event_handler
         except ImportError:  # pragma: no cover - older rclpy
-            SubscriptionEventCallbacks = UnsupportedEventTypeError = None
+            event_handler = None
+        SubscriptionEventCallbacks = getattr(event_handler, "SubscriptionEventCallbacks", None)
+        UnsupportedEventTypeError = getattr(event_handler, "UnsupportedEventTypeError", RuntimeError)
         if SubscriptionEventCallbacks is not None:
             try:
                 return self.create_subscription(

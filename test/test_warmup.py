@@ -1,0 +1,63 @@
+"""Warm-up before "ready" (both transports): every kernel the first real sample needs is
+compiled (or loaded from numba's cache) by synthetic samples on a throwaway core, and the
+real core is left untouched. Checked in a fresh interpreter, so that kernels compiled by
+other tests cannot hide a kernel the warm-up misses."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCRIPT = r"""
+import json, sys
+from gyro_platform import effects, fastpath, integrators, model, rotations, system, tree
+from gyro_platform.core import NodeConfig, NodeCore
+from gyro_platform.dds import zero_message
+from gyro_platform.messages import MessageTypes, jazzy_typestore
+from gyro_platform.node_main import warm_up
+
+def signatures():
+    res = {}
+    for mod in (effects, fastpath, integrators, model, rotations, system, tree):
+        for name in dir(mod):
+            obj = getattr(mod, name)
+            if hasattr(obj, "signatures") and hasattr(obj, "py_func"):
+                res[mod.__name__ + "." + name] = len(obj.signatures)
+    return res
+
+types = MessageTypes.rosbags()
+core = NodeCore(NodeConfig.from_ros_params(json.loads(sys.argv[1])), types)
+n = warm_up(core, lambda: zero_message(jazzy_typestore(), core.input_type))
+untouched = core.received == 0 and core.published == 0 and core.sim.t_start is None
+before = signatures()
+for k in range(6):
+    msg = zero_message(jazzy_typestore(), core.input_type)
+    if hasattr(msg, "header"):
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 7, k * 10_000_000
+        msg.header.frame_id = "base_link"
+    if hasattr(msg, "angular_velocity"):
+        msg.angular_velocity.z = 0.1
+        msg.linear_acceleration.z = 9.81
+    core.on_message(msg, 7_000_000_000 + k * 10_000_000)
+after = signatures()
+print(json.dumps({"n": n, "outputs": len(core.output_topics()), "untouched": untouched,
+                  "published": core.published, "compiled": sum(1 for v in before.values() if v),
+                  "new": {k: [before.get(k, 0), v] for k, v in after.items() if v != before.get(k, 0)}}))
+"""
+
+
+@pytest.mark.parametrize("params", [{}, {"mode": "carried", "input_type": "twist_stamped"}])
+def test_warm_up_compiles_what_the_first_samples_use(params):
+    out = subprocess.run([sys.executable, "-c", SCRIPT, json.dumps(params)], cwd=ROOT, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["untouched"]                                   # the warm-up used a throwaway core
+    assert r["n"] >= r["outputs"]                           # it built every output message
+    assert r["published"] >= 1 and r["compiled"] > 0
+    assert r["new"] == {}, f"kernels compiled only by the first real samples: {r['new']}"
