@@ -366,30 +366,20 @@ def params_yaml(node_key: str = "/**") -> str:
 # scenes
 # =========================================================================================
 def scene_dirs() -> list[Path]:
-    """Folders searched for a scene given by name: the source tree's ``config/scenes`` and the
-    installed package share (``<share>/gyro_platform/config/scenes``, via ament_index)."""
-    dirs = [Path(__file__).resolve().parents[1] / "config" / "scenes"]
-    try:
-        from ament_index_python.packages import get_package_share_directory
+    """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
+    from .scene import scene_dirs as dirs
 
-        dirs.append(Path(get_package_share_directory("gyro_platform")) / "config" / "scenes")
-    except Exception:  # not a ROS install: no share directory to search
-        pass
-    return dirs
+    return dirs()
 
 
 def resolve_scene(name: str) -> Path:
-    """Path of a scene: as given (absolute or relative to the working folder), else by name in
-    :func:`scene_dirs` (``coning`` or ``coning.yaml``)."""
-    p = Path(name).expanduser()
-    cands = [p]
-    if not p.is_absolute():
-        names = [p.name] if p.suffix in (".yaml", ".yml") else [p.name + ".yaml", p.name]
-        cands += [d / n for d in scene_dirs() for n in names]
-    for c in cands:
-        if c.is_file():
-            return c
-    raise ConfigError("scene", f"scene file {name!r} not found; tried " + ", ".join(str(c) for c in cands))
+    """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
+    from .scene import ScenarioError, find_scene
+
+    try:
+        return find_scene(name)
+    except ScenarioError as e:
+        raise ConfigError("scene", str(e)) from None
 
 
 def load_node_scene(name: str):
