@@ -52,6 +52,10 @@ CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("vehicle_rate_<axis>_rad_s", "rad/s", "scenes: the vehicle angular rate fed in, vehicle body axes (FLU)"),
     ("vehicle_attitude_<q>", "1", "synthetic scenes: vehicle attitude quaternion, body -> navigation frame (ENU)"),
 )
+#: what each ``<name>`` of ``CSV_COLUMNS`` stands for
+COLUMN_PLACEHOLDERS: dict[str, tuple[str, ...]] = {
+    "gimbal": GIMBAL_NAMES, "axis": AXES, "q": QUAT, "bearing": BEARING_NAMES, "rotor": ROTORS,
+    "mount": MOUNT_NAMES}
 #: unit suffix of the simulator's status figures (``Outputs.status``)
 STATUS_SUFFIX = {"gimbal_lock_margin": "", "max_gimbal_angle": "_rad", "n_steps": ""}
 #: Recorder extra series -> (column stem, component names, unit suffix)
