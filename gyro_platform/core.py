@@ -36,7 +36,7 @@ import numpy as np
 
 from . import messages as msgs
 from .messages import IMU, TWIST, TWIST_STAMPED, MessageTypes, Mounting
-from .options import DEFAULT_EFFECTS, EFFECTS, FIDELITIES, MODES, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
+from .options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
 from .params import NAV1, ParameterError, PlatformParams
 from .replay import _grid_index, apply_decision
 from .timebase import NS, GateConfig, TimeGate
@@ -256,7 +256,9 @@ PARAMETERS: list[ParamSpec] = [
               "scene file (path or name in config/scenes) supplying the model defaults; its motion is not used",
               read_only=True),
     ParamSpec("mode", "string", "stabilised", "platform mode", choices=MODES, read_only=True),
-    ParamSpec("fidelity", "string", "full", "model fidelity", choices=FIDELITIES, read_only=True),
+    ParamSpec("fidelity", "string", "auto", "model fidelity; auto: the mode's default ("
+              + ", ".join(f"{f} when {m}" for m, f in DEFAULT_FIDELITY.items()) + ")",
+              choices=("auto", *FIDELITIES), read_only=True),
     ParamSpec("effects", "string[]", ("defaults",),
               "effects switched on; 'defaults' = the mode's default set, 'none' alone = no effect",
               choices=("defaults", "none", *EFFECTS)),
@@ -585,7 +587,7 @@ class NodeConfig:
         if self.scene is not None:
             kw.update(rtol=self.scene.options.rtol, atol=self.scene.options.atol)
         try:
-            opts = ModelOptions.make(mode, self["fidelity"], eff, **kw)
+            opts = ModelOptions.make(mode, None if self["fidelity"] == "auto" else self["fidelity"], eff, **kw)
         except OptionsError as e:
             name = str(e).split("'")[1] if "'" in str(e) else "effects"
             raise ConfigError(name if name in SPECS else "effects", str(e)) from None

@@ -277,9 +277,14 @@ def test_default_fidelity_is_one_per_mode_everywhere(tmp_path, capsys):
     s = json.loads(rp.sidecar_paths(tmp_path / "o")[0].read_text())
     assert s["simulator"]["mode"] == "stabilised"
     assert s["simulator"]["fidelity"] == DEFAULT_FIDELITY["stabilised"] == Simulator().options.fidelity
+    from gyro_platform.core import NodeConfig
+
+    assert NodeConfig.from_ros_params({}).options.fidelity == DEFAULT_FIDELITY["stabilised"]
     for mode in ("stabilised", "carried"):
         sc = scene_from_dict({"mode": mode, "duration": 1, "motion": {"type": "constant", "omega": [0, 0, 0]}})
-        assert sc.fidelity == DEFAULT_FIDELITY[mode] == ModelOptions.make(mode).fidelity
+        node = NodeConfig.from_ros_params({"mode": mode, "effects": ["defaults"]})
+        assert sc.fidelity == DEFAULT_FIDELITY[mode] == ModelOptions.make(mode).fidelity == node.options.fidelity
+    assert set(DEFAULT_FIDELITY.values()) == {"linear", "full"}          # the README states these
 
 
 # ---- outputs.csv ---------------------------------------------------------------------------------
