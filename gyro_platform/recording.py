@@ -347,24 +347,39 @@ class Recorder:
 
     # ---- plot ---------------------------------------------------------------------------
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
+        """:meth:`figure` written as PNG."""
+        import matplotlib.pyplot as plt
+
+        path = Path(path_png)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig = self.figure(title, summary)
+        try:
+            fig.savefig(path, dpi=100)
+        finally:
+            plt.close(fig)
+        return path
+
+    def figure(self, title: str | None = None, summary: dict | None = None):
         """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
-        vehicle rate against time, written as PNG (matplotlib Agg backend)."""
+        vehicle rate against time (matplotlib Agg backend). Every panel has a title, axis
+        labels with units and a legend; ``title`` (wrapped, never cut) heads the figure."""
+        import textwrap
+
         import matplotlib
 
         matplotlib.use("Agg", force=True)
         import matplotlib.pyplot as plt
 
-        path = Path(path_png)
-        path.parent.mkdir(parents=True, exist_ok=True)
         s = summary if summary is not None else self.summary()
         t = self.t_rel
         has_vehicle = "vehicle_omega" in self._extra
         n = 4 if has_vehicle else 3
-        fig, axs = plt.subplots(n, 1, figsize=(10, 2.6 * n + 0.6), sharex=True)
+        fig, axs = plt.subplots(n, 1, figsize=(10, 2.8 * n + 0.8), sharex=True, layout="constrained")
         q = self.gimbal_angles
         for i, g in enumerate(GIMBAL_NAMES):
             axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
         axs[0].set_ylabel("gimbal angle [mrad]")
+        axs[0].set_title("gimbal angles", fontsize=10)
         axs[0].legend(loc="upper right", ncol=5, fontsize=8)
         d = self.drift_angle
         rates = s.get("drift_rate_deg_per_h", {})
@@ -378,31 +393,32 @@ class Recorder:
                 c = d[win, i].mean() - r * t[win].mean()
                 axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
         axs[1].set_ylabel("drift angle [µrad]")
+        axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
         axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
         for b in self.bearings():
             axs[2].plot(t, np.linalg.norm(self.bearing(b), axis=1), label=b, lw=1)
         st = self.field("servo_torque")
         if st is not None:
             axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
-        axs[2].set_ylabel("|bearing torque| [N m]")
+        axs[2].set_ylabel("|torque| [N m]")
+        axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
+                         + " (magnitude)", fontsize=10)
         if self.bearings():
             axs[2].set_yscale("symlog", linthresh=1e-9)
-            axs[2].legend(loc="upper right", ncol=4, fontsize=7)
+        if self.bearings() or st is not None:
+            axs[2].legend(loc="upper right", ncol=5, fontsize=7)
         if has_vehicle:
             w = self.field("vehicle_omega")
             for i, ax in enumerate(AXES):
                 axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
             axs[3].set_ylabel("vehicle rate [rad/s]")
+            axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10)
             axs[3].legend(loc="upper right", ncol=3, fontsize=8)
-        axs[-1].set_xlabel("time [s]")
+        axs[-1].set_xlabel("time since the first output [s]")
         for a in axs:
             a.grid(True, alpha=0.3)
-        if title:
-            fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        return path
+        fig.suptitle(textwrap.fill(title or "gyro_platform outputs", 100))
+        return fig
 
 
 def _jsonable(x: Any) -> Any:

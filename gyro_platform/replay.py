@@ -1096,7 +1096,8 @@ class _Run:
         for o in self.series.items:
             rec.append(o)
         try:
-            rec.plot(path)
+            rec.plot(path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
+                                 f"({self.sim.options.mode}, {self.sim.options.fidelity})")
             return str(path), rec.summary()
         except Exception as e:  # a plot must not lose the replay
             print(f"gyro-platform replay: warning: plot failed: {e}", file=sys.stderr)

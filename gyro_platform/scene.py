@@ -775,7 +775,7 @@ def run_scene(scene: Scene, out_dir=None):
                              for c, p, det in results],
             "simulator": sim.stats,
         })
-        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}"[:110], summary=summary)
+        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
     return rec, summary, results
 
 

@@ -424,3 +424,30 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     mod, scene = p.stdout.split()
     assert Path(mod).is_relative_to(site), mod
     assert Path(scene) == prefix / "share/gyro_platform/config/scenes/default.yaml"
+
+
+# ---- plots ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("scene", ["default", "rate_step_shock"])
+def test_every_plot_panel_has_title_units_and_legend_and_the_title_fits(scene):
+    import matplotlib.pyplot as plt
+
+    from gyro_platform.scene import load_scene, run_scene
+
+    sc = load_scene(scene)
+    rec, summary, _ = run_scene(sc.with_duration(0.5))
+    long_title = f"{sc.name}: {sc.description} " * 3                 # far wider than the figure
+    fig = rec.figure(long_title, summary)
+    try:
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        assert len(fig.axes) >= 3
+        for ax in fig.axes:
+            assert ax.get_title(), ax
+            assert re.search(r"\[[^\]]+\]$", ax.get_ylabel()), ax.get_ylabel()
+            assert ax.get_legend() is not None and ax.get_legend().get_texts(), ax.get_title()
+        assert re.search(r"\[s\]$", fig.axes[-1].get_xlabel())
+        for text in (fig._suptitle, *(ax.title for ax in fig.axes)):
+            box = text.get_window_extent(r)
+            assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1, text.get_text()[:40]
+    finally:
+        plt.close(fig)
