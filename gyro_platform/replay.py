@@ -22,7 +22,9 @@
 * Damage: a bag that rosbags cannot open (truncated mcap without footer, sqlite3 file cut
   short) is salvaged — its readable messages are streamed up to the damage — and a read
   error mid-stream ends the replay. Either way the output bag is closed properly (readable),
-  the summary names the error, and the command exits with status 3.
+  the summary names the error, and the command exits with status 3. A path that is no rosbag2
+  bag (missing, ROS 1, YAML or other file, empty folder), a missing topic or a bad option: one
+  line, exit 2, nothing written. Results go to stdout, progress and errors to stderr.
 
 Library use: :func:`read_samples` (also used by scene files of type ``bag``) streams gate
 decisions; :func:`apply_decision` applies one to a ``Simulator``; :func:`replay` does it all.
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sqlite3
 import struct
 import sys
@@ -56,6 +59,8 @@ PLOT_POINTS = 4000              # at most this many outputs are kept for the plo
 # exit status: the CLI's (gyro_platform.cli.EXIT_CODES); EXIT_ERROR is the bad-input one
 EXIT_OK, EXIT_ERROR, EXIT_DAMAGED, EXIT_INTERRUPTED = 0, 2, 3, 130
 ROS1_MAGIC = b"#ROSBAG V2.0"
+#: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
+NAMESPACE_RE = re.compile(r"/?(?:(?!.*__)[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*/?)?")
 
 
 class BagReadError(Exception):
@@ -1177,9 +1182,14 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         if getattr(scene, "output_rate", None):
             cfg.output_rate = float(scene.output_rate)
     if args.output_rate is not None:
+        if not (math.isfinite(args.output_rate) and args.output_rate >= 0):
+            raise ReplayError(f"--output-rate {args.output_rate}: must be a finite rate >= 0 Hz (0 = every sample)")
         cfg.output_rate = args.output_rate if args.output_rate > 0 else None
-    if cfg.diagnostics_rate <= 0:
-        raise ReplayError("--diagnostics-rate must be > 0")
+    if not (math.isfinite(cfg.diagnostics_rate) and cfg.diagnostics_rate > 0):
+        raise ReplayError(f"--diagnostics-rate {cfg.diagnostics_rate}: must be a finite rate > 0 Hz")
+    if not NAMESPACE_RE.fullmatch(cfg.namespace):
+        raise ReplayError(f"--namespace {cfg.namespace!r}: not a ROS namespace (tokens of letters, digits and "
+                          f"'_' separated by '/', not starting with a digit)")
     return cfg
 
 

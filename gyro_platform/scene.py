@@ -2,9 +2,11 @@
 
 A scene names the model (mode, fidelity, effects, parameter overrides, integrator), the vehicle
 motion that drives it, how long and how finely to sample it, and a list of expectations that the
-run must meet. ``gyro-platform run SCENE`` runs it, prints a summary table and the expectation
-results, and writes ``outputs.csv``, ``summary.json`` and ``plot.png`` into the output folder
-(default ``results/<scene name>/``); the exit status is 1 if an expectation fails.
+run must meet. ``gyro-platform run SCENE`` (a path or a shipped scene's name, see
+``find_scene``) runs it, prints a summary table and the expectation results, and writes
+``outputs.csv``, ``summary.json`` and ``plot.png`` into the output folder (default
+``results/<scene name>/``); the exit status is 1 if an expectation fails or cannot be evaluated
+(a run shorter than ``test_duration``), 2 for a bad scene or bag path, 3 for a damaged bag.
 
 Schema (every key is checked; unknown keys are rejected; errors name the key path, e.g.
 ``scene 'x.yaml': motion.bank_deg: expected a number``)::
@@ -69,7 +71,7 @@ Quantities (``QUANTITIES``; selector and unit):
     max_abs_servo_torque                          axis: x|y|z|norm                          N m
     final_drift_angle, max_abs_drift_angle        axis                                      rad
     drift_rate, drift_rate_deg_per_h (LSQ slope)  axis                                      rad/s, °/h
-    platform_vs_vehicle_rate_deg_per_h            axis (synthetic motions only)             °/h
+    platform_vs_vehicle_rate_deg_per_h            axis (synthetic, steady vehicle rate)     °/h
     mean_vehicle_rate, max_abs_vehicle_rate       axis                                      rad/s
     duration                                      —                                         s
 

@@ -451,3 +451,29 @@ def test_every_plot_panel_has_title_units_and_legend_and_the_title_fits(scene):
             assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1, text.get_text()[:40]
     finally:
         plt.close(fig)
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--output-rate", "-1"], "--output-rate -1.0: must be a finite rate"),
+    (["--output-rate", "inf"], "--output-rate inf: must be a finite rate"),
+    (["--diagnostics-rate", "inf"], "--diagnostics-rate inf"),
+    (["--diagnostics-rate", "0"], "--diagnostics-rate 0.0"),
+    (["--namespace", "bad ns"], "not a ROS namespace"),
+    (["--namespace", "1robot"], "not a ROS namespace"),
+    (["--max-gap", "0"], "max_gap"),
+    (["--max-rate", "nan"], "max_rate"),
+    (["--mount", "imu=1,2"], "mounting"),
+])
+def test_bad_replay_arguments_are_exit_2_and_write_nothing(args, words, tmp_path, capsys):
+    bag = small_bag(tmp_path / "b")
+    out = tmp_path / "o"
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", *args]) == cli.EXIT_USAGE
+    assert words in one_line_error(capsys.readouterr().err, "replay")
+    assert not out.exists() and not rp.sidecar_paths(out)[0].exists()
+
+
+def test_namespaces_that_are_valid_pass():
+    for ns in ("", "/", "robot1", "/robot1/", "a/b_c", "_x"):
+        assert rp.NAMESPACE_RE.fullmatch(ns), ns
+    for ns in ("a b", "a//b", "9a", "a__b", "a-b"):
+        assert not rp.NAMESPACE_RE.fullmatch(ns), ns
