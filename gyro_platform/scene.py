@@ -395,7 +395,7 @@ def find_scene(name) -> Path:
     if p.is_dir():
         raise ScenarioError(f"scene '{name}': is a folder, not a scene file")
     known = scene_names()
-    raise ScenarioError(f"scene '{name}': no such file or scene name"
+    raise ScenarioError(f"scene file '{name}' not found: no such file or scene name"
                         + (f" (scenes: {', '.join(known)})" if known else ""))
 
 
