@@ -1,18 +1,37 @@
-"""``gyro-platform`` command line: ``run`` a scene, ``replay`` a bag, ``bench`` speed/accuracy,
-``node`` (ROS 2 node on rclpy or on plain DDS).
+"""gyro-platform command line: run a scene, replay a bag, benchmark, run the ROS 2 node.
 
 Each subcommand lives in the module that owns it; that module provides
-``add_arguments(parser)`` and ``run(args) -> int``. Imports are lazy so that ``--help`` is fast
-and a missing optional dependency only affects its own subcommand.
+``add_arguments(parser)`` and ``run(args) -> int``. Imports are lazy so that a missing optional
+dependency only affects its own subcommand.
+
+Exit status, the same for every subcommand (``EXIT_CODES``; also in every ``--help``):
+0 success; 1 the command ran but failed (an expectation failed or could not be evaluated, the
+transport could not start); 2 bad argument or input path (argparse's convention: unknown flag,
+missing file, a file that is not a bag or scene, an invalid scene); 3 corrupt input data (a
+damaged bag: what was readable is processed and written, the error is named); 130 interrupted
+(Ctrl-C). Errors are one line on stderr, ``gyro-platform <command>: error: …``.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
+from . import __version__
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_CODES: dict[int, str] = {
+    EXIT_OK: "success",
+    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, or the transport could not start",
+    EXIT_USAGE: "bad argument or input path (unknown flag, missing file, not a bag/scene, invalid scene)",
+    EXIT_DATA: "corrupt input data (damaged bag; the readable part is processed and written)",
+    EXIT_INTERRUPTED: "interrupted (Ctrl-C); files written so far are closed and readable",
+}
+EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
+
 SUBCOMMANDS = {
-    "run": ("gyro_platform.scene", "run a scene file: summary table, CSV/JSON, plot"),
+    "run": ("gyro_platform.scene", "run a scene (file or name): summary table, CSV/JSON, plot"),
     "replay": ("gyro_platform.replay", "replay a rosbag2 bag through the simulator into an output bag"),
     "bench": ("gyro_platform.bench", "benchmarks: accuracy versus time, hot path, effects cost"),
     "node": ("gyro_platform.node_main", "run the ROS 2 node (rclpy or plain DDS transport)"),
@@ -20,10 +39,15 @@ SUBCOMMANDS = {
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="gyro-platform", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = argparse.ArgumentParser(
+        prog="gyro-platform", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Gyro-stabilised three-gyro platform simulator: run a scene, replay a rosbag2 bag, "
+                    "benchmark, or run the ROS 2 node.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{" + ",".join(SUBCOMMANDS) + "}")
     for name, (module, help_) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_)
+        p = sub.add_parser(name, help=help_, description=help_, epilog=EPILOG,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_module=module)
         try:
             importlib.import_module(module).add_arguments(p)
@@ -32,13 +56,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quiet_broken_pipe() -> None:
+    """stdout's reader went away (``… | head -1``): point stdout at devnull so the interpreter's
+    final flush does not raise again (the Python docs' recipe for SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     err = getattr(args, "_import_error", None)
     if err:
-        print(f"gyro-platform {args.command}: unavailable: {err}", file=sys.stderr)
-        return 2
-    return int(importlib.import_module(args._module).run(args) or 0)
+        print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        return int(importlib.import_module(args._module).run(args) or 0)
+    except BrokenPipeError:
+        _quiet_broken_pipe()
+        return EXIT_OK
+    except KeyboardInterrupt:
+        print(f"gyro-platform {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ import numpy as np
 
 from . import messages as msgs
 from .messages import IMU, TWIST, TWIST_STAMPED, MessageTypes, Mounting
-from .options import DEFAULT_EFFECTS, EFFECTS, FIDELITIES, MODES, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
+from .options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
 from .params import NAV1, ParameterError, PlatformParams
 from .replay import _grid_index, apply_decision
 from .timebase import NS, GateConfig, TimeGate
@@ -262,7 +262,9 @@ PARAMETERS: list[ParamSpec] = [
               "scene file (path or name in config/scenes) supplying the model defaults; its motion is not used",
               read_only=True),
     ParamSpec("mode", "string", "stabilised", "platform mode", choices=MODES, read_only=True),
-    ParamSpec("fidelity", "string", "full", "model fidelity", choices=FIDELITIES, read_only=True),
+    ParamSpec("fidelity", "string", "auto", "model fidelity; auto: the mode's default ("
+              + ", ".join(f"{f} when {m}" for m, f in DEFAULT_FIDELITY.items()) + ")",
+              choices=("auto", *FIDELITIES), read_only=True),
     ParamSpec("effects", "string[]", ("defaults",),
               "effects switched on; 'defaults' = the mode's default set, 'none' alone = no effect",
               choices=("defaults", "none", *EFFECTS)),
@@ -379,30 +381,20 @@ def params_yaml(node_key: str = "/**") -> str:
 # scenes
 # =========================================================================================
 def scene_dirs() -> list[Path]:
-    """Folders searched for a scene given by name: the source tree's ``config/scenes`` and the
-    installed package share (``<share>/gyro_platform/config/scenes``, via ament_index)."""
-    dirs = [Path(__file__).resolve().parents[1] / "config" / "scenes"]
-    try:
-        from ament_index_python.packages import get_package_share_directory
+    """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
+    from .scene import scene_dirs as dirs
 
-        dirs.append(Path(get_package_share_directory("gyro_platform")) / "config" / "scenes")
-    except Exception:  # not a ROS install: no share directory to search
-        pass
-    return dirs
+    return dirs()
 
 
 def resolve_scene(name: str) -> Path:
-    """Path of a scene: as given (absolute or relative to the working folder), else by name in
-    :func:`scene_dirs` (``coning`` or ``coning.yaml``)."""
-    p = Path(name).expanduser()
-    cands = [p]
-    if not p.is_absolute():
-        names = [p.name] if p.suffix in (".yaml", ".yml") else [p.name + ".yaml", p.name]
-        cands += [d / n for d in scene_dirs() for n in names]
-    for c in cands:
-        if c.is_file():
-            return c
-    raise ConfigError("scene", f"scene file {name!r} not found; tried " + ", ".join(str(c) for c in cands))
+    """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
+    from .scene import ScenarioError, find_scene
+
+    try:
+        return find_scene(name)
+    except ScenarioError as e:
+        raise ConfigError("scene", str(e)) from None
 
 
 def load_node_scene(name: str):
@@ -608,7 +600,7 @@ class NodeConfig:
         if self.scene is not None:
             kw.update(rtol=self.scene.options.rtol, atol=self.scene.options.atol)
         try:
-            opts = ModelOptions.make(mode, self["fidelity"], eff, **kw)
+            opts = ModelOptions.make(mode, None if self["fidelity"] == "auto" else self["fidelity"], eff, **kw)
         except OptionsError as e:
             name = str(e).split("'")[1] if "'" in str(e) else "effects"
             raise ConfigError(name if name in SPECS else "effects", str(e)) from None

@@ -53,7 +53,7 @@ class ModelOptions:
     ``rtol``/``atol``: tolerances of adaptive integrators."""
 
     mode: str = "stabilised"
-    fidelity: str = "linear"
+    fidelity: str = DEFAULT_FIDELITY["stabilised"]
     effects: frozenset[str] = field(default_factory=lambda: DEFAULT_EFFECTS["stabilised"])
     integrator: str = "auto"
     max_step: float = 1e-3

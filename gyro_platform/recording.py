@@ -19,11 +19,83 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from .outputs import BEARING_NAMES, GIMBAL_NAMES, Outputs
+from .outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 AXES = ("x", "y", "z")
 ROTORS = ("rotor6", "rotor8", "rotor11")
+QUAT = ("qx", "qy", "qz", "qw")
+
+#: columns of ``outputs.csv`` (and keys of the replay summary's ``ranges``): (pattern, unit,
+#: meaning). ``<…>`` stands for each name listed in the meaning; the unit is also the name's
+#: suffix (``_rad``, ``_rad_s`` = rad/s, ``_N_m`` = N m; quaternions and counts have none).
+CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("t_s", "s", "output instant (synthetic scene: from 0; bag: the input's time base, s since the epoch)"),
+    ("<gimbal>_rad", "rad", "gimbal angle; <gimbal> = alpha4, beta5, beta7, alpha9, beta10"),
+    ("<gimbal>_rate_rad_s", "rad/s", "gimbal angle rate"),
+    ("<gimbal>_axial_torque_N_m", "N m", "torque applied about the gimbal axis (spring, damper, friction, torquer)"),
+    ("platform_rate_<axis>_rad_s", "rad/s", "platform inertial angular rate, platform axes; <axis> = x, y, z"),
+    ("platform_attitude_<q>", "1", "platform attitude quaternion, platform -> inertial frame; <q> = qx, qy, qz, qw"),
+    ("drift_angle_<axis>_rad", "rad", "platform attitude error against its reference (rotation vector, platform axes; "
+                                     "carried mode: the gyros' inertial reference)"),
+    ("drift_rate_<axis>_rad_s", "rad/s", "instantaneous rate of the drift angle (follows the vehicle's oscillations; "
+                                        "the summary's drift rate is the least-squares slope of the drift angle)"),
+    ("<bearing>_torque_<axis>_N_m", "N m", "bearing reaction torque in the axes of outputs.BEARING_FRAMES; <bearing> = "
+                                          "support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11"),
+    ("motor_torque_<rotor>_N_m", "N m", "rotor motor torque about the spin axis; <rotor> = rotor6, rotor8, rotor11"),
+    ("<mount>_rad", "rad", "stabilised mode: mount angles (XYZ Euler, vehicle -> platform); <mount> = mount_roll, "
+                           "mount_pitch, mount_yaw"),
+    ("servo_torque_<axis>_N_m", "N m", "stabilised mode: servo torque on the mount, platform axes"),
+    ("gimbal_lock_margin", "1", "smallest |cos| of the inner gimbal angles beta5, beta7, beta10 (0 = gimbal lock)"),
+    ("max_gimbal_angle_rad", "rad", "largest |gimbal angle| at that instant"),
+    ("n_steps", "1", "integrator steps taken since the start"),
+    ("vehicle_rate_<axis>_rad_s", "rad/s", "scenes: the vehicle angular rate fed in, vehicle body axes (FLU)"),
+    ("vehicle_attitude_<q>", "1", "synthetic scenes: vehicle attitude quaternion, body -> navigation frame (ENU)"),
+)
+#: what each ``<name>`` of ``CSV_COLUMNS`` stands for
+COLUMN_PLACEHOLDERS: dict[str, tuple[str, ...]] = {
+    "gimbal": GIMBAL_NAMES, "axis": AXES, "q": QUAT, "bearing": BEARING_NAMES, "rotor": ROTORS,
+    "mount": MOUNT_NAMES}
+#: unit suffix of the simulator's status figures (``Outputs.status``)
+STATUS_SUFFIX = {"gimbal_lock_margin": "", "max_gimbal_angle": "_rad", "n_steps": ""}
+#: Recorder extra series -> (column stem, component names, unit suffix)
+EXTRA_COLUMNS = {"vehicle_omega": ("vehicle_rate", AXES, "_rad_s"), "vehicle_attitude": ("vehicle_attitude", QUAT, "")}
+
+
+def csv_row(o: Outputs) -> dict[str, float]:
+    """One output instant as ``column -> value`` with the units in the names (``CSV_COLUMNS``)."""
+    row: dict[str, float] = {"t_s": float(o.t)}
+    for i, g in enumerate(GIMBAL_NAMES):
+        row[g + "_rad"] = float(o.gimbal_angles[i])
+        row[g + "_rate_rad_s"] = float(o.gimbal_rates[i])
+        row[g + "_axial_torque_N_m"] = float(o.gimbal_axial_torques[i])
+
+    def vec(stem: str, names: tuple[str, ...], suffix: str, v: Any) -> None:
+        if v is not None:
+            for i, n in enumerate(names):
+                row[f"{stem}_{n}{suffix}"] = float(v[i])
+
+    vec("platform_rate", AXES, "_rad_s", o.platform_rate)
+    vec("platform_attitude", QUAT, "", o.platform_attitude)
+    vec("drift_angle", AXES, "_rad", o.drift_angle)
+    vec("drift_rate", AXES, "_rad_s", o.drift_rate)
+    for b in BEARING_NAMES:
+        vec(b + "_torque", AXES, "_N_m", o.bearing_torques.get(b))
+    vec("motor_torque", ROTORS, "_N_m", o.motor_torques)
+    if o.mount_angles is not None:
+        for i, n in enumerate(MOUNT_NAMES):
+            row[n + "_rad"] = float(o.mount_angles[i])
+    vec("servo_torque", AXES, "_N_m", o.servo_torque)
+    for k, v in o.status.items():
+        row[k + STATUS_SUFFIX.get(k, "")] = float(v)
+    return row
+
+
+def columns_markdown() -> str:
+    """The README table of the ``outputs.csv`` columns (from ``CSV_COLUMNS``)."""
+    lines = ["| column | unit | meaning |", "| --- | --- | --- |"]
+    lines += [f"| `{c}` | {u} | {m} |" for c, u, m in CSV_COLUMNS]
+    return "\n".join(lines) + "\n"
 
 
 def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -43,6 +115,15 @@ def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
 def _axes_dict(v: np.ndarray) -> dict[str, float]:
     v = np.asarray(v, dtype=float)
     return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]), "norm": float(np.linalg.norm(v))}
+
+
+def _steady(w: np.ndarray) -> bool:
+    """True when the angular rate samples ``w`` (N, 3) rad/s are constant to 1e-3 of their
+    mean (plus 1e-12 rad/s): the only case where a rate of relative attitude is a drift."""
+    if len(w) < 2:
+        return False
+    mean = w.mean(axis=0)
+    return float(np.max(np.linalg.norm(w - mean, axis=1))) <= 1e-3 * float(np.linalg.norm(mean)) + 1e-12
 
 
 def _max_abs_axes(a: np.ndarray) -> dict[str, float]:
@@ -151,19 +232,22 @@ class Recorder:
         return out
 
     def rows(self) -> list[dict[str, float]]:
-        """One flat row per instant (``Outputs.as_row`` plus extras as ``name_i`` columns)."""
+        """One flat row per instant: :func:`csv_row` plus the extra series (``EXTRA_COLUMNS``
+        names them; any other extra ``k`` gives columns ``k_0, k_1, …``)."""
         rows = []
         for i, o in enumerate(self._outs):
-            r = o.as_row()
+            r = csv_row(o)
             for k, v in self._extra.items():
+                stem, names, suffix = EXTRA_COLUMNS.get(k, (k, tuple(map(str, range(len(v[i])))), ""))
                 for j, x in enumerate(v[i]):
-                    r[f"{k}_{j}"] = float(x)
+                    r[f"{stem}_{names[j]}{suffix}"] = float(x)
             rows.append(r)
         return rows
 
     # ---- files --------------------------------------------------------------------------
     def write_csv(self, path) -> Path:
-        """All instants as CSV (header: column names; units in ``outputs`` docs)."""
+        """All instants as CSV: a header of column names with their units (``CSV_COLUMNS``),
+        then one row per instant (``repr`` of each float: round-trips exactly)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         rows = self.rows()
@@ -231,10 +315,20 @@ class Recorder:
             w = self.field("vehicle_omega")
             s["mean_vehicle_rate"] = _axes_dict(w.mean(axis=0))
             s["max_abs_vehicle_rate"] = _max_abs_axes(w)
+        notes: list[str] = []
         if "vehicle_attitude" in self._extra:
-            rel = self.platform_vs_vehicle(mounting)
-            r = fit_slope(t[win], rel[win])
-            s["platform_vs_vehicle_rate_deg_per_h"] = _axes_dict(r * RAD_S_TO_DEG_H)
+            w = self.field("vehicle_omega") if "vehicle_omega" in self._extra else None
+            if w is not None and _steady(w[win]):
+                rel = self.platform_vs_vehicle(mounting)
+                r = fit_slope(t[win], rel[win])
+                s["platform_vs_vehicle_rate_deg_per_h"] = _axes_dict(r * RAD_S_TO_DEG_H)
+            else:
+                notes.append("platform_vs_vehicle_rate_deg_per_h omitted: the vehicle does not turn at a "
+                             "steady rate, so a slope of the platform's attitude relative to the vehicle would "
+                             "measure the vehicle's motion, not a departure of the platform")
+        s["units"] = {k: SUMMARY_UNITS[k] for k in s if k in SUMMARY_UNITS}
+        if notes:
+            s["notes"] = notes
         return s
 
     def platform_vs_vehicle(self, mounting=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
@@ -253,24 +347,39 @@ class Recorder:
 
     # ---- plot ---------------------------------------------------------------------------
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
+        """:meth:`figure` written as PNG."""
+        import matplotlib.pyplot as plt
+
+        path = Path(path_png)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig = self.figure(title, summary)
+        try:
+            fig.savefig(path, dpi=100)
+        finally:
+            plt.close(fig)
+        return path
+
+    def figure(self, title: str | None = None, summary: dict | None = None):
         """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
-        vehicle rate against time, written as PNG (matplotlib Agg backend)."""
+        vehicle rate against time (matplotlib Agg backend). Every panel has a title, axis
+        labels with units and a legend; ``title`` (wrapped, never cut) heads the figure."""
+        import textwrap
+
         import matplotlib
 
         matplotlib.use("Agg", force=True)
         import matplotlib.pyplot as plt
 
-        path = Path(path_png)
-        path.parent.mkdir(parents=True, exist_ok=True)
         s = summary if summary is not None else self.summary()
         t = self.t_rel
         has_vehicle = "vehicle_omega" in self._extra
         n = 4 if has_vehicle else 3
-        fig, axs = plt.subplots(n, 1, figsize=(10, 2.6 * n + 0.6), sharex=True)
+        fig, axs = plt.subplots(n, 1, figsize=(10, 2.8 * n + 0.8), sharex=True, layout="constrained")
         q = self.gimbal_angles
         for i, g in enumerate(GIMBAL_NAMES):
             axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
         axs[0].set_ylabel("gimbal angle [mrad]")
+        axs[0].set_title("gimbal angles", fontsize=10)
         axs[0].legend(loc="upper right", ncol=5, fontsize=8)
         d = self.drift_angle
         rates = s.get("drift_rate_deg_per_h", {})
@@ -284,31 +393,32 @@ class Recorder:
                 c = d[win, i].mean() - r * t[win].mean()
                 axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
         axs[1].set_ylabel("drift angle [µrad]")
+        axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
         axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
         for b in self.bearings():
             axs[2].plot(t, np.linalg.norm(self.bearing(b), axis=1), label=b, lw=1)
         st = self.field("servo_torque")
         if st is not None:
             axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
-        axs[2].set_ylabel("|bearing torque| [N m]")
+        axs[2].set_ylabel("|torque| [N m]")
+        axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
+                         + " (magnitude)", fontsize=10)
         if self.bearings():
             axs[2].set_yscale("symlog", linthresh=1e-9)
-            axs[2].legend(loc="upper right", ncol=4, fontsize=7)
+        if self.bearings() or st is not None:
+            axs[2].legend(loc="upper right", ncol=5, fontsize=7)
         if has_vehicle:
             w = self.field("vehicle_omega")
             for i, ax in enumerate(AXES):
                 axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
             axs[3].set_ylabel("vehicle rate [rad/s]")
+            axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10)
             axs[3].legend(loc="upper right", ncol=3, fontsize=8)
-        axs[-1].set_xlabel("time [s]")
+        axs[-1].set_xlabel("time since the first output [s]")
         for a in axs:
             a.grid(True, alpha=0.3)
-        if title:
-            fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        return path
+        fig.suptitle(textwrap.fill(title or "gyro_platform outputs", 100))
+        return fig
 
 
 def _jsonable(x: Any) -> Any:
@@ -344,6 +454,11 @@ _TABLE = [
     ("mean_vehicle_rate", "rad/s", "{:+.3e}", 1.0),
     ("max_abs_vehicle_rate", "rad/s", "{:.3e}", 1.0),
 ]
+
+
+#: unit of every number in ``Recorder.summary`` (per key; a dict's entries share the unit)
+SUMMARY_UNITS: dict[str, str] = {"n_outputs": "1", "t_start": "s", "duration": "s", "drift_fit_start": "s",
+                                 **{key: unit for key, unit, _, _ in _TABLE}}
 
 
 def print_summary_table(summary: dict, file: TextIO | None = None) -> None:

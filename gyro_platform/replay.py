@@ -22,7 +22,9 @@
 * Damage: a bag that rosbags cannot open (truncated mcap without footer, sqlite3 file cut
   short) is salvaged — its readable messages are streamed up to the damage — and a read
   error mid-stream ends the replay. Either way the output bag is closed properly (readable),
-  the summary names the error, and the command exits with status 3.
+  the summary names the error, and the command exits with status 3. A path that is no rosbag2
+  bag (missing, ROS 1, YAML or other file, empty folder), a missing topic or a bad option: one
+  line, exit 2, nothing written. Results go to stdout, progress and errors to stderr.
 
 Library use: :func:`read_samples` (also used by scene files of type ``bag``) streams gate
 decisions; :func:`apply_decision` applies one to a ``Simulator``; :func:`replay` does it all.
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sqlite3
 import struct
 import sys
@@ -53,11 +56,20 @@ DEFAULT_OUTPUT_RATE = 10.0      # Hz
 DEFAULT_DIAGNOSTICS_RATE = 1.0  # Hz
 PLOT_POINTS = 4000              # at most this many outputs are kept for the plot
 
-EXIT_OK, EXIT_ERROR, EXIT_DAMAGED, EXIT_INTERRUPTED = 0, 1, 3, 130
+# exit status: the CLI's (gyro_platform.cli.EXIT_CODES); EXIT_ERROR is the bad-input one
+EXIT_OK, EXIT_ERROR, EXIT_DAMAGED, EXIT_INTERRUPTED = 0, 2, 3, 130
+ROS1_MAGIC = b"#ROSBAG V2.0"
+#: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
+NAMESPACE_RE = re.compile(r"/?(?:(?!.*__)[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*/?)?")
 
 
 class BagReadError(Exception):
     """The input bag cannot be read (further); the message names the file and what failed."""
+
+
+class BagPathError(BagReadError):
+    """The input path is not a rosbag2 bag at all (missing, a ROS 1 bag, a YAML or other file,
+    a folder without storage file): a bad input path, not damaged data."""
 
 
 class ReplayError(Exception):
@@ -91,6 +103,44 @@ def _storage_files(path: Path) -> list[Path]:
     return sorted(p for p in path.iterdir() if p.suffix in (".mcap", ".db3"))
 
 
+def _bag_path(path: Path) -> Path:
+    """The bag to open for a user's path: a bag's ``metadata.yaml`` stands for its folder.
+    BagPathError for a missing path, a ROS 1 bag and folders or files that hold no bag."""
+    if not path.exists():
+        raise BagPathError(f"{path}: no such file or directory")
+    if path.is_file() and path.name == "metadata.yaml":
+        path = path.parent
+    ros1 = [path] if path.is_file() else sorted(path.glob("*.bag"))
+    for f in ros1:
+        try:
+            with f.open("rb") as fh:
+                is_ros1 = fh.read(len(ROS1_MAGIC)) == ROS1_MAGIC
+        except OSError as e:
+            raise BagPathError(f"{f}: cannot read: {e.strerror or e}") from None
+        if is_ros1 or (f.suffix == ".bag" and path.is_file()):
+            raise BagPathError(f"{f}: a ROS 1 bag; convert it to rosbag2 first "
+                               f"(rosbags-convert --src {f} --dst OUT_DIR)")
+    if path.is_file() and path.suffix not in (".db3", ".mcap"):
+        raise BagPathError(f"{path}: not a rosbag2 bag (give a bag folder with metadata.yaml, "
+                           f"or a .db3 / .mcap file)")
+    return path
+
+
+def _reader_path(path: Path) -> Path:
+    """What rosbags' Reader opens: the folder when it has ``metadata.yaml``, else its single
+    storage file (rosbags reads a lone .db3/.mcap file without metadata). A folder of several
+    storage files without metadata cannot be ordered: BagPathError naming the fix."""
+    if path.is_file() or (path / "metadata.yaml").is_file():
+        return path
+    files = _storage_files(path)
+    if len(files) == 1:
+        return files[0]
+    if not files:
+        raise BagPathError(f"{path}: not a rosbag2 bag (no metadata.yaml, no .db3 / .mcap file)")
+    raise BagPathError(f"{path}: {len(files)} storage files but no metadata.yaml; "
+                       f"recreate it with 'ros2 bag reindex {path}'")
+
+
 def _read_metadata(path: Path) -> dict | None:
     """``rosbag2_bagfile_information`` of ``path/metadata.yaml``, None if absent or unreadable."""
     try:
@@ -113,7 +163,8 @@ def storage_of(path: Path) -> str:
             return "mcap"
         if f.suffix == ".db3":
             return "sqlite3"
-    raise BagReadError(f"{path}: no rosbag2 storage file (.db3 or .mcap) found")
+    raise BagPathError(f"{path}: not a rosbag2 bag (give a bag folder with metadata.yaml, "
+                       f"or a .db3 / .mcap file)")
 
 
 class InputBag:
@@ -150,15 +201,10 @@ class InputBag:
     def open(self) -> None:
         """Open the bag and pick the input topic; raises BagReadError or ReplayError."""
         rb = _rosbags()
-        path = self.path
-        if not path.exists():
-            raise BagReadError(f"{path}: no such file or directory")
-        if path.suffix == ".bag" and path.is_file():
-            raise BagReadError(f"{path}: a ROS 1 bag; convert it first "
-                               f"(rosbags-convert --src {path} --dst OUT)")
+        path = self.path = _bag_path(self.path)
         self.storage = storage_of(path)
         try:
-            reader = rb["Reader"](path)
+            reader = rb["Reader"](_reader_path(path))
             reader.open()
         except (rb["ReaderError"], OSError, KeyError, ValueError) as e:
             self.damage = f"rosbags cannot open it: {e}"
@@ -646,19 +692,24 @@ class OutputBag:
 # statistics, plot series, progress
 # =========================================================================================
 class _Stats:
-    """Streaming min/max of every output field (over the emitted outputs) and drift figures."""
+    """Streaming min/max of every output column (``recording.csv_row`` names, units in the
+    names) and a streaming least-squares fit of the drift angle over the last segment (the
+    outputs since the last reset), so the drift rate is a slope over the whole segment and not
+    the instantaneous rate, which follows the vehicle's oscillations."""
 
     def __init__(self) -> None:
         self.lo: dict[str, float] = {}
         self.hi: dict[str, float] = {}
         self.non_finite: dict[str, int] = {}
         self.n = 0
-        self.first = None   # (t, drift angle) at the start of the current segment
         self.last = None
+        self._fit = _LineFit()
 
     def add(self, out: Any, new_segment: bool) -> None:
+        from .recording import csv_row
+
         self.n += 1
-        for k, v in out.as_row().items():
+        for k, v in csv_row(out).items():
             if not math.isfinite(v):
                 self.non_finite[k] = self.non_finite.get(k, 0) + 1
                 continue
@@ -666,28 +717,57 @@ class _Stats:
                 self.lo[k] = v
             if k not in self.hi or v > self.hi[k]:
                 self.hi[k] = v
-        if new_segment or self.first is None:
-            self.first = (out.t, np.array(out.drift_angle, float))
+        if new_segment or self.last is None:
+            self._fit = _LineFit()
+        if np.all(np.isfinite(out.drift_angle)):
+            self._fit.add(out.t, np.asarray(out.drift_angle, float))
         self.last = out
 
     def ranges(self) -> dict[str, list[float]]:
         return {k: [self.lo[k], self.hi[k]] for k in self.lo}
 
     def drift(self) -> dict[str, Any]:
+        """Final drift angle (rad) and the least-squares drift rate of the last segment (rad/s
+        and deg/h, per platform axis and norm; absent with fewer than 2 outputs)."""
         if self.last is None:
             return {}
-        out = self.last
-        rate = np.asarray(out.drift_rate, float)
-        res = {"final_drift_angle_rad": [float(x) for x in out.drift_angle],
-               "final_drift_rate_rad_s": [float(x) for x in rate],
-               "final_drift_rate_norm_deg_h": float(np.linalg.norm(rate)) * 180 / math.pi * 3600}
-        t0, a0 = self.first
-        if out.t > t0:
-            mean = (np.asarray(out.drift_angle, float) - a0) / (out.t - t0)
-            res["mean_drift_rate_last_segment_rad_s"] = [float(x) for x in mean]
-            res["mean_drift_rate_last_segment_deg_h"] = float(np.linalg.norm(mean)) * 180 / math.pi * 3600
-            res["last_segment_s"] = float(out.t - t0)
+        ax = lambda v: {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]),  # noqa: E731
+                        "norm": float(np.linalg.norm(v))}
+        res: dict[str, Any] = {"final_drift_angle_rad": ax(np.asarray(self.last.drift_angle, float))}
+        slope = self._fit.slope()
+        if slope is not None:
+            res["drift_rate_rad_s"] = ax(slope)
+            res["drift_rate_deg_h"] = ax(slope * 180 / math.pi * 3600)
+            res["fit_s"] = self._fit.span
+            res["fit_outputs"] = self._fit.n
         return res
+
+
+class _LineFit:
+    """Streaming least-squares slope of y (k,) against t (s); times taken relative to the first
+    for conditioning. ``slope()`` is None with fewer than 2 distinct times."""
+
+    def __init__(self) -> None:
+        self.n, self.t0, self.span = 0, 0.0, 0.0
+        self.st = self.stt = 0.0
+        self.sy = self.sty = None
+
+    def add(self, t: float, y: np.ndarray) -> None:
+        if self.n == 0:
+            self.t0, self.sy, self.sty = t, np.zeros_like(y), np.zeros_like(y)
+        x = t - self.t0
+        self.n += 1
+        self.st += x
+        self.stt += x * x
+        self.sy += y
+        self.sty += x * y
+        self.span = x
+
+    def slope(self) -> np.ndarray | None:
+        den = self.n * self.stt - self.st ** 2
+        if self.n < 2 or den <= 1e-300:
+            return None
+        return (self.n * self.sty - self.st * self.sy) / den
 
 
 class _PlotSeries:
@@ -836,6 +916,26 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     return summary
 
 
+#: why a drop reason took every sample, and the fix
+DROP_HINTS = {
+    "zero_stamp": "every header stamp is 0; time by receive time instead (--time-source receive or auto)",
+    "unknown_frame": "the input frame has no mounting; give --mount FRAME=... or --unknown-frame identity",
+    "over_rate": "every rate exceeds --max-rate; raise it if the rates are real",
+    "no_rate": "the messages carry no angular rate",
+    "non_finite": "every rate is NaN or infinite",
+    "bad_message": "no message could be decoded",
+}
+
+
+def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int) -> str:
+    """One line: no sample of ``n_in`` was accepted, the main drop reason and its fix."""
+    if not dropped_by_reason:
+        return f"none of the {n_in} input messages was accepted: no outputs"
+    reason, count = max(dropped_by_reason.items(), key=lambda kv: kv[1])
+    hint = DROP_HINTS.get(reason, "see dropped_by_reason in the summary")
+    return f"none of the {n_in} input messages was accepted ({count} dropped as {reason}): {hint}"
+
+
 def _json_default(o: Any) -> Any:
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -900,8 +1000,9 @@ class _Run:
             frame = str(msg.header.frame_id)
             if frame not in self.identity_frames:
                 self.identity_frames.append(frame)
-                print(f"gyro-platform replay: warning: frame_id {frame!r} has no --mount; taken as "
-                      f"base_link (--unknown-frame reject drops such samples)", file=sys.stderr)
+                print(f"gyro-platform replay: info: frame_id {frame!r} has no --mount; taken as "
+                      f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
+                      file=sys.stderr)
         outcome = apply_decision(self.sim, decision)
         self.outcomes[outcome] = self.outcomes.get(outcome, 0) + 1
         if outcome in ("reset", "restarted"):
@@ -974,8 +1075,18 @@ class _Run:
             "config": {"gate": vars(self.cfg.gate), "mounting": self.cfg.mounting.frames(),
                        "unknown_frame": self.cfg.mounting.unknown_frame,
                        "frames_taken_as_base_link": self.identity_frames},
+            "warnings": self.warnings(snap),
             "error": self.error,
         }
+
+    def warnings(self, snap: dict[str, Any]) -> list[str]:
+        """What a user must know about this replay's results (also printed)."""
+        res = []
+        if self.n_in and not snap["accepted"]:
+            res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in))
+        elif self.n_in == 0 and self.error is None:
+            res.append(f"topic {self.bag.topic} has no messages: no outputs")
+        return res
 
     def plot(self, path: Path) -> tuple[str | None, Any]:
         """PNG and Recorder summary of the (thinned) output series, via ``recording.Recorder``."""
@@ -990,7 +1101,8 @@ class _Run:
         for o in self.series.items:
             rec.append(o)
         try:
-            rec.plot(path)
+            rec.plot(path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
+                                 f"({self.sim.options.mode}, {self.sim.options.fidelity})")
             return str(path), rec.summary()
         except Exception as e:  # a plot must not lose the replay
             print(f"gyro-platform replay: warning: plot failed: {e}", file=sys.stderr)
@@ -1032,6 +1144,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def print_results(summary: dict[str, Any], out_bag: Any, file: Any = None) -> None:
+    """The replay's results on stdout: counts, output files, warnings."""
+    out = file if file is not None else sys.stdout
+    c = summary["counts"]
+    drops = f" {c['dropped_by_reason']}" if c["dropped_by_reason"] else ""
+    print(f"{summary['input']['topic']}: {c['in']} in, {c['accepted']} accepted, {c['dropped']} dropped{drops}, "
+          f"{c['resets']} resets; {c['out']} outputs; "
+          f"{summary['duration_s']:.1f} s of data in {summary['wall_time_s']:.2f} s "
+          f"(x{summary['real_time_factor'] or 0:.0f} real time) -> {out_bag}", file=out)
+    d = summary.get("drift") or {}
+    if "drift_rate_deg_h" in d:
+        print(f"drift rate (least-squares slope of the drift angle over the last {d['fit_s']:.1f} s): "
+              f"{d['drift_rate_deg_h']['norm']:.4g} deg/h", file=out)
+    for w in summary.get("warnings", []):
+        print(f"warning: {w}", file=out)
+    files = summary["files"]
+    print("wrote " + ", ".join(str(files[k]) for k in ("bag", "summary", "plot") if files.get(k)), file=out)
+
+
 def config_from_args(args: argparse.Namespace) -> ReplayConfig:
     """ReplayConfig from parsed arguments (loads the scene if given)."""
     frames = dict(Mounting.parse_spec(s) for s in args.mount)
@@ -1051,27 +1182,37 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         if getattr(scene, "output_rate", None):
             cfg.output_rate = float(scene.output_rate)
     if args.output_rate is not None:
+        if not (math.isfinite(args.output_rate) and args.output_rate >= 0):
+            raise ReplayError(f"--output-rate {args.output_rate}: must be a finite rate >= 0 Hz (0 = every sample)")
         cfg.output_rate = args.output_rate if args.output_rate > 0 else None
-    if cfg.diagnostics_rate <= 0:
-        raise ReplayError("--diagnostics-rate must be > 0")
+    if not (math.isfinite(cfg.diagnostics_rate) and cfg.diagnostics_rate > 0):
+        raise ReplayError(f"--diagnostics-rate {cfg.diagnostics_rate}: must be a finite rate > 0 Hz")
+    if not NAMESPACE_RE.fullmatch(cfg.namespace):
+        raise ReplayError(f"--namespace {cfg.namespace!r}: not a ROS namespace (tokens of letters, digits and "
+                          f"'_' separated by '/', not starting with a digit)")
     return cfg
 
 
 def run(args: argparse.Namespace) -> int:
-    """``gyro-platform replay``: exit 0 ok, 1 cannot start, 3 input damaged (partial output
-    written), 130 interrupted."""
+    """``gyro-platform replay``: exit 0 ok, 2 cannot start (bad argument, not a bag, no input
+    topic), 3 input damaged (partial output written), 130 interrupted. Results go to stdout,
+    progress, warnings and errors to stderr."""
     try:
         cfg = config_from_args(args)
         summary = replay(args.in_bag, args.out, cfg)
-    except (BagReadError, ReplayError, ValueError) as e:
+    except BagPathError as e:
         print(f"gyro-platform replay: error: {e}", file=sys.stderr)
         return EXIT_ERROR
-    c = summary["counts"]
-    drops = f" {c['dropped_by_reason']}" if c["dropped_by_reason"] else ""
-    print(f"{summary['input']['topic']}: {c['in']} in, {c['accepted']} accepted, {c['dropped']} dropped{drops}, "
-          f"{c['resets']} resets; {c['out']} outputs; "
-          f"{summary['duration_s']:.1f} s of data in {summary['wall_time_s']:.2f} s "
-          f"(x{summary['real_time_factor'] or 0:.0f} real time) → {args.out}", file=sys.stderr)
+    except BagReadError as e:    # rosbags and the salvage reader both failed: corrupt data
+        print(f"gyro-platform replay: error: {e}", file=sys.stderr)
+        return EXIT_DAMAGED
+    except (ReplayError, ValueError) as e:
+        print(f"gyro-platform replay: error: {e}", file=sys.stderr)
+        return EXIT_ERROR
+    print_results(summary, args.out)
+    if summary["counts"]["in"] and not summary["counts"]["accepted"] and not summary["error"]:
+        print(f"gyro-platform replay: error: {summary['warnings'][0]}", file=sys.stderr)
+        return EXIT_ERROR
     if summary["error"]:
         if summary["error"] == "interrupted":
             print("gyro-platform replay: interrupted; the output bag is closed and readable", file=sys.stderr)

@@ -2,9 +2,11 @@
 
 A scene names the model (mode, fidelity, effects, parameter overrides, integrator), the vehicle
 motion that drives it, how long and how finely to sample it, and a list of expectations that the
-run must meet. ``gyro-platform run SCENE`` runs it, prints a summary table and the expectation
-results, and writes ``outputs.csv``, ``summary.json`` and ``plot.png`` into the output folder
-(default ``results/<scene name>/``); the exit status is 1 if an expectation fails.
+run must meet. ``gyro-platform run SCENE`` (a path or a shipped scene's name, see
+``find_scene``) runs it, prints a summary table and the expectation results, and writes
+``outputs.csv``, ``summary.json`` and ``plot.png`` into the output folder (default
+``results/<scene name>/``); the exit status is 1 if an expectation fails or cannot be evaluated
+(a run shorter than ``test_duration``), 2 for a bad scene or bag path, 3 for a damaged bag.
 
 Schema (every key is checked; unknown keys are rejected; errors name the key path, e.g.
 ``scene 'x.yaml': motion.bank_deg: expected a number``)::
@@ -69,7 +71,7 @@ Quantities (``QUANTITIES``; selector and unit):
     max_abs_servo_torque                          axis: x|y|z|norm                          N m
     final_drift_angle, max_abs_drift_angle        axis                                      rad
     drift_rate, drift_rate_deg_per_h (LSQ slope)  axis                                      rad/s, °/h
-    platform_vs_vehicle_rate_deg_per_h            axis (synthetic motions only)             °/h
+    platform_vs_vehicle_rate_deg_per_h            axis (synthetic, steady vehicle rate)     °/h
     mean_vehicle_rate, max_abs_vehicle_rate       axis                                      rad/s
     duration                                      —                                         s
 
@@ -309,11 +311,21 @@ class Scene:
     expect: tuple[Check, ...] = ()
     source: Path | None = None
 
+    @property
+    def expect_duration(self) -> float:
+        """Shortest run (s) on which the expectations can be evaluated: ``test_duration``, else
+        the scene's ``duration``."""
+        return self.test_duration if self.test_duration is not None else self.duration
+
     def with_duration(self, duration: float) -> "Scene":
-        """Copy with another simulated duration (s)."""
-        if not duration > 0:
-            raise ScenarioError(f"scene '{self.name}': duration override must be > 0, got {duration}")
-        return replace(self, duration=float(duration))
+        """Copy with another simulated duration (s); the expectations still need
+        :attr:`expect_duration` of the original (a shorter run leaves them not evaluable)."""
+        if not (duration > 0 and math.isfinite(duration)):
+            raise ScenarioError(f"scene '{self.name}': --duration must be a finite number > 0, got {duration}")
+        if self.fit_start >= duration:
+            raise ScenarioError(f"scene '{self.name}': --duration {duration:g} s must exceed fit_start "
+                                f"({self.fit_start:g} s)")
+        return replace(self, duration=float(duration), test_duration=self.expect_duration)
 
     def with_integrator(self, integrator: str | None = None, max_step: float | None = None) -> "Scene":
         """Copy with another integrator and/or internal step bound (s)."""
@@ -331,14 +343,72 @@ class Scene:
         return replace(self, integrator=name, max_step=step, options=opts)
 
 
-# ---- loading ------------------------------------------------------------------------------
+# ---- finding and loading ----------------------------------------------------------------------
+SCENE_SUFFIXES = (".yaml", ".yml")
+
+
+def scene_dirs() -> list[Path]:
+    """Folders searched for a scene given by name, first match wins: the source tree's
+    ``config/scenes``; the installed share folder ``<prefix>/share/gyro_platform/config/scenes``
+    of the prefix this package is installed under (pip, ``--prefix``, ``--user``, colcon) and
+    of ``sys.prefix``; the ament index's share folder when ``ament_index_python`` is there."""
+    here = Path(__file__).resolve().parent
+    dirs = [here.parent / "config" / "scenes"]
+    share = Path("share") / "gyro_platform" / "config" / "scenes"
+    # <prefix>/lib/pythonX.Y/site-packages/gyro_platform -> <prefix>
+    if len(here.parents) >= 4:
+        dirs.append(here.parents[3] / share)
+    dirs.append(Path(sys.prefix) / share)
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        dirs.append(Path(get_package_share_directory("gyro_platform")) / "config" / "scenes")
+    except Exception:  # not a ROS install: no ament index to ask
+        pass
+    unique: list[Path] = []
+    for d in dirs:
+        if d not in unique:
+            unique.append(d)
+    return unique
+
+
+def scene_names() -> list[str]:
+    """Names of the scenes found in :func:`scene_dirs`."""
+    names: set[str] = set()
+    for d in scene_dirs():
+        if d.is_dir():
+            names.update(p.stem for p in d.iterdir() if p.suffix in SCENE_SUFFIXES)
+    return sorted(names)
+
+
+def find_scene(name) -> Path:
+    """Path of a scene given as a path (absolute or relative to the working folder) or as a
+    name in :func:`scene_dirs` (``coning`` or ``coning.yaml``). ScenarioError if none exists."""
+    p = Path(name).expanduser()
+    cands = [p]
+    if not p.is_absolute() and len(p.parts) == 1:
+        names = [p.name] if p.suffix in SCENE_SUFFIXES else [p.name + ".yaml", p.name + ".yml"]
+        cands += [d / n for d in scene_dirs() for n in names]
+    for c in cands:
+        if c.is_file():
+            return c
+    if p.is_dir():
+        raise ScenarioError(f"scene '{name}': is a folder, not a scene file")
+    known = scene_names()
+    raise ScenarioError(f"scene file '{name}' not found: no such file or scene name"
+                        + (f" (scenes: {', '.join(known)})" if known else ""))
+
+
 def load_scene(path) -> Scene:
-    """Read and validate a scene file (see the module docs for the schema)."""
-    path = Path(path)
+    """Read and validate a scene given by file path or by name (see :func:`find_scene`; the
+    module docs give the schema)."""
+    path = find_scene(path)
     try:
         text = path.read_text()
     except OSError as e:
         raise ScenarioError(f"scene '{path}': cannot read: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"scene '{path}': not a text file (a scene is YAML)") from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as e:
@@ -625,15 +695,19 @@ def run_scene(scene: Scene, out_dir=None):
     pending = None          # extras of the last pushed sample if it was not recorded
     wall0 = time.perf_counter()
 
+    error = None            # a bag damaged after some readable samples
     if scene.motion.is_bag:
-        from .replay import apply_decision, read_samples
+        from .replay import BagReadError, apply_decision, read_samples
+        from .timebase import TimeGate
 
         kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
-        source = read_samples(scene.motion.path, **kw)
+        gate = TimeGate()
+        source = read_samples(scene.motion.path, gate=gate, **kw)
     else:
+        BagReadError = ()  # noqa: N806 - nothing to catch for a synthetic motion
         source = _synthetic_stream(scene)
     try:
-        for item in source:
+        for item in _until_damage(source, BagReadError, lambda: n_in):
             if scene.motion.is_bag:
                 d = item.decision
                 if d.sample is not None and t_first is not None and d.sample.t > t_first + scene.duration + 1e-9:
@@ -658,12 +732,20 @@ def run_scene(scene: Scene, out_dir=None):
                 next_out = t_first + (math.floor((sample.t - t_first) / dt_out + 1e-9) + 1) * dt_out
             else:
                 pending = extra
+    except _Damaged as e:
+        error = e.message
     finally:
         close = getattr(source, "close", None)
         if close is not None:
             close()
     if n_in == 0:
-        raise ScenarioError(f"scene '{scene.name}': the motion gave no usable samples")
+        hint = ""
+        if scene.motion.is_bag:
+            from .replay import no_sample_hint
+
+            snap = gate.snapshot()
+            hint = ": " + no_sample_hint(snap["dropped_by_reason"], snap["received"])
+        raise ScenarioError(f"scene '{scene.name}': the motion gave no usable samples{hint}")
     if pending is not None:  # always record the last instant
         rec.append(sim.outputs(), **pending)
     wall = time.perf_counter() - wall0
@@ -671,9 +753,19 @@ def run_scene(scene: Scene, out_dir=None):
     summary = rec.summary(fit_start=scene.fit_start, mounting=scene.params.mounting)
     summary = {"scene": scene.name, **summary, "n_samples": n_in,
                "sample_rate": scene.sample_rate, "output_rate": scene.output_rate, "wall_time": wall}
+    summary["units"] = {**summary.get("units", {}), "sample_rate": "Hz", "output_rate": "Hz", "wall_time": "s"}
+    warnings = list(summary.pop("notes", []))
     if scene.motion.is_bag:
         summary["bag"] = bag_counts
-    results = [(c, *c.evaluate(summary)) for c in scene.expect]
+        covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
+        if error is None and covered < scene.duration:
+            warnings.append(f"the bag ends {summary.get('duration', 0.0):.6g} s after its first usable sample, "
+                            f"before the scene's duration ({scene.duration:g} s)")
+    if error is not None:
+        warnings.append(f"bag damaged, results cover its readable part: {error}")
+        summary["error"] = error
+    summary["warnings"] = warnings
+    results = evaluate(scene, summary)
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -685,8 +777,41 @@ def run_scene(scene: Scene, out_dir=None):
                              for c, p, det in results],
             "simulator": sim.stats,
         })
-        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}"[:110], summary=summary)
+        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
     return rec, summary, results
+
+
+class _Damaged(Exception):
+    def __init__(self, message: str):
+        self.message = message
+
+
+def _until_damage(source, errors, n_done):
+    """Iterate ``source``; a read error (``errors``) after ``n_done() > 0`` usable samples ends
+    the iteration as ``_Damaged`` (the readable part is kept); before any, it propagates."""
+    it = iter(source)
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except errors as e:
+            if n_done() == 0:
+                raise
+            raise _Damaged(str(e)) from None
+        yield item
+
+
+def evaluate(scene: Scene, summary: dict) -> list[tuple[Check, bool | None, str]]:
+    """``(check, passed, detail)`` per expectation; ``passed`` is None (not evaluable) when
+    the run covers less than :attr:`Scene.expect_duration` (a short ``--duration``, a bag
+    that ends early or is damaged): expectations are never judged on too little data."""
+    covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
+    if covered < scene.expect_duration or summary.get("error"):
+        why = (f"the run covers {summary.get('duration', 0.0):.6g} s, the expectations need "
+               f"{scene.expect_duration:g} s" if covered < scene.expect_duration else "the input is damaged")
+        return [(c, None, f"{c.label}: not evaluable: {why}") for c in scene.expect]
+    return [(c, *c.evaluate(summary)) for c in scene.expect]
 
 
 def scene_info(scene: Scene) -> dict:
@@ -707,21 +832,33 @@ def print_results(results, file=None) -> None:
     """One line per expectation: PASS/FAIL, measured value, criterion, and why."""
     out = file if file is not None else sys.stdout
     for c, passed, detail in results:
-        print(f"{'PASS' if passed else 'FAIL'}  {detail}" + (f"   [{c.why}]" if c.why else ""), file=out)
+        tag = "N/A " if passed is None else "PASS" if passed else "FAIL"
+        print(f"{tag}  {detail}" + (f"   [{c.why}]" if c.why else ""), file=out)
 
 
 # ---- CLI ----------------------------------------------------------------------------------
 def add_arguments(parser) -> None:
-    parser.add_argument("scene", help="scene YAML file (see config/scenes/)")
+    parser.add_argument("scene", help="scene: a YAML file, or the name of a shipped scene (e.g. default, "
+                                      "coning; the installed config/scenes folder)")
     parser.add_argument("--out", metavar="DIR", help="output folder (default results/<scene name>/)")
-    parser.add_argument("--duration", type=float, metavar="S", help="override the simulated duration (s)")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="override the simulated duration (s); shorter than the scene's test_duration "
+                             "(else duration) leaves the expectations not evaluable (exit 1)")
     parser.add_argument("--integrator", metavar="NAME", help="override the scene's integrator")
     parser.add_argument("--max-step", type=float, metavar="S", help="override the scene's max_step (s)")
     parser.add_argument("--no-files", action="store_true", help="write no CSV/JSON/PNG")
 
 
+def _error(message: str) -> None:
+    print(f"gyro-platform run: error: {message}", file=sys.stderr)
+
+
 def run(args) -> int:
+    """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable,
+    2 bad scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
+    from .cli import EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE
     from .errors import SimulationError
+    from .replay import BagPathError, BagReadError, ReplayError
 
     try:
         scene = load_scene(args.scene)
@@ -730,27 +867,44 @@ def run(args) -> int:
         if args.integrator is not None or args.max_step is not None:
             scene = scene.with_integrator(args.integrator, args.max_step)
     except ScenarioError as e:
-        print(f"gyro-platform run: {e}", file=sys.stderr)
-        return 2
+        _error(str(e))
+        return EXIT_USAGE
     out = None if args.no_files else Path(args.out) if args.out else Path("results") / scene.name
     print(f"scene {scene.name}: {scene.description}".rstrip(": "))
     try:
         _, summary, results = run_scene(scene, out_dir=out)
-    except (ScenarioError, SimulationError) as e:
-        print(f"gyro-platform run: scene '{scene.name}': {e}", file=sys.stderr)
-        return 2
+    except (BagPathError, ReplayError, ScenarioError) as e:
+        _error(f"scene '{scene.name}': {e}")
+        return EXIT_USAGE
+    except BagReadError as e:
+        _error(f"scene '{scene.name}': {e}")
+        return EXIT_DATA
+    except SimulationError as e:
+        _error(f"scene '{scene.name}': simulation failed: {e}")
+        return EXIT_FAILED
+    except OSError as e:
+        _error(f"cannot write the results to {out}: {e.strerror or e}")
+        return EXIT_USAGE
     print_summary_table(summary)
+    for w in summary.get("warnings", []):
+        print(f"warning: {w}")
     if results:
         print("expectations:")
         print_results(results)
     if out is not None:
         print(f"wrote {out / 'outputs.csv'}, {out / 'summary.json'}, {out / 'plot.png'}")
-    n_fail = sum(1 for _, p, _ in results if not p)
+    if summary.get("error"):
+        _error(f"scene '{scene.name}': {summary['error']}")
+        return EXIT_DATA
+    n_na = sum(1 for _, p, _ in results if p is None)
+    n_fail = sum(1 for _, p, _ in results if p is False)
+    if n_na:
+        print(f"{n_na} of {len(results)} expectation(s) NOT EVALUABLE")
     if n_fail:
         print(f"{n_fail} of {len(results)} expectation(s) FAILED")
-        return 1
-    return 0
+    return EXIT_FAILED if n_fail or n_na else EXIT_OK
 
 
-__all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene",
+__all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene", "find_scene",
+           "scene_dirs", "evaluate",
            "scene_from_dict", "run_scene", "print_results", "add_arguments", "run"]

@@ -217,9 +217,19 @@ def test_summary_consistent_with_the_bags(run):
     assert s["real_time_factor"] > 1.0 and s["error"] is None
     pos = np.array([x.position for _, x in out["/gimbal/joint_states"]])
     for i, name in enumerate((*GIMBAL_NAMES, *MOUNT_NAMES)):
-        assert s["ranges"][name] == [pos[:, i].min(), pos[:, i].max()], name
-    last_rate = out["/drift/rate"][-1][1].vector
-    assert s["drift"]["final_drift_rate_rad_s"] == [last_rate.x, last_rate.y, last_rate.z]
+        assert s["ranges"][name + "_rad"] == [pos[:, i].min(), pos[:, i].max()], name
+    # the drift rate is the least-squares slope of the drift angle over the whole run (no
+    # resets here), not the last instantaneous rate: numpy's fit of the output bag's angles
+    ang = out["/drift/angle"]
+    t = np.array([(mm.header.stamp.sec * S + mm.header.stamp.nanosec) / S for _, mm in ang])
+    y = np.array([[mm.vector.x, mm.vector.y, mm.vector.z] for _, mm in ang])
+    slope = np.polyfit(t - t[0], y, 1)[0]
+    d = s["drift"]
+    got = [d["drift_rate_rad_s"][k] for k in "xyz"]
+    np.testing.assert_allclose(got, slope, rtol=1e-6, atol=1e-9 * np.abs(slope).max())
+    assert d["drift_rate_deg_h"]["norm"] == pytest.approx(np.linalg.norm(slope) * 180 / math.pi * 3600, rel=1e-6)
+    assert d["fit_outputs"] == len(ang) and d["fit_s"] == pytest.approx(t[-1] - t[0], abs=1e-6)
+    assert [d["final_drift_angle_rad"][k] for k in "xyz"] == list(y[-1])
     png = Path(s["files"]["plot"])
     assert png.name == run["out"].name + ".png" and png.stat().st_size > 10_000
     assert s["recorder"]["n_outputs"] == c["out"]
@@ -484,5 +494,5 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     assert len(again["/again/gimbal/joint_states"]) == len(first["/gimbal/joint_states"]) > 0
     assert raw_by_topic(out2)["/gimbal/joint_states"] == raw_by_topic(out)["/gimbal/joint_states"]  # copied
     assert len(again["/diagnostics"]) == 2 * len(first["/diagnostics"])       # shared, as on a robot
-    assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"]) == 1
+    assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"]) == rp.EXIT_ERROR == 2
     assert "mounting" in capsys.readouterr().err

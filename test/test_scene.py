@@ -226,7 +226,7 @@ def test_yaml_errors(tmp_path):
     p.write_text("- 1\n- 2\n")
     with pytest.raises(ScenarioError, match="scene 'broken.yaml': expected a mapping"):
         load_scene(p)
-    with pytest.raises(ScenarioError, match="cannot read"):
+    with pytest.raises(ScenarioError, match="no such file or scene name"):
         load_scene(tmp_path / "missing.yaml")
 
 
@@ -327,9 +327,11 @@ def test_recorder_files_and_table(tmp_path):
     p = rec.write_csv(tmp_path / "o" / "outputs.csv")
     rows = list(csv.DictReader(p.open()))
     assert len(rows) == t.size
-    assert float(rows[3]["t"]) == pytest.approx(t[3])
-    for name in ("t", "drift_x", *GIMBAL_NAMES, "rotor11_torque_z", "vehicle_omega_0"):
+    assert float(rows[3]["t_s"]) == pytest.approx(t[3])
+    for name in ("t_s", "drift_angle_x_rad", *(g + "_rad" for g in GIMBAL_NAMES), "rotor11_torque_z_N_m",
+                 "vehicle_rate_x_rad_s", "platform_attitude_qw", "motor_torque_rotor8_N_m"):
         assert name in rows[0]
+    assert float(rows[3]["drift_angle_y_rad"]) == pytest.approx(1e-6 * t[3])
     j = json.loads(rec.write_json(tmp_path / "s.json", extra={"scene": {"name": "x"}}).read_text())
     assert j["scene"]["name"] == "x" and j["summary"]["n_outputs"] == t.size
     png = rec.plot(tmp_path / "p.png", title="test")
@@ -380,8 +382,13 @@ def test_cli_run_exit_status_on_failed_expectation_and_bad_scene(tmp_path, capsy
     assert cli.main(["run", str(p), "--no-files"]) == 1
     assert "FAIL" in capsys.readouterr().out
     # the duration override applies: after 0.1 s the pulse has turned 0.01 + 2 x 0.04 = 0.09 rad
-    p.write_text(QUICK.replace("value: -0.2", "value: -0.09"))
+    p.write_text(QUICK.replace("value: -0.2", "value: -0.09") + "test_duration: 0.1\n")
     assert cli.main(["run", str(p), "--no-files", "--duration", "0.1"]) == 0
+    # shorter than test_duration: the expectations are not judged on too little data (exit 1)
+    capsys.readouterr()
+    assert cli.main(["run", str(p), "--no-files", "--duration", "0.05"]) == 1
+    out = capsys.readouterr().out
+    assert "N/A" in out and "not evaluable" in out and "PASS" not in out
     p.write_text(QUICK.replace("mode: carried", "mode: hovering"))
     assert cli.main(["run", str(p), "--no-files"]) == 2
     assert "mode: expected one of" in capsys.readouterr().err
