@@ -703,6 +703,8 @@ class NodeCore:
         self.received = 0
         self.published = 0                          # output instants published
         self.internal_errors = 0
+        self.identity_frames: set[str] = set()      # input frames without mounting, taken as base_link
+        self.notices: list[str] = []                # one-time INFO lines for the transport to log
         self.parameter_changes = 0
         self.last_error: str | None = None
         self.last_reset_reason: str | None = None
@@ -748,6 +750,10 @@ class NodeCore:
         try:
             with np.errstate(all="ignore"):           # NaN/Inf input: the gate counts it, no warning spam
                 reading = msgs.reading_from_msg(msg, self.config.mounting)
+            if getattr(reading, "identity_assumed", False) and reading.frame_id not in self.identity_frames:
+                self.identity_frames.add(reading.frame_id)
+                self.notices.append(f"input frame '{reading.frame_id}' has no sensor mounting: taken as "
+                                    "base_link (identity); counted as identity_frame in /diagnostics")
             decision = self.gate.offer(reading, rx)
             outcome = apply_decision(self.sim, decision)
             self.outcomes[outcome] += 1
@@ -772,6 +778,11 @@ class NodeCore:
         finally:
             self.timing.add(self._clock_ns() - t0)
         return result
+
+    def take_notices(self) -> list[str]:
+        """The one-time INFO lines gathered since the last call (the transport logs them)."""
+        out, self.notices = self.notices, []
+        return out
 
     def _due(self, stamp_ns: int) -> bool:
         if self.config["output_rate"] <= 0:

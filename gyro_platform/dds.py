@@ -873,6 +873,9 @@ class PlatformDdsNode:
             self._error(f"core: {type(e).__name__}: {e}")
             return
         self.processed += 1
+        if self.core.notices:
+            for line in self.core.take_notices():
+                self.log(line)
         for topic, out in outs or ():
             pub = self.publishers.get(topic)
             if pub is None:

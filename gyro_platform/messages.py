@@ -13,6 +13,8 @@ Topics (names relative to the node namespace, except ``/diagnostics``; copy this
 | `gimbal/joint_states` (out) | `sensor_msgs/msg/JointState` | gimbals `alpha4, beta5, beta7, alpha9, beta10`: position rad, velocity rad/s, effort = axial torque N m; then `mount_roll, mount_pitch, mount_yaw` (stabilised mode, intrinsic X-Y-Z base_link → platform): position rad, velocity rad/s, effort = servo torque about the joint axis N m; then `rotor6, rotor8, rotor11`: spin angle rad (wrapped), spin rate rad/s, motor torque N m. Never NaN; names = the URDF's moving joints | `""` (joint space) |
 | `drift/angle` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift angle, rotation vector, rad | `platform` |
 | `drift/rate` (out) | `geometry_msgs/msg/Vector3Stamped` | platform drift rate, rad/s | `platform` |
+| `platform/attitude` (out) | `geometry_msgs/msg/QuaternionStamped` | platform attitude in its reference frame (inertial; local level with `earth_rate`), unit quaternion x, y, z, w | `platform_reference` |
+| `platform/servo_torque` (out, stabilised mode) | `geometry_msgs/msg/Vector3Stamped` | servo (mount torquer) torque on the platform, N m | `platform` |
 | `bearing/<name>/torque` (out, one per bearing: `support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11`) | `geometry_msgs/msg/WrenchStamped` | torque = bearing reaction torque N m; force always 0: the model is torque-only (rotational dynamics about coincident gimbal centres), bearing forces are not computed | `BEARING_FRAMES[name]`: `platform, gyro_frame4, gyro_housing5, gyro_housing7, gyro_frame9, gyro_housing10, gyro_housing5, gyro_housing7, gyro_housing10` |
 | `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | statuses `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz), `gyro_platform: platform` (`Outputs.status`), `gyro_platform: node` (counters, real-time margin, input lost; WARN on overload) and `gyro_platform: transport` (the transport's counters) — the same names on rclpy and on plain DDS | `""` |
 | `/robot_description` (out, transient local) | `std_msgs/msg/String` | URDF of the platform (`gyro_platform.urdf`), generated from the parameters | - |
@@ -41,6 +43,9 @@ TWIST = "geometry_msgs/msg/Twist"
 TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
+QUATERNION_STAMPED = "geometry_msgs/msg/QuaternionStamped"
+#: frame of the platform attitude: the platform's inertial reference (local level with earth_rate)
+REFERENCE_FRAME = "platform_reference"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 
@@ -74,6 +79,8 @@ TOPICS: tuple[TopicSpec, ...] = (
     TopicSpec("gimbal/joint_states", JOINT_STATE, "out", "rad, rad/s, N m", ""),
     TopicSpec("drift/angle", VECTOR3_STAMPED, "out", "rad", PLATFORM_FRAME),
     TopicSpec("drift/rate", VECTOR3_STAMPED, "out", "rad/s", PLATFORM_FRAME),
+    TopicSpec("platform/attitude", QUATERNION_STAMPED, "out", "unit quaternion x, y, z, w", REFERENCE_FRAME),
+    TopicSpec("platform/servo_torque", VECTOR3_STAMPED, "out", "N m (stabilised mode only)", PLATFORM_FRAME),
     *(TopicSpec(bearing_topic(b), WRENCH_STAMPED, "out", "N m", BEARING_FRAMES[b]) for b in BEARING_NAMES),
     TopicSpec("/diagnostics", DIAGNOSTIC_ARRAY, "out", "-", ""),
 )
@@ -397,6 +404,14 @@ def drift_rate(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
     return vector3_stamped(out.drift_rate, types, t_ns)
 
 
+def platform_attitude(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
+    """``geometry_msgs/QuaternionStamped``: the platform's attitude in its reference frame
+    (``platform_reference``: inertial, or local level with ``earth_rate``), x, y, z, w."""
+    q = out.platform_attitude
+    quat = types["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+    return types[QUATERNION_STAMPED](header=header(types, t_ns, REFERENCE_FRAME), quaternion=quat)
+
+
 def bearing_wrenches(out: Outputs, types: MessageTypes, t_ns: int) -> dict[str, Any]:
     """Bearing name → ``geometry_msgs/WrenchStamped`` (torque N m in BEARING_FRAMES[name],
     force 0); bearings the outputs do not carry are left out."""
@@ -438,8 +453,8 @@ def diagnostic_array(gate: Mapping[str, Any] | None, out: Outputs | None, types:
         level, message = status_cls.OK, "ok"
         if gate.get("last_action") == "drop":
             level, message = status_cls.WARN, f"last input dropped: {gate.get('last_reason')}"
-        elif gate.get("notes", {}).get("identity_frame"):
-            level, message = status_cls.WARN, "input frame without mounting, identity assumed"
+        elif gate.get("notes", {}).get("identity_frame"):  # counted in the values; not a fault
+            message = "ok (input frame without mounting taken as base_link)"
         statuses.append(status_cls(level=level, name="gyro_platform: input", message=message,
                                    hardware_id=HARDWARE_ID, values=_key_values(types, _flatten(gate))))
     items: list[tuple[str, Any]] = []
@@ -484,7 +499,11 @@ def output_messages(out: Outputs, types: MessageTypes, t_ns: int, namespace: str
     one wrench per bearing (diagnostics are separate: :func:`diagnostic_array`)."""
     res = [(resolve("gimbal/joint_states", namespace), joint_state(out, types, t_ns)),
            (resolve("drift/angle", namespace), drift_angle(out, types, t_ns)),
-           (resolve("drift/rate", namespace), drift_rate(out, types, t_ns))]
+           (resolve("drift/rate", namespace), drift_rate(out, types, t_ns)),
+           (resolve("platform/attitude", namespace), platform_attitude(out, types, t_ns))]
+    if out.servo_torque is not None:
+        res.append((resolve("platform/servo_torque", namespace),
+                    vector3_stamped(out.servo_torque, types, t_ns, PLATFORM_FRAME)))
     res += [(resolve(bearing_topic(b), namespace), m) for b, m in bearing_wrenches(out, types, t_ns).items()]
     return res
 

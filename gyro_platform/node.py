@@ -177,6 +177,9 @@ class PlatformNode(Node):
         with self._lock:
             out = self.core.on_message(msg, now)
             self.processed += 1
+            notices = self.core.take_notices() if self.core.notices else ()
+        for line in notices:
+            self.get_logger().info(line)
         for topic, m in out:
             self._pubs[topic].publish(m)
         self.published += len(out)

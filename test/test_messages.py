@@ -79,6 +79,15 @@ def test_every_output_message_round_trips_through_cdr():
         back = roundtrip(msg)
         assert m.stamp_ns(back.header.stamp) == t_ns               # exact ns, no float rounding
 
+    by_topic = dict(msgs)
+    q = by_topic["/platform/attitude"]
+    assert q.header.frame_id == "platform_reference"
+    np.testing.assert_array_equal([q.quaternion.x, q.quaternion.y, q.quaternion.z, q.quaternion.w],
+                                  out.platform_attitude)
+    st = by_topic["/platform/servo_torque"]
+    assert st.header.frame_id == "platform"
+    np.testing.assert_array_equal([st.vector.x, st.vector.y, st.vector.z], out.servo_torque)
+
     js = roundtrip(m.joint_state(out, TYPES, t_ns))
     assert js.name == [*GIMBAL_NAMES, *MOUNT_NAMES, *m.ROTOR_JOINT_NAMES]
     for arr in (js.position, js.velocity, js.effort):
@@ -153,7 +162,8 @@ def test_header_stamp_is_exact_and_clamped():
 
 def test_topic_table_lists_every_topic():
     outs = m.output_topics()
-    assert len(outs) == 3 + len(BEARING_NAMES) + 1
+    assert len(outs) == 5 + len(BEARING_NAMES) + 1
+    assert outs["/platform/attitude"] == "geometry_msgs/msg/QuaternionStamped"
     assert outs["/diagnostics"] == "diagnostic_msgs/msg/DiagnosticArray"
     assert m.output_topics("/robot1/")["/robot1/bearing/rotor11/torque"] == "geometry_msgs/msg/WrenchStamped"
     assert "/diagnostics" in m.output_topics("robot1")          # absolute name stays

@@ -150,6 +150,19 @@ def test_sensor_mounting_rotates_the_input_into_the_vehicle_frame():
     assert core.gate.snapshot()["dropped_by_reason"] == {"unknown_frame": 1}
 
 
+def test_unknown_frame_taken_as_identity_is_one_notice_and_a_count_not_a_warning():
+    core = make_core(mode="carried", output_rate=0.0)            # unknown_frame: identity (default)
+    for k in range(5):
+        out = core.on_message(imu(BASE + k * MS, w=(0.5, 0.0, 0.0), frame="imu_link"), BASE + k * MS)
+    np.testing.assert_allclose(core.gate.last.sample.omega, [0.5, 0.0, 0.0], atol=1e-12)
+    notices = core.take_notices()
+    assert len(notices) == 1 and "imu_link" in notices[0] and core.take_notices() == []
+    diag = dict(out)["/diagnostics"] if "/diagnostics" in dict(out) else core.diagnostics(BASE + 5 * MS)
+    level, message, values = statuses(diag)["gyro_platform: input"]
+    assert level == 0 and "base_link" in message                 # OK, said once; counted below
+    assert values["notes.identity_frame"] == "5"
+
+
 def test_frame_prefix_is_put_before_every_output_frame():
     core = make_core(output_rate=0.0, frame_prefix="robot1/")
     d = dict(core.on_message(imu(BASE), BASE))
