@@ -47,6 +47,7 @@ from typing import Any, Callable, Hashable, Protocol
 import numpy as np
 import scipy.integrate
 import scipy.linalg
+from numba import njit
 
 from .errors import SimulationError, ToleranceError
 
@@ -306,9 +307,56 @@ def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
     return [E[:n, k * n:(k + 1) * n] for k in range(p + 1)]
 
 
+@njit(cache=True)
+def _matmul(A, B, out):
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 0.0
+        for k in range(n):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(n):
+                    out[i, j] += a * B[k, j]
+
+
+@njit(cache=True)
+def _expm_small(W):
+    """e^W for a small matrix: scaling and squaring (‖W/2^s‖₁ ≤ 1/8) with a Taylor polynomial
+    of degree 12 by Horner (truncation < 1e-17). Loops only, no BLAS (on a shared machine the
+    threaded BLAS costs more than it saves at n ≈ 20). The cost grows like log‖W‖, so a fast
+    rotor (large ‖hJ‖) costs only a few more squarings."""
+    n = W.shape[0]
+    norm = 0.0
+    for j in range(n):
+        c = 0.0
+        for i in range(n):
+            c += abs(W[i, j])
+        norm = max(norm, c)
+    s = 0
+    while norm > 0.125:
+        norm *= 0.5
+        s += 1
+    X = W * (0.5 ** s)
+    E = np.eye(n)
+    T = np.empty((n, n))
+    for k in range(12, 0, -1):          # E = I + X/k · E  (Horner)
+        _matmul(X, E, T)
+        for i in range(n):
+            for j in range(n):
+                E[i, j] = T[i, j] / k + (1.0 if i == j else 0.0)
+    for _ in range(s):
+        _matmul(E, E, T)
+        for i in range(n):
+            for j in range(n):
+                E[i, j] = T[i, j]
+    return E
+
+
 def _phi_apply(Z: np.ndarray, bs: list) -> np.ndarray:
-    """``Σ_j φ_j(Z) b_j`` (j = 1…p, ``bs = [b_1, …, b_p]``, None = 0) from one expm of size n + p
-    (Al-Mohy & Higham 2011, Thm 2.1: ``exp([[Z, B], [0, K]])``, B = [b_p … b_1], K the shift)."""
+    """``Σ_j φ_j(Z) b_j`` (j = 1…p, ``bs = [b_1, …, b_p]``, None = 0) as the last column of the
+    exponential of the augmented matrix ``[[Z, B], [0, K]]`` of size n + p (Al-Mohy & Higham
+    2011, Thm 2.1; B = [b_p … b_1], K the shift)."""
     n, p = Z.shape[0], len(bs)
     W = np.zeros((n + p, n + p))
     W[:n, :n] = Z
@@ -317,7 +365,7 @@ def _phi_apply(Z: np.ndarray, bs: list) -> np.ndarray:
             W[:n, n + p - j] = b
     for k in range(p - 1):
         W[n + k, n + k + 1] = 1.0
-    return scipy.linalg.expm(W)[:n, n + p - 1]
+    return _expm_small(W)[:n, n + p - 1]
 
 
 class _ETD(_Controlled):
