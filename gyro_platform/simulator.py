@@ -31,6 +31,12 @@ from .tree import TreeWork, tree_inverse_dynamics
 #: exactly at any spin. Intervals the primary cannot bring within tolerance go to exprb.
 AUTO_RK4_LIMIT = 1.5
 AUTO_RK4_MAX_RTOL = 1e-6
+#: below this rtol an excited nutation costs RK4 ≥ 1/(24 rtol)^¼·ωh ≈ 100 substeps per 1 ms
+#: sample at ×1: etd2 (exact on the nutation) is cheaper
+AUTO_RK4_MIN_RTOL = 1e-9
+#: below this rtol auto's exponential method is etd4 (order 4: its error falls much faster
+#: with the step than etd2's, and it keeps invariants to 1e-10 over 1000 nutation periods)
+AUTO_ETD4_BELOW = 1e-9
 
 
 def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
@@ -62,11 +68,14 @@ def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     follow what the motion excites; but it must resolve the fastest mode λ for stability
     (h·λ < 2.8), and it damps a nutation ω by ≈ (hω)⁶/72 per step. Held to rtol its local error
     (hω)⁴/24 ≤ rtol gives hω ≤ (24 rtol)^¼, i.e. a T2 loss ≤ 1000·2π(hω)⁵/72 ≤ 1e-4 over 1000
-    nutation periods for rtol ≤ 1e-6. Beyond the stability limit (fast rotors) or at looser
-    tolerance, etd2 (exact on the gyroscopic linear part, cost independent of the spin)."""
-    if fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT and options.rtol <= AUTO_RK4_MAX_RTOL:
+    nutation periods for rtol ≤ 1e-6; below rtol 1e-9 resolving an excited nutation costs RK4
+    more than etd2. Beyond the stability limit (fast rotors), at looser or at tighter tolerance:
+    etd2 (exact on the gyroscopic linear part, cost independent of the spin), etd4 below
+    rtol 1e-9 (fourth order: fewer substeps at tight tolerance)."""
+    if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT
+            and AUTO_RK4_MIN_RTOL <= options.rtol <= AUTO_RK4_MAX_RTOL):
         return "rk4"
-    return "etd2"
+    return "etd2" if options.rtol >= AUTO_ETD4_BELOW else "etd4"
 
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
@@ -170,9 +179,9 @@ class Simulator:
         last = self._last
         self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
                               sample.specific_force)
-        if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
-            self.system.update_regime(self.y)
         try:
+            if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
+                self.system.update_regime(self.y)
             y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
         except (ArithmeticError, np.linalg.LinAlgError) as e:   # ZeroDivisionError, FloatingPointError
             raise SimulationError(f"integration failed at t = {sample.t}: {type(e).__name__}: {e}; "

@@ -359,6 +359,10 @@ def support_regime(y, I, P, seg, RR):
     lay = I[0]
     if lay[LAY_STAB] != 1 or I[1, fx.SUPPORT] == 0:
         return 0
+    for iq in (lay[LAY_QIP], lay[LAY_QIB]):
+        nq = y[iq] ** 2 + y[iq + 1] ** 2 + y[iq + 2] ** 2 + y[iq + 3] ** 2
+        if not (nq > 0.0 and nq < math.inf):
+            return 0            # degenerate attitude: the step itself reports it
     quat_to_matrix_at(y, lay[LAY_QIP], RR, 0)
     quat_to_matrix_at(y, lay[LAY_QIB], RR, 1)
     eps = P[fx.K_EPS_S]
