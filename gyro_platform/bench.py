@@ -374,7 +374,7 @@ if __name__ == "__main__":
 def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> list[dict]:
     """Case × method table (``hardcases``): error against the reference, CPU s per simulated s,
     verdict (ok / refused / WRONG). ``quick``: the tests' durations (the hour: 60 s)."""
-    from .hardcases import ASK, CASES, OK_RAD, run_case, verdict
+    from .hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
     rows: list[dict] = []
     for case in CASES:
         if cases and case.name not in cases:
@@ -382,7 +382,7 @@ def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> 
         dur = case.duration if not quick else (60.0 if case.bench_only else case.test_duration)
         rn, rr, ra = case.reference
         run_case(case, rn, rr, ra, duration=0.005)                 # warm-up: compile, matrices
-        ref = run_case(case, rn, rr, ra, duration=dur)
+        ref = run_reference(case, dur)
         print(f"\n== {case.name} ({dur:g} s): {case.description}\n   reference {rn} rtol {rr:g}: "
               f"{ref.cpu / max(ref.sim_s, 1e-9):.3g} CPU s per sim s", flush=True)
         for m in case.methods:

@@ -34,6 +34,8 @@ RATE = 1000.0                 # Hz, vehicle input
 OK_RAD = 1e-5                 # verdict threshold against the reference (rad)
 ASK = (1e-9, 1e-12)           # the tolerance asked of every method (rtol, atol)
 REFERENCE = ("dop853", 1e-12, 1e-15)
+#: the reference's step budget (it must not refuse: steps down to max_step / 2^22 ≈ 0.2 ns)
+REF_SUBSTEPS = 1 << 22
 METHODS = ("auto", "rk4", "etd2", "etd4", "exprb", "implicit_midpoint", "rk45", "dop853", "radau")
 SPIN = NAV1.rotor_speed[0]
 FREE = ("rotor_gyroscopic", "coriolis")          # stabilised with servo and mount friction off
@@ -153,10 +155,11 @@ class CaseResult:
     attitude: np.ndarray | None = None
 
 
-def _platform_run(case: HardCase, method: str, rtol: float, atol: float, duration: float) -> CaseResult:
+def _platform_run(case: HardCase, method: str, rtol: float, atol: float, duration: float,
+                  max_substeps: int) -> CaseResult:
     eff = case.effects if case.effects is not None else DEFAULT_EFFECTS[case.mode]
     opt = ModelOptions(mode=case.mode, fidelity=case.fidelity, effects=frozenset(eff), integrator=method,
-                       rtol=rtol, atol=atol)
+                       rtol=rtol, atol=atol, max_substeps=max_substeps)
     t = np.arange(0.0, duration + 0.5 / RATE, 1.0 / RATE)
     w = case.motion(t)
     sim = Simulator(case.params, opt)
@@ -190,11 +193,12 @@ class _GyroSystem:
         return self._A, ("gyro", id(self))
 
 
-def _gyro_run(case: HardCase, method: str, rtol: float, atol: float, duration: float) -> CaseResult:
+def _gyro_run(case: HardCase, method: str, rtol: float, atol: float, duration: float,
+              max_substeps: int) -> CaseResult:
     y = np.asarray(case.gyro_state, float)
     system = _GyroSystem(GyroModel(GimballedGyro()), y)
     name = "etd2" if method == "auto" else method      # auto's choice for a fast rotor (no Simulator here)
-    integ = make_integrator(name, max_step=1e-3, rtol=rtol, atol=atol)
+    integ = make_integrator(name, max_step=1e-3, rtol=rtol, atol=atol, max_substeps=max_substeps)
     n = int(round(duration * RATE))
     refused = None
     t = 0.0
@@ -209,10 +213,17 @@ def _gyro_run(case: HardCase, method: str, rtol: float, atol: float, duration: f
     return CaseResult(y[:2].copy(), cpu, t, refused, bool(np.all(np.isfinite(y))), {"integrator": integ.name})
 
 
-def run_case(case: HardCase, method: str, rtol: float, atol: float, duration: float | None = None) -> CaseResult:
+def run_case(case: HardCase, method: str, rtol: float, atol: float, duration: float | None = None,
+             max_substeps: int = 4096) -> CaseResult:
     """Run one case with one method at one tolerance (duration: s, default the bench's)."""
     d = case.duration if duration is None else duration
-    return (_gyro_run if case.kind == "gyro" else _platform_run)(case, method, rtol, atol, d)
+    return (_gyro_run if case.kind == "gyro" else _platform_run)(case, method, rtol, atol, d, max_substeps)
+
+
+def run_reference(case: HardCase, duration: float | None = None) -> CaseResult:
+    """The case's reference run (tight tolerance, ample budget)."""
+    name, rtol, atol = case.reference
+    return run_case(case, name, rtol, atol, duration, max_substeps=REF_SUBSTEPS)
 
 
 def angle_error(res: CaseResult, ref: CaseResult) -> float:
