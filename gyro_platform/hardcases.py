@@ -115,6 +115,11 @@ CASES: list[HardCase] = [
     HardCase("free_platform_spin100", "free platform as above, rotor spin ×100 (nutation 8e4 rad/s)",
              "explicit RK methods pay ×100 in steps or refuse; exprb and etd keep their cost", 0.1, 0.02,
              mode="stabilised", effects=FREE, params=_spin(100), init=lambda y, lay: _set_large(y, lay, OM_FREE)),
+    *[HardCase(f"carried_turning_spin{f}", f"carried, full model, from the consistent start, vehicle turning in "
+               f"three axes, rotor spin ×{f}", "the cost of a fast rotor: exprb and etd keep their steps (the "
+               "gyroscopic part is in their linear part), RK4 must resolve the nutation (h·ω < 2.8)", 0.3, 0.05,
+               params=_spin(f), effects=("rotor_gyroscopic", "coriolis", "vehicle_angular_acceleration"))
+      for f in (1, 10, 100)],
     HardCase("large_nutation", "carried, torque-free, both units nutating with ~0.04 rad amplitude",
              "within tolerance; T2 conserved (see test)", 0.3, 0.05, effects=FREE, motion=lambda t: 0 * _sines(t),
              init=lambda y, lay: _set_large(y, lay, qd=(30.0, -25.0, 25.0, 30.0, -30.0))),
