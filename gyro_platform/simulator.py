@@ -176,6 +176,20 @@ class Simulator:
         t1 = sample.t - self.t_start
         if not t1 > self.t_rel:
             raise InputError(f"sample time {sample.t!r} is not after the last one ({self.t!r})")
+        integ = self.integrator
+        stepper = integ.primary if isinstance(integ, Auto) else integ
+        if stepper.name == "rk4" and getattr(integ, "sticky", 0) <= 0:
+            # RK4 needs no per-step matrices: the compiled loop serves single samples too (the
+            # same steps as push_many, and fast when the tolerance asks for many substeps)
+            f = sample.specific_force
+            self._push_many(np.array([sample.t]), np.asarray(sample.omega, float).reshape(1, 3),
+                            np.zeros((1, 3)) if f is None else np.asarray(f, float).reshape(1, 3), f is not None,
+                            0, [])
+            return
+        self._push_python(sample, t1)
+
+    def _push_python(self, sample: RateSample, t1: float) -> None:
+        """One sample through ``integrator.advance`` (Python)."""
         last = self._last
         self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
                               sample.specific_force)
@@ -323,7 +337,8 @@ class Simulator:
                 # auto's own push (primary again, then exprb), then back to the compiled loop
                 i = last + 1
                 while True:                        # the refused interval and auto's sticky ones
-                    self.push(self._sample(t, w, fB, has_f, i - 1 + start))
+                    smp = self._sample(t, w, fB, has_f, i - 1 + start)
+                    self._push_python(smp, smp.t - self.t_start)
                     if emit(i):
                         outs.append(self.outputs())
                     while j_done < len(sel) and sel[j_done] <= i:
