@@ -1,14 +1,19 @@
 """Benchmarks: what accuracy costs in time.
 
-``gyro-platform bench accuracy`` — work-precision study: every fidelity × integrator × step on
+``gyro-platform bench accuracy`` — work-precision study: every fidelity × integrator × asked
+tolerance (rtol 1e-4 … 1e-10, steps ≤ 1 ms) on
 two standard scenes (a ship rolling and pitching, stabilised, 10 min; an aircraft manoeuvre with
 coordinated turns and rate steps, 2 min; vehicle rates at 1 kHz), each compared with a
-``full``-fidelity reference at a fine step (gimbal angles and drift angle, end and maximum over
+``full``-fidelity reference (RK4 held to rtol 1e-12, steps ≤ 0.25 ms; gimbal angles and drift angle, end and maximum over
 time), timed in CPU seconds per simulated second (median of repeats), as a real-time factor and
 as a speed ratio to the naive baseline a Python user would write (``scipy.integrate.solve_ivp``
 on the ``full`` model over the whole run, input interpolated with ``np.interp``). Writes CSV,
 Markdown and a PNG plot, and names the cheapest configuration that reaches 1e-3, 1e-6 and
 1e-9 rad.
+
+``gyro-platform bench hard`` — the hard-case catalogue (``hardcases``): every method asked for
+rtol 1e-9 / atol 1e-12, error against DOP853 at rtol 1e-12, CPU s per simulated s, verdict
+(ok / refused / WRONG); exit code 1 if any cell is WRONG.
 
 ``gyro-platform bench effects`` — the cost of each effect (CPU µs per sample with the effect
 on versus off): what is off costs nothing.
@@ -83,11 +88,11 @@ def _record(outs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run_config(sc: BenchScene, fidelity: str, integrator: str, max_step: float, rtol: float = 1e-8,
-               atol: float = 1e-12, repeats: int = 1, duration: float | None = None):
+               atol: float = 1e-12, repeats: int = 1, duration: float | None = None, max_substeps: int = 4096):
     """(gimbal (N, 5), drift (N, 3), CPU s per simulated s, simulated s) for one configuration."""
     n = len(sc.t) if duration is None else int(round(duration * SAMPLE_RATE)) + 1
     opt = ModelOptions.make("stabilised", fidelity, sc.effects, integrator=integrator, max_step=max_step,
-                            rtol=rtol, atol=atol)
+                            rtol=rtol, atol=atol, max_substeps=max_substeps)
     times = []
     rec = None
     for _ in range(repeats):
@@ -138,19 +143,21 @@ def errors(g, d, gref, dref) -> dict[str, float]:
             "drift_max": float(ed.max()), "max": float(max(eg.max(), ed.max()))}
 
 
+#: (fidelity, integrator, max_step s, asked rtol): every method at its asked tolerance (atol =
+#: rtol·1e-3 rad), the step only an upper bound; the error is what the reference measures
+RTOLS = (1e-4, 1e-6, 1e-8, 1e-10)
 CONFIGS = [
-    # (fidelity, integrator, max_step s, rtol)
-    *[(fid, "rk4", h, None) for fid in ("full", "linear", "precession") for h in (1e-3, 5e-4, 2.5e-4)],
-    *[(fid, "etd2", h, None) for fid in ("full", "linear", "precession") for h in (1e-3, 5e-4, 2.5e-4)],
-    *[(fid, "etd4", h, None) for fid in ("full", "linear") for h in (1e-3, 5e-4)],
-    ("full", "implicit_midpoint", 1e-3, None),
-    ("full", "dop853", 1e-3, 1e-6),
-    ("full", "dop853", 1e-3, 1e-9),
+    *[(fid, integ, 1e-3, rtol) for fid in ("linear", "full") for integ in ("auto", "rk4", "etd2", "etd4")
+      for rtol in RTOLS],
+    *[("precession", integ, 1e-3, rtol) for integ in ("rk4", "etd2") for rtol in (1e-4, 1e-8)],
+    *[("full", integ, 1e-3, rtol) for integ in ("exprb", "implicit_midpoint", "dop853") for rtol in (1e-6, 1e-9)],
 ]
 #: integrators without a compiled batch path, and the naive baseline, run the first 60 s of a
 #: scene (their cost per simulated second is what is compared; their error is measured over
 #: the same window)
-SLOW = {"implicit_midpoint", "dop853"}
+SLOW = {"implicit_midpoint", "dop853", "exprb"}
+#: the reference: full model, RK4 held to rtol 1e-12 with steps ≤ 0.25 ms (checked against dop853)
+REF = ("full", "rk4", 2.5e-4, 1e-12)
 
 
 def accuracy(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[dict]:
@@ -158,11 +165,14 @@ def accuracy(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[dict]
     rows: list[dict] = []
     for sc in scenes:
         print(f"\n== {sc.name}: {sc.description}", flush=True)
-        g_ref, d_ref, c_ref, _ = run_config(sc, "full", "rk4", 1.25e-4)
-        g_chk, d_chk, _, _ = run_config(sc, "full", "etd4", 1.25e-4)
+        big = 1 << 20                      # the reference must not refuse: an ample step budget
+        g_ref, d_ref, c_ref, _ = run_config(sc, REF[0], REF[1], REF[2], rtol=REF[3], atol=REF[3] * 1e-3,
+                                            max_substeps=big)
+        g_chk, d_chk, _, _ = run_config(sc, "full", "dop853", REF[2], rtol=REF[3], atol=REF[3] * 1e-3,
+                                        max_substeps=big, duration=min(10.0, sc.t[-1]))
         ref_err = errors(g_chk, d_chk, g_ref, d_ref)["max"]
-        print(f"   reference: full, rk4 at 0.125 ms ({1 / c_ref:.0f}× real time); "
-              f"its disagreement with etd4 at 0.125 ms: {ref_err:.2e} rad", flush=True)
+        print(f"   reference: full, rk4 rtol 1e-12, steps ≤ 0.25 ms ({1 / c_ref:.0f}× real time); "
+              f"its disagreement with dop853 at the same tolerance (first 10 s): {ref_err:.2e} rad", flush=True)
         slow_window = min(20.0 if quick else 60.0, sc.t[-1])
         base_rows = []
         for rtol, atol, label in ((1e-3, 1e-6, "default tol"), (1e-10, 1e-13, "tight tol")):
@@ -178,16 +188,15 @@ def accuracy(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[dict]
         for fid, integ, h, rtol in CONFIGS:
             win = slow_window if integ in SLOW else None
             try:
-                g, d, cpu, sim_s = run_config(sc, fid, integ, h, rtol=rtol or 1e-8,
-                                              atol=(rtol or 1e-8) * 1e-4,
+                g, d, cpu, sim_s = run_config(sc, fid, integ, h, rtol=rtol, atol=rtol * 1e-3,
                                               repeats=1 if integ in SLOW else repeats, duration=win)
             except Exception as ex:   # an unstable configuration is a result too
-                print(f"   {fid:10s} {integ:17s} {h * 1e3:6.3f} ms: FAILED ({type(ex).__name__}: {ex})")
+                print(f"   {fid:10s} {integ:17s} rtol {rtol:g}: FAILED ({type(ex).__name__}: {ex})")
                 rows.append(dict(scene=sc.name, fidelity=fid, integrator=integ,
-                                 step_or_tol=f"{h * 1e3:g} ms", failed=str(ex)[:80]))
+                                 step_or_tol=f"rtol {rtol:g}", failed=str(ex)[:80]))
                 continue
             e = errors(g, d, g_ref, d_ref)
-            label = f"rtol {rtol:g}" if rtol else f"{h * 1e3:g} ms"
+            label = f"rtol {rtol:g}"
             row = dict(scene=sc.name, fidelity=fid, integrator=integ, step_or_tol=label, simulated_s=sim_s,
                        cpu_per_sim_s=cpu, rtf=1 / cpu, speedup_vs_naive=base_cpu / cpu, **e)
             rows.append(row)
@@ -242,7 +251,8 @@ def plot(rows: list[dict], path: Path) -> None:
     scenes = sorted({r["scene"] for r in rows})
     fig, axes = plt.subplots(1, len(scenes), figsize=(6.5 * len(scenes), 4.8), squeeze=False)
     colors = {"full": "tab:blue", "linear": "tab:orange", "precession": "tab:green"}
-    markers = {"rk4": "o", "etd2": "s", "etd4": "D", "implicit_midpoint": "^", "dop853": "v"}
+    markers = {"auto": "*", "rk4": "o", "etd2": "s", "etd4": "D", "exprb": "P", "implicit_midpoint": "^",
+               "dop853": "v"}
     for ax, sc in zip(axes[0], scenes):
         for r in rows:
             if r["scene"] != sc or "failed" in r:
@@ -333,9 +343,11 @@ def hotpath(repeats: int = 5) -> dict:
 # CLI
 
 def add_arguments(p) -> None:
-    p.add_argument("what", choices=["accuracy", "effects", "hotpath"], help="which benchmark")
+    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard"], help="which benchmark")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true", help="short scenes (60 s ship, 30 s aircraft)")
+    p.add_argument("--quick", action="store_true",
+                   help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
+    p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
 
 
@@ -343,6 +355,9 @@ def run(args) -> int:
     out = Path(args.out)
     if args.what == "accuracy":
         accuracy(out, quick=args.quick, repeats=args.repeats)
+    elif args.what == "hard":
+        rows = hard(out, quick=args.quick, cases=args.case)
+        return 1 if any(r["verdict"] == "WRONG" for r in rows) else 0
     elif args.what == "effects":
         effects_cost(out, repeats=args.repeats)
     else:
@@ -354,3 +369,97 @@ def run(args) -> int:
 
 if __name__ == "__main__":
     sys.exit(run(__import__("argparse").Namespace(what="accuracy", out="results/bench", quick=True, repeats=1)))
+
+
+# ---------------------------------------------------------------------------------------------
+# hard cases: every method asked for the same tolerance, verdict against a tight reference
+
+def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> list[dict]:
+    """Case × method table (``hardcases``): error against the reference, CPU s per simulated s,
+    verdict (ok / refused / WRONG). ``quick``: the tests' durations (the hour: 60 s)."""
+    from .hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
+    rows: list[dict] = []
+    for case in CASES:
+        if cases and case.name not in cases:
+            continue
+        dur = case.duration if not quick else (60.0 if case.bench_only else case.test_duration)
+        rn, rr, ra = case.reference
+        run_case(case, rn, rr, ra, duration=0.005)                 # warm-up: compile, matrices
+        ref = run_reference(case, dur)
+        print(f"\n== {case.name} ({dur:g} s): {case.description}\n   reference {rn} rtol {rr:g}: "
+              f"{ref.cpu / max(ref.sim_s, 1e-9):.3g} CPU s per sim s", flush=True)
+        for m in case.methods:
+            run_case(case, m, *ASK, duration=0.005)
+            res = run_case(case, m, *ASK, duration=dur)
+            v, err = verdict(res, ref)
+            cpu = res.cpu / max(res.sim_s, 1e-3 / 2)
+            row = dict(case=case.name, method=m, integrator=res.stats.get("integrator", m), duration=dur,
+                       error=err, cpu_per_sim_s=cpu, verdict=v,
+                       error_estimate=res.stats.get("max_error_estimate", math.nan),
+                       steps_per_sample=res.stats.get("n_steps", 0) / max(res.stats.get("n_samples", 1), 1),
+                       refused=(res.refused or "")[:160])
+            rows.append(row)
+            print(f"   {m:18s} {v:8s} error {err:9.2e} rad  {cpu:9.3g} CPU s/sim s  "
+                  f"{row['steps_per_sample']:7.1f} steps/sample  {row['refused'][:90]}", flush=True)
+    _write_hard(rows, out_dir, OK_RAD, ASK)
+    return rows
+
+
+def _write_hard(rows: list[dict], out_dir: Path, ok_rad: float, ask) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    keys = ["case", "method", "integrator", "duration", "error", "cpu_per_sim_s", "verdict", "error_estimate",
+            "steps_per_sample", "refused"]
+    with open(out_dir / "hard.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    cases = list(dict.fromkeys(r["case"] for r in rows))
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    cell = {(r["case"], r["method"]): r for r in rows}
+    lines = [f"Asked: rtol {ask[0]:g}, atol {ask[1]:g}; verdict ok = within {ok_rad:g} rad of the reference. "
+             "Cell: error (rad) / CPU s per simulated s / verdict.", "",
+             "| case | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
+    for c in cases:
+        cells = []
+        for m in methods:
+            r = cell.get((c, m))
+            if r is None:
+                cells.append("")
+            elif r["verdict"] == "refused":
+                cells.append(f"refused / {r['cpu_per_sim_s']:.2g} s")
+            else:
+                cells.append(f"{r['error']:.1e} / {r['cpu_per_sim_s']:.2g} s / {r['verdict']}")
+        lines.append(f"| {c} | " + " | ".join(cells) + " |")
+    (out_dir / "hard.md").write_text("\n".join(lines) + "\n")
+    print("\n" + "\n".join(lines))
+    _plot_hard(rows, cases, methods, out_dir / "hard.png", ok_rad)
+    print(f"\nwrote {out_dir / 'hard.csv'}, {out_dir / 'hard.md'}, {out_dir / 'hard.png'}")
+
+
+def _plot_hard(rows, cases, methods, path: Path, ok_rad: float) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(1.3 * len(methods) + 3, 0.62 * len(cases) + 1.8))
+    colors = {"ok": "#b7e4b0", "refused": "#f6e3a1", "WRONG": "#f4a6a6"}
+    cell = {(r["case"], r["method"]): r for r in rows}
+    for i, c in enumerate(cases):
+        for j, m in enumerate(methods):
+            r = cell.get((c, m))
+            if r is None:
+                continue
+            ax.add_patch(plt.Rectangle((j, i), 1, 1, color=colors[r["verdict"]], ec="w"))
+            txt = "refused" if r["verdict"] == "refused" else f"{r['error']:.0e} rad"
+            ax.text(j + 0.5, i + 0.38, txt, ha="center", va="center", fontsize=7)
+            ax.text(j + 0.5, i + 0.7, f"{r['cpu_per_sim_s']:.2g} s/s", ha="center", va="center", fontsize=6,
+                    color="0.3")
+    ax.set_xlim(0, len(methods))
+    ax.set_ylim(len(cases), 0)
+    ax.set_xticks(np.arange(len(methods)) + 0.5, methods, rotation=30, fontsize=8)
+    ax.set_yticks(np.arange(len(cases)) + 0.5, cases, fontsize=8)
+    ax.set_title(f"hard cases: error vs reference and CPU s per simulated s (green: ≤ {ok_rad:g} rad, "
+                 "yellow: refused, red: wrong)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -15,3 +15,8 @@ class PrecessionInvalidError(SimulationError):
 
 class InputError(SimulationError):
     """An input sample cannot be used (non-finite, out of order, out of range)."""
+
+
+class ToleranceError(SimulationError):
+    """The integrator cannot meet the asked tolerance (rtol/atol) within its step budget
+    (``max_substeps``); the message names the time, the method, the estimate and the tolerance."""

@@ -2,23 +2,40 @@
 
 All methods integrate ``dy/dt = system.rhs(t, y)`` from ``t0`` to exactly ``t1`` (s) and return
 the new state and a ``StepStats``. The simulator calls ``advance`` once per input-sample interval
-(1–10 ms), so the fixed-step methods keep Python work and allocations out of their inner loops
-(stage buffers are reused, matrices are cached by ``(key, h)``).
+(1–10 ms).
+
+**Accuracy is an input.** Every method is given ``rtol``/``atol`` and estimates its local error
+at every (sub)step; the weighted norm ``‖err‖ = RMS(err_i / (atol + rtol·max(|y0_i|, |y1_i|)))``
+must be ≤ 1 for a step to be accepted (the scipy convention). ``max_step`` (s) is always an
+upper bound of the step. The budget is ``max_substeps``: no step shorter than
+``max_step / max_substeps``. A method that cannot meet the tolerance within the budget raises
+``SimulationError`` naming the time, the method, the estimate and the tolerance; ``y0`` is
+untouched (the caller keeps its state).
 
 Methods (see ``INTEGRATORS``):
 
-- ``rk4``: classic explicit RK4. Cheap, but only stable for ``h·|λ| ≤ 2.83`` on the imaginary
-  axis: at the gyro nutation (≈ 800 rad/s) it needs ``h ≲ 3.5 ms``, at 1e4 rad/s ``h ≲ 0.28 ms``.
-- ``dop853``, ``rk45``, ``radau``: scipy's ``OdeSolver`` step API with warm-started step size.
-- ``implicit_midpoint``: A-stable, symplectic, keeps quadratic invariants (e.g. the Jacobi
-  integral ``T2 = ½ ẋᵀA*ẋ`` of the torque-free gyro) to round-off. Stage solved by simplified
-  Newton to round-off (2 eps relative, 2-norm).
+- ``rk4``: classic RK4 with an embedded third-order estimate (the FSAL stage f(t+h, y1):
+  ``err = h/6 (k4 − k5)``). Explicit: at h·ω > 2.8 it must substep; it damps nutation by
+  ≈ (hω)⁶/72 per step, which the tolerance bounds.
 - ``etd2``, ``etd4``: exponential integrators for ``f(t, y) = A y + g(t, y)`` with ``A`` from
-  ``system.linear_part()`` (ETD2RK of Cox–Matthews, ETDRK4 of Krogstad). Exact for linear
-  systems with constant input, unconditionally stable for the undamped (imaginary) modes of A.
+  ``system.linear_part()`` (the model at rest: ETD2RK of Cox–Matthews, ETDRK4 of Krogstad),
+  estimate = difference to the embedded lower-order stage at c = 1. Exact for the undamped
+  gyroscopic modes; at large angles the remainder grows, and they substep or refuse.
+- ``exprb``: exponential Rosenbrock exprb32 (Hochbruck–Ostermann–Schweitzer 2009), order 3,
+  re-linearised at every step (``system.jacobian`` and ∂f/∂t), embedded order-2 estimate.
+  Valid at large angles and for fast rotors: its cost does not depend on the spin.
+- ``implicit_midpoint``: A-stable, symplectic, keeps quadratic invariants to round-off;
+  estimate by step doubling (the two half steps are kept, ``err = (y_½½ − y_1)/3``).
+- ``dop853``, ``rk45``, ``radau``: scipy's ``OdeSolver`` step API, warm-started step size,
+  bounded by ``max_step`` and the budget.
 
-Non-finite results are never returned: every method raises
-``gyro_platform.errors.SimulationError("non-finite state after <method> step at t=…")``.
+The fixed-grid methods (rk4, etd*, exprb, implicit_midpoint) use one step-size controller: the
+interval is cut into ``nsub·2^level`` equal substeps; an interval with a rejected substep is
+redone at a finer level (``level += max(1, ceil(log2 ‖err‖ / (q+1)))``, q the estimator's
+order), and after an interval whose worst substep was ≤ ``0.5·2^-(q+1)`` the next interval
+tries one level coarser. The compiled batch loop (``fastpath``) runs the same controller.
+
+Non-finite results are never returned: ``SimulationError``.
 """
 from __future__ import annotations
 
@@ -30,17 +47,42 @@ from typing import Any, Callable, Hashable, Protocol
 import numpy as np
 import scipy.integrate
 import scipy.linalg
+from numba import njit
 
-from .errors import SimulationError
+from .errors import SimulationError, ToleranceError
 
-__all__ = ["OdeSystem", "StepStats", "Integrator", "make_integrator", "INTEGRATORS"]
+__all__ = ["OdeSystem", "StepStats", "Integrator", "make_integrator", "INTEGRATORS", "error_norm",
+           "MAX_SUBSTEPS"]
 
 _EPS = np.finfo(float).eps
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 _NEWTON_TOL = 2 * _EPS    # implicit midpoint: Newton to round-off (relative, 2-norm), so
                           # quadratic invariants drift by round-off only, not by 1e-14 per step
 _NEWTON_MAXITER = 10
-_MAX_HALVINGS = 12        # implicit midpoint: give up after h has been halved this often
+#: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
+MAX_SUBSTEPS = 4096
+#: controller: after an interval whose worst normalised error is ≤ COARSEN·2^-(q+1), the next
+#: interval tries a level coarser (2× the step); a rejection jumps at most MAX_JUMP levels
+COARSEN = 0.5
+MAX_JUMP = 4
+
+
+def error_norm(err: np.ndarray, y0: np.ndarray, y1: np.ndarray, rtol: float, atol: float) -> float:
+    """Weighted RMS norm of a local error estimate (≤ 1: within tolerance; scipy's convention)."""
+    sc = atol + rtol * np.maximum(np.abs(y0), np.abs(y1))
+    return float(np.sqrt(np.mean((err / sc) ** 2)))
+
+
+def next_level(level: int, norm: float, q1: int) -> int:
+    """Level after a rejected interval with worst normalised error ``norm`` (q1 = q + 1)."""
+    if not norm < math.inf:                     # nan or inf: non-finite, Newton failure
+        return level + 1
+    return level + min(MAX_JUMP, max(1, math.ceil(math.log2(norm) / q1)))
+
+
+def coarser_level(level: int, norm: float, q1: int) -> int:
+    """Level for the next interval after an accepted one."""
+    return level - 1 if level > 0 and norm * 2.0 ** q1 <= COARSEN else level
 
 
 class OdeSystem(Protocol):
@@ -62,32 +104,46 @@ class StepStats:
     """Work and quality of one ``advance`` call.
 
     ``n_steps``: accepted (sub)steps; ``n_rhs``: calls of ``system.rhs`` (including
-    finite-difference Jacobians); ``error_estimate``: max-norm local error estimate of the last
-    step in state units (nan if the method has no embedded estimate); ``n_halvings``: times
-    implicit_midpoint halved its substep because Newton did not converge (0 otherwise).
+    finite-difference Jacobians); ``error_estimate``: largest local error estimate (max-norm,
+    state units: rad, rad/s, …) of the accepted steps; ``error_norm``: largest weighted norm of
+    those estimates (≤ 1 = within rtol/atol); ``n_rejected``: rejected (redone) steps or
+    intervals; ``level``: substep level used (substeps = ceil(dt/max_step)·2^level).
     """
 
     n_steps: int
     n_rhs: int
     error_estimate: float
-    n_halvings: int = 0
+    error_norm: float = math.nan
+    n_rejected: int = 0
+    level: int = 0
 
 
 class Integrator(ABC):
-    """Base class. Subclasses set ``name``, ``order`` and ``adaptive`` and implement ``_advance``."""
+    """Base class. Subclasses set ``name``, ``order`` and ``adaptive`` and implement ``_advance``.
+
+    ``max_step`` (s): upper bound of every step; ``rtol``, ``atol``: tolerances (state units);
+    ``max_substeps``: budget, the shortest step allowed is ``max_step / max_substeps``."""
 
     name: str = ""
     #: the method consults ``system.linear_part()`` (so the system keeps it current per step)
     uses_linear_part: bool = False
     order: int = 0
-    adaptive: bool = False
+    #: every method adapts its step to the tolerance; kept for the scipy family's warm start
+    adaptive: bool = True
+
+    def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
+                 max_substeps: int = MAX_SUBSTEPS) -> None:
+        self.max_step = float(max_step)
+        self.rtol, self.atol = float(rtol), float(atol)
+        self.max_substeps = int(max_substeps)
+        self.max_level = max(0, int(math.floor(math.log2(self.max_substeps))))
 
     def advance(self, system: OdeSystem, t0: float, y0: np.ndarray, t1: float
                 ) -> tuple[np.ndarray, StepStats]:
         """Integrate from ``t0`` to exactly ``t1`` (s, ``t1 > t0``); ``y0`` is not modified.
 
         Returns ``(y1, stats)``. Raises ``ValueError`` for a bad interval or state shape and
-        ``SimulationError`` if the state becomes non-finite or the method fails.
+        ``SimulationError`` if the state becomes non-finite or the tolerance cannot be met.
         """
         t0 = float(t0)
         t1 = float(t1)
@@ -109,35 +165,52 @@ class Integrator(ABC):
     def reset(self) -> None:
         """Forget warm-start data and caches."""
 
+    def refuse(self, t: float, estimate: float, norm: float, h: float, why: str = "") -> ToleranceError:
+        """The error raised when the tolerance cannot be met within the budget (t: the
+        integration time of the failing step, s)."""
+        if not norm < math.inf:
+            why = why or " (non-finite state or failed stage)"
+        return ToleranceError(
+            f"{self.name} cannot meet the tolerance at t={t!r} s: error estimate {estimate:.3g} "
+            f"({norm:.3g}× the tolerance rtol={self.rtol:g}, atol={self.atol:g}) even with steps of "
+            f"{h:.3g} s (budget: max_step/{self.max_substeps}){why}; state kept at the interval start")
+
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r} order={self.order}>"
 
 
-# --------------------------------------------------------------------------- fixed step
+# --------------------------------------------------------------------------- controlled (fixed grid)
 
 
-class _FixedStep(Integrator):
-    """Fixed-step base: ``nsub = ceil((t1 - t0)/max_step)`` equal substeps per call.
+class _Controlled(Integrator):
+    """Methods on a grid of ``nsub·2^level`` equal substeps per interval (see module doc).
 
-    A relative overshoot of 1e-9 is tolerated, so that an interval of ``max_step`` plus
-    round-off is one substep, not two.
-    """
+    Subclasses implement ``_substeps(system, t0, y0, nsub, h)`` returning ``(y1, norm, est,
+    n_rhs, t_bad)``: the worst normalised error and max-norm estimate over the substeps, and
+    the start of the first rejected substep (the run stops there; ``norm`` > 1 or nan)."""
 
-    adaptive = False
+    #: order + 1 of the local error the estimator measures (err ∝ h^q1)
+    q1: int = 2
+    #: the method substeps on a grid; the step level is carried between calls
+    level: int = 0
 
-    def __init__(self, max_step: float) -> None:
-        self.max_step = float(max_step)
-        self._n = -1             # state size the buffers are made for
+    def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
+                 max_substeps: int = MAX_SUBSTEPS) -> None:
+        super().__init__(max_step, rtol, atol, max_substeps)
+        self._n = -1
         self._cache: dict[tuple[Hashable, float], Any] = {}
-
-    def _nsub(self, t0: float, t1: float) -> tuple[int, float]:
-        nsub = max(1, math.ceil((t1 - t0) / self.max_step - 1e-9))
-        return nsub, (t1 - t0) / nsub
+        self.level = 0
 
     cache_size = _CACHE_SIZE
 
+    def _base(self, t0: float, t1: float) -> tuple[int, float]:
+        """(nsub, h): ``ceil((t1 − t0)/max_step)`` equal steps. A relative overshoot of 1e-9 is
+        tolerated, so that an interval of ``max_step`` plus round-off is one substep, not two."""
+        nsub = max(1, math.ceil((t1 - t0) / self.max_step - 1e-9))
+        return nsub, (t1 - t0) / nsub
+
     def _cached(self, key: Hashable, h: float, make: Callable[[], Any]) -> Any:
-        """LRU cache of matrices by (key, h); ``h`` is compared exactly (it is exact: t1 - t0)."""
+        """LRU cache of matrices by (key, h); ``h`` is compared exactly."""
         k = (key, h)
         val = self._cache.pop(k, None)
         if val is None:
@@ -150,41 +223,76 @@ class _FixedStep(Integrator):
     def reset(self) -> None:
         self._cache.clear()
         self._n = -1
+        self.level = 0
 
+    def _prepare(self, system, t0: float, y0: np.ndarray) -> int:
+        """Per-call setup (Jacobians, linear part); returns the rhs calls it made."""
+        return 0
 
-class RK4(_FixedStep):
-    """Classic explicit fourth-order Runge–Kutta."""
-
-    name, order = "rk4", 4
-
-    def _buffers(self, n: int) -> None:
-        if n != self._n:
-            self._K = np.empty((4, n))
-            self._tmp = np.empty(n)
-            self._n = n
+    def _norm(self, err, y0, y1) -> float:
+        return error_norm(err, y0, y1, self.rtol, self.atol)
 
     def _advance(self, system, t0, y, t1):
-        nsub, h = self._nsub(t0, t1)
-        self._buffers(y.size)
+        nsub0, h0 = self._base(t0, t1)
+        nrhs = self._prepare(system, t0, y)
+        level, rejected = self.level, 0
+        while True:
+            nsub = nsub0 << level
+            h = h0 / (1 << level)
+            y1, norm, est, n, t_bad = self._substeps(system, t0, y, nsub, h)
+            nrhs += n
+            if norm <= 1.0:
+                break
+            rejected += 1
+            new = next_level(level, norm, self.q1)
+            if not norm < math.inf:
+                new = level + MAX_JUMP
+            if new > self.max_level:
+                if level < self.max_level:
+                    new = self.max_level               # try the budget's own limit once
+                else:
+                    raise self.refuse(t_bad, est, norm, h)
+            level = new
+        self.level = coarser_level(level, norm, self.q1)
+        return y1, StepStats(nsub, nrhs, est, norm, rejected, level)
+
+    @abstractmethod
+    def _substeps(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):
+        ...
+
+
+def _bad(norm: float) -> bool:
+    return not norm <= 1.0
+
+
+class RK4(_Controlled):
+    """Classic explicit RK4; embedded third-order estimate ``h/6 (k4 − k5)``, k5 = f(t+h, y1)
+    (first same as last: k5 is the next substep's k1)."""
+
+    name, order, q1 = "rk4", 4, 4
+
+    def _substeps(self, system, t0, y0, nsub, h):
         rhs = system.rhs
-        K = self._K
-        k1, k2, k3, k4 = K
-        tmp = self._tmp
-        hh = 0.5 * h
-        w = np.array([h / 6.0, h / 3.0, h / 3.0, h / 6.0])
-        mul, dot = np.multiply, np.dot
+        hh, h6 = 0.5 * h, h / 6.0
+        y = y0.copy()
+        k1 = np.array(rhs(t0, y), dtype=float)
+        nrhs, worst, est = 1, 0.0, 0.0
         for i in range(nsub):
             t = t0 + i * h
-            k1[:] = rhs(t, y)
-            mul(k1, hh, out=tmp); tmp += y
-            k2[:] = rhs(t + hh, tmp)
-            mul(k2, hh, out=tmp); tmp += y
-            k3[:] = rhs(t + hh, tmp)
-            mul(k3, h, out=tmp); tmp += y
-            k4[:] = rhs(t + h, tmp)
-            dot(w, K, out=tmp)
-            y += tmp
-        return y, StepStats(nsub, 4 * nsub, math.nan)
+            k2 = rhs(t + hh, y + hh * k1)
+            k3 = rhs(t + hh, y + hh * k2)
+            k4 = rhs(t + h, y + h * k3)
+            y1 = y + h6 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            k5 = np.array(rhs(t + h, y1), dtype=float)
+            nrhs += 4
+            err = h6 * (k4 - k5)
+            nrm = self._norm(err, y, y1)
+            est = max(est, float(np.abs(err).max()))
+            worst = max(worst, nrm) if nrm == nrm else math.nan
+            if _bad(nrm):
+                return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y, k1 = y1, k5
+        return y, worst, est, nrhs, t0
 
 
 def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
@@ -199,13 +307,75 @@ def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
     return [E[:n, k * n:(k + 1) * n] for k in range(p + 1)]
 
 
-class _ETD(_FixedStep):
+@njit(cache=True)
+def _matmul(A, B, out):
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 0.0
+        for k in range(n):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(n):
+                    out[i, j] += a * B[k, j]
+
+
+@njit(cache=True)
+def _expm_small(W):
+    """e^W for a small matrix: scaling and squaring (‖W/2^s‖₁ ≤ 1/8) with a Taylor polynomial
+    of degree 12 by Horner (truncation < 1e-17). Loops only, no BLAS (on a shared machine the
+    threaded BLAS costs more than it saves at n ≈ 20). The cost grows like log‖W‖, so a fast
+    rotor (large ‖hJ‖) costs only a few more squarings."""
+    n = W.shape[0]
+    norm = 0.0
+    for j in range(n):
+        c = 0.0
+        for i in range(n):
+            c += abs(W[i, j])
+        norm = max(norm, c)
+    s = 0
+    while norm > 0.125:
+        norm *= 0.5
+        s += 1
+    X = W * (0.5 ** s)
+    E = np.eye(n)
+    T = np.empty((n, n))
+    for k in range(12, 0, -1):          # E = I + X/k · E  (Horner)
+        _matmul(X, E, T)
+        for i in range(n):
+            for j in range(n):
+                E[i, j] = T[i, j] / k + (1.0 if i == j else 0.0)
+    for _ in range(s):
+        _matmul(E, E, T)
+        for i in range(n):
+            for j in range(n):
+                E[i, j] = T[i, j]
+    return E
+
+
+def _phi_apply(Z: np.ndarray, bs: list) -> np.ndarray:
+    """``Σ_j φ_j(Z) b_j`` (j = 1…p, ``bs = [b_1, …, b_p]``, None = 0) as the last column of the
+    exponential of the augmented matrix ``[[Z, B], [0, K]]`` of size n + p (Al-Mohy & Higham
+    2011, Thm 2.1; B = [b_p … b_1], K the shift)."""
+    n, p = Z.shape[0], len(bs)
+    W = np.zeros((n + p, n + p))
+    W[:n, :n] = Z
+    for j, b in enumerate(bs, start=1):
+        if b is not None:
+            W[:n, n + p - j] = b
+    for k in range(p - 1):
+        W[n + k, n + k + 1] = 1.0
+    return _expm_small(W)[:n, n + p - 1]
+
+
+class _ETD(_Controlled):
     """Explicit exponential Runge–Kutta method for ``f = A y + g`` (A from ``linear_part``).
 
     Stages ``U_i = e^{c_i hA} y + h Σ_j a_ij(hA) G_j``, ``G_j = g(t + c_j h, U_j)``, output
     ``e^{hA} y + h Σ_i b_i(hA) G_i``. Because ``h Σ_j a_ij A = e^{c_i hA} − I`` this is evaluated
     as ``U_i = y + Σ_j M_ij f_j`` with ``f_j = rhs(U_j)`` and matrices ``M`` precomputed per
-    (key, h): one matrix-vector product per stage, ``g`` is never formed.
+    (key, h): one matrix-vector product per stage, ``g`` is never formed. The last stage has
+    c = 1 and is a lower-order solution: ``err = y1 − U_last``.
     """
 
     uses_linear_part = True
@@ -235,47 +405,72 @@ class _ETD(_FixedStep):
             out.append(np.ascontiguousarray(np.hstack(Mi)))
         return out          # out[i-1]: n × i·n, for stage i (i < s) and the output (i = s)
 
-    def _advance(self, system, t0, y, t1):
+    def matrices(self, A: np.ndarray, key: Hashable, h: float) -> list[np.ndarray]:
+        """Stage matrices for step h (cached by (key, h))."""
+        return self._cached(key, h, lambda: self._make(self._check_A(A, A.shape[0]), h))
+
+    def _prepare(self, system, t0, y0):
         lp = getattr(system, "linear_part", None)
         if lp is None:
             raise TypeError(f"integrator {self.name!r} needs system.linear_part() -> (A, key)")
         A, key = lp()
-        nsub, h = self._grid_step(t0, t1)
-        n = y.size
-        Ms = self._cached(key, h, lambda: self._make(self._check_A(A, n), h))
-        s = len(self.c)
-        if n != self._n:
-            self._Kf = np.empty(s * n)
-            self._Kv = [self._Kf[j * n:(j + 1) * n] for j in range(s)]
-            self._Kp = [self._Kf[:j * n] for j in range(s + 1)]
-            self._U = np.empty(n)
-            self._n = n
-        Kv, Kp, U = self._Kv, self._Kp, self._U
-        rhs, dot = system.rhs, np.dot
-        ch = [ci * h for ci in self.c]
+        self._A, self._key = self._check_A(A, y0.size), key
+        return 0
+
+    #: estimate by the defect ``(h/3)(f(t+h, y1) − f(U) − A(y1 − U))`` (one more rhs, first same
+    #: as last; order h³ like the method's own error) instead of ``y1 − U``
+    defect = False
+
+    def _substeps(self, system, t0, y0, nsub, h):
+        Ms = self.matrices(self._A, self._key, h)
+        A = self._A
+        n, s = y0.size, len(self.c)
+        K = np.empty((s, n))
+        Kf = K.reshape(-1)
+        rhs = system.rhs
+        y = y0.copy()
+        worst = est = 0.0
+        nrhs = 0
+        have_k1 = False
         for i in range(nsub):
             t = t0 + i * h
-            Kv[0][:] = rhs(t, y)
+            if not have_k1:
+                K[0] = rhs(t, y)
+                nrhs += 1
+            U = y
             for j in range(1, s):
-                dot(Ms[j - 1], Kp[j], out=U)
-                U += y
-                Kv[j][:] = rhs(t + ch[j], U)
-            dot(Ms[s - 1], Kp[s], out=U)
-            y += U
-        return y, StepStats(nsub, s * nsub, math.nan)
+                U = y + Ms[j - 1] @ Kf[:j * n]
+                K[j] = rhs(t + self.c[j] * h, U)
+            nrhs += s - 1
+            y1 = y + Ms[s - 1] @ Kf
+            if self.defect:
+                k5 = np.asarray(rhs(t + h, y1), dtype=float)
+                nrhs += 1
+                err = h / 3.0 * (k5 - K[s - 1] - A @ (y1 - U))
+            else:
+                err = y1 - U
+            nrm = self._norm(err, y, y1)
+            est = max(est, float(np.abs(err).max()))
+            worst = max(worst, nrm)
+            if _bad(nrm):
+                return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y = y1
+            if self.defect:
+                K[0] = k5
+                have_k1 = True
+        return y, worst, est, nrhs, t0
 
     #: exponential steps are multiples of max_step / GRID, so a few matrices serve all steps
     GRID = 256
-    #: room for every grid step of one- and two-substep intervals (bounded by construction)
-    cache_size = 2 * GRID + 16
+    #: room for every grid step of one- and two-substep intervals and a few levels
+    cache_size = 4 * GRID + 64
 
-    def _grid_step(self, t0: float, t1: float) -> tuple[int, float]:
+    def _base(self, t0: float, t1: float) -> tuple[int, float]:
         """(nsub, h) with h on the grid q = max_step/GRID. Every new step size would need a new
         matrix exponential (~ms), and real sample times jitter, so the step is rounded to the
         grid and the rounding remainder is carried into the next call: the state lags the
         requested time by at most nsub·q/2 (2 µs per substep at max_step = 1 ms) and the lag
-        never grows.
-        Uniform sampling at max_step is exact (h = max_step, no remainder)."""
+        never grows. Uniform sampling at max_step is exact (h = max_step, no remainder)."""
         dt = (t1 - t0) + self._carry
         q = self.max_step / self.GRID
         nsub = max(1, math.ceil(dt / self.max_step - 1e-9))
@@ -289,6 +484,14 @@ class _ETD(_FixedStep):
 
     _carry = 0.0
 
+    def _advance(self, system, t0, y, t1):
+        carry = self._carry
+        try:
+            return super()._advance(system, t0, y, t1)
+        except SimulationError:
+            self._carry = carry              # the interval was not done: its remainder neither
+            raise
+
     def _check_A(self, A, n: int) -> np.ndarray:
         A = np.asarray(A, dtype=float)
         if A.shape != (n, n):
@@ -297,9 +500,10 @@ class _ETD(_FixedStep):
 
 
 class ETD2(_ETD):
-    """ETD2RK (Cox & Matthews 2002): order 2, exact for constant g."""
+    """ETD2RK (Cox & Matthews 2002): order 2, exact for constant g (and for g linear in t);
+    estimate by the defect of the FSAL stage (order h³)."""
 
-    name, order, c = "etd2", 2, (0.0, 1.0)
+    name, order, q1, c, defect = "etd2", 2, 3, (0.0, 1.0), True
 
     @staticmethod
     def _tableau(A, h):
@@ -308,9 +512,10 @@ class ETD2(_ETD):
 
 
 class ETD4(_ETD):
-    """ETDRK4 of Krogstad (2005): classical order 4, stiff order 3, exact for constant g."""
+    """ETDRK4 of Krogstad (2005): classical order 4, stiff order 3, exact for constant g;
+    estimate against its fourth stage (c = 1, order 2)."""
 
-    name, order, c = "etd4", 4, (0.0, 0.5, 0.5, 1.0)
+    name, order, q1, c = "etd4", 4, 3, (0.0, 0.5, 0.5, 1.0)
 
     @staticmethod
     def _tableau(A, h):
@@ -324,103 +529,145 @@ class ETD4(_ETD):
         return a, b
 
 
-class ImplicitMidpoint(_FixedStep):
-    """Implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)``.
+def _jacobian(system, t: float, y: np.ndarray) -> tuple[np.ndarray, int]:
+    """(∂f/∂y, rhs calls): ``system.jacobian`` if it has one, else forward differences."""
+    jac = getattr(system, "jacobian", None)
+    if jac is not None:
+        return np.asarray(jac(t, y), dtype=float), 0
+    return _fd_jacobian(system.rhs, t, y), y.size
 
-    The midpoint stage ``Y = y0 + (h/2) f(t + h/2, Y)`` is solved by simplified Newton with the
-    matrix ``(I − h/2 J)⁻¹`` (J: ``system.jacobian`` at (t0, y0) per call, else ``linear_part``
-    A cached by (key, h), else a forward-difference Jacobian per call), until the increment, or
-    the remainder estimated from the contraction rate, is ≤ 2 eps·‖Y‖₂ (or the iteration has
-    stalled within 100× that, i.e. at round-off). Then quadratic invariants drift by round-off
-    only. If Newton fails within 10 iterations the substep is halved for the rest of the
-    call (``StepStats.n_halvings``); after 12 halvings ``SimulationError`` is raised.
+
+class ExpRosenbrock(_Controlled):
+    """exprb32 (Hochbruck, Ostermann & Schweitzer 2009), re-linearised at every substep.
+
+    With ``J = ∂f/∂y`` and ``v = ∂f/∂t`` at (t, y): ``U = y + hφ1(hJ) f + h²φ2(hJ) v``,
+    ``D = f(t+h, U) − f − J(U − y) − h v``, ``y1 = U + 2hφ3(hJ) D`` (order 3); the embedded
+    solution is U (exponential Rosenbrock–Euler, order 2), so ``err = 2hφ3(hJ) D``. The linear
+    part of the motion at the current state, however fast (nutation at any spin), is integrated
+    exactly; only the change of the Jacobian over a step is approximated."""
+
+    name, order, q1 = "exprb", 3, 3
+
+    def _substeps(self, system, t0, y0, nsub, h):
+        rhs = system.rhs
+        y = y0.copy()
+        worst = est = 0.0
+        nrhs = 0
+        dt = 1e-3 * h
+        for i in range(nsub):
+            t = t0 + i * h
+            f0 = np.array(rhs(t, y), dtype=float)
+            J, nj = _jacobian(system, t, y)
+            v = (np.asarray(rhs(t + dt, y)) - np.asarray(rhs(t - dt, y))) / (2.0 * dt)
+            nrhs += 3 + nj
+            Z = h * J
+            U = y + _phi_apply(Z, [h * f0, h * h * v])
+            D = np.asarray(rhs(t + h, U)) - f0 - J @ (U - y) - h * v
+            nrhs += 1
+            err = _phi_apply(Z, [None, None, 2.0 * h * D])
+            y1 = U + err
+            nrm = self._norm(err, y, y1)
+            est = max(est, float(np.abs(err).max()))
+            worst = max(worst, nrm)
+            if _bad(nrm):
+                return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y = y1
+        return y, worst, est, nrhs, t0
+
+
+class ImplicitMidpoint(_Controlled):
+    """Implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)``, by step doubling.
+
+    Each substep is taken once with h and twice with h/2; the two half steps are kept (so the
+    map stays a composition of midpoint steps: symplectic, quadratic invariants to round-off)
+    and ``err = (y_½½ − y_1)/3``. The midpoint stage ``Y = y0 + (h/2) f(t + h/2, Y)`` is solved by
+    simplified Newton with ``(I − h/2 J)⁻¹`` (J: ``system.jacobian`` at (t0, y0) per call, else
+    ``linear_part`` A cached by (key, h), else a forward-difference Jacobian per call), until
+    the increment, or the remainder estimated from the contraction rate, is ≤ 2 eps·‖Y‖₂ (or the
+    iteration has stalled within 100× that). A stage that does not converge in 10 iterations
+    rejects the interval (it is redone with smaller substeps).
     """
 
     uses_linear_part = True
 
-    name, order = "implicit_midpoint", 2
+    name, order, q1 = "implicit_midpoint", 2, 3
 
-    def _advance(self, system, t0, y, t1):
-        n = y.size
-        if n != self._n:
-            self._Y = np.empty(n)
-            self._r = np.empty(n)
-            self._d = np.empty(n)
-            self._fp = np.zeros(n)              # last f: predictor Y ≈ y + (h/2) f
-            self._n = n
-        Y, r, d, fp = self._Y, self._r, self._d, self._fp
-        rhs, dot, mul, sqrt = system.rhs, np.dot, np.multiply, math.sqrt
-        nrhs = 0
+    def _prepare(self, system, t0, y0):
         jac = getattr(system, "jacobian", None)
         lp = getattr(system, "linear_part", None)
+        nrhs = 0
         if jac is not None:
-            J, key = np.asarray(jac(t0, y), dtype=float), None
+            self._J, self._key = np.asarray(jac(t0, y0), dtype=float), None
         elif lp is not None:
-            J, key = lp()
-            J = np.asarray(J, dtype=float)
+            J, self._key = lp()
+            self._J = np.asarray(J, dtype=float)
         else:
-            J, key = _fd_jacobian(rhs, t0, y), None
-            nrhs += n
+            self._J, self._key = _fd_jacobian(system.rhs, t0, y0), None
+            nrhs = y0.size
+        self._call_cache: dict[float, np.ndarray] = {}
+        return nrhs
 
-        def newton_matrix(h):
-            make = lambda: _inv(np.eye(n) - 0.5 * h * J)
-            return make() if key is None else self._cached(key, h, make)
+    def _newton_matrix(self, h: float) -> np.ndarray:
+        J, key, n = self._J, self._key, self._J.shape[0]
+        make = lambda: _inv(np.eye(n) - 0.5 * h * J)
+        if key is not None:
+            return self._cached(key, h, make)
+        M = self._call_cache.get(h)
+        if M is None:
+            M = self._call_cache[h] = make()
+        return M
 
-        nsub, h = self._nsub(t0, t1)
-        Minv = newton_matrix(h)
-        t, i, steps, halvings = t0, 0, 0, 0
-        while i < nsub:
-            tm = t + (i + 0.5) * h
-            hh = 0.5 * h
-            mul(fp, hh, out=Y)
-            Y += y
-            dprev = math.inf
-            ok = nonfinite = False
-            for _ in range(_NEWTON_MAXITER):
-                f = rhs(tm, Y)
-                nrhs += 1
-                np.subtract(Y, y, out=r)
-                mul(f, hh, out=d)
-                r -= d                          # residual of Y − y − (h/2) f(Y)
-                dot(Minv, r, out=d)
-                Y -= d
-                dn = sqrt(dot(d, d))
-                tol = _NEWTON_TOL * sqrt(dot(Y, Y))
-                if dn <= tol:
-                    ok = True
-                    break
-                if not math.isfinite(dn):
-                    nonfinite = True
-                    break
-                if dprev < math.inf:
-                    theta = dn / dprev          # contraction rate of the simplified Newton
-                    if theta < 1.0 and theta * dn <= (1.0 - theta) * tol:
-                        ok = True               # estimated remaining error is below tol
-                        break
-                    if theta >= 0.5 and dn <= 100.0 * tol:
-                        ok = True               # no longer contracting: at round-off level
-                        break
-                dprev = dn
-            else:
-                ok = not nonfinite and dn <= 100.0 * tol    # out of iterations at round-off level
-            if ok:
-                fp[:] = f
-                mul(Y, 2.0, out=r)
-                np.subtract(r, y, out=y)        # y1 = 2Y − y0
-                i += 1
-                steps += 1
-                continue
-            fp[:] = 0.0
-            halvings += 1
-            if halvings > _MAX_HALVINGS:
-                why = "non-finite state" if nonfinite else "Newton iteration did not converge"
-                raise SimulationError(f"{why} in {self.name} step at t={t + i * h!r} "
-                                      f"even with h={h!r} s")
-            t = t + i * h                       # restart the rest of the interval at h/2
-            nsub, i = 2 * (nsub - i), 0
-            h = (t1 - t) / nsub
-            Minv = newton_matrix(h)
-        return y, StepStats(steps, nrhs, math.nan, halvings)
+    def _stage(self, rhs, t: float, y: np.ndarray, h: float, fp: np.ndarray):
+        """One midpoint step; returns (y1, f at the midpoint, rhs calls) or (None, None, calls)."""
+        Minv = self._newton_matrix(h)
+        hh = 0.5 * h
+        Y = y + hh * fp
+        tm = t + hh
+        dprev = math.inf
+        dot, sqrt = np.dot, math.sqrt
+        for it in range(_NEWTON_MAXITER):
+            f = np.asarray(rhs(tm, Y))
+            d = Minv @ (Y - y - hh * f)
+            Y = Y - d
+            dn = sqrt(dot(d, d))
+            tol = _NEWTON_TOL * sqrt(dot(Y, Y))
+            if not math.isfinite(dn):
+                return None, None, it + 1
+            if dn <= tol:
+                return 2.0 * Y - y, f, it + 1
+            if dprev < math.inf:
+                theta = dn / dprev              # contraction rate of the simplified Newton
+                if theta < 1.0 and theta * dn <= (1.0 - theta) * tol:
+                    return 2.0 * Y - y, f, it + 1
+                if theta >= 0.5 and dn <= 100.0 * tol:
+                    return 2.0 * Y - y, f, it + 1
+            dprev = dn
+        if dn <= 100.0 * tol:
+            return 2.0 * Y - y, f, _NEWTON_MAXITER
+        return None, None, _NEWTON_MAXITER
+
+    def _substeps(self, system, t0, y0, nsub, h):
+        rhs = system.rhs
+        y = y0.copy()
+        fp = np.zeros_like(y)
+        worst = est = 0.0
+        nrhs = 0
+        for i in range(nsub):
+            t = t0 + i * h
+            y_full, _, n1 = self._stage(rhs, t, y, h, fp)
+            ya, fa, n2 = self._stage(rhs, t, y, 0.5 * h, fp) if y_full is not None else (None, None, 0)
+            yb, fb, n3 = self._stage(rhs, t + 0.5 * h, ya, 0.5 * h, fa) if ya is not None else (None, None, 0)
+            nrhs += n1 + n2 + n3
+            if yb is None:
+                return y, math.inf, math.nan, nrhs, t
+            err = (yb - y_full) / 3.0
+            nrm = self._norm(err, y, yb)
+            est = max(est, float(np.abs(err).max()))
+            worst = max(worst, nrm)
+            if _bad(nrm):
+                return yb, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y, fp = yb, fb
+        return y, worst, est, nrhs, t0
 
 
 def _inv(M: np.ndarray) -> np.ndarray:
@@ -450,15 +697,15 @@ class _Scipy(Integrator):
     """Adaptive method through scipy's ``OdeSolver`` step API, one solver per call.
 
     The step size proposed at the end of a call is the first step of the next call (warm
-    start); a last step shortened to hit ``t1`` does not shrink it. Steps never pass ``t1``
-    and are otherwise chosen by the tolerances only (``max_step`` applies to fixed-step methods).
+    start); a last step shortened to hit ``t1`` does not shrink it. Steps never pass ``t1`` or
+    ``max_step``; a proposed step below ``max_step / max_substeps`` is refused.
     """
 
-    adaptive = True
     solver_cls: type = scipy.integrate.OdeSolver
 
-    def __init__(self, rtol: float, atol: float) -> None:
-        self.rtol, self.atol = float(rtol), float(atol)
+    def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
+                 max_substeps: int = MAX_SUBSTEPS) -> None:
+        super().__init__(max_step, rtol, atol, max_substeps)
         self._h: float | None = None
 
     def reset(self) -> None:
@@ -467,19 +714,23 @@ class _Scipy(Integrator):
     def _solver_kwargs(self, system) -> dict:
         return {}
 
-    def _error_estimate(self, solver) -> float:
-        try:
-            err = solver._estimate_error(solver.K, solver.h_previous)
-            return float(np.abs(err).max())
+    def _estimates(self, solver) -> tuple[float, float]:
+        """(max-norm error estimate, weighted norm) of the step just accepted."""
+        scale = self.atol + self.rtol * np.maximum(np.abs(solver.y_old), np.abs(solver.y))
+        try:       # the norm scipy accepted the step with (DOP853 blends its 5th/3rd-order estimates)
+            nrm = float(solver._estimate_error_norm(solver.K, solver.h_previous, scale))
         except (AttributeError, TypeError):
-            return math.nan
+            return math.nan, math.nan
+        return nrm * float(np.max(scale)), nrm
 
     def _advance(self, system, t0, y, t1):
         h = self._h
-        solver = self.solver_cls(system.rhs, t0, y, t1, rtol=self.rtol, atol=self.atol,
-                                 first_step=None if h is None else min(h, t1 - t0),
-                                 **self._solver_kwargs(system))
+        h = None if h is None else min(h, t1 - t0, self.max_step)
+        solver = self.solver_cls(system.rhs, t0, y, t1, rtol=self.rtol, atol=self.atol, first_step=h,
+                                 max_step=self.max_step, **self._solver_kwargs(system))
         steps = 0
+        est = worst = 0.0
+        h_min = self.max_step / self.max_substeps
         proposal = solver.h_abs if h is None else max(h, solver.h_abs)
         while solver.status == "running":
             t_before = solver.t
@@ -488,14 +739,19 @@ class _Scipy(Integrator):
                 raise SimulationError(f"{self.name} failed at t={float(solver.t)!r}: {msg} "
                                       "(non-finite or too stiff right-hand side?)")
             steps += 1
+            e, nrm = self._estimates(solver)
+            est, worst = max(est, e), max(worst, nrm)
             if solver.t == t1 and proposal > t1 - t_before:
                 # last step cut short to t1 (and so accepted at its first try): do not let
                 # the short step shrink the proposal
                 self._h = max(proposal, solver.h_abs)
             else:
                 self._h = solver.h_abs
+                if solver.status == "running" and solver.h_abs < h_min:
+                    raise self.refuse(float(solver.t), e, nrm if nrm == nrm else 1.0, solver.h_abs,
+                                      " (its step collapsed: non-finite or too stiff right-hand side?)")
             proposal = solver.h_abs
-        return solver.y, StepStats(steps, solver.nfev, self._error_estimate(solver))
+        return solver.y, StepStats(steps, solver.nfev, est, worst)
 
 
 class DOP853(_Scipy):
@@ -512,7 +768,8 @@ class RK45(_Scipy):
 
 class Radau(_Scipy):
     """Radau IIA order 5 (scipy ``Radau``); Jacobian from ``system.jacobian``, else the constant
-    ``linear_part`` A, else scipy's finite differences. No error estimate is exposed (nan)."""
+    ``linear_part`` A, else scipy's finite differences. scipy keeps its error estimate to itself:
+    the reported estimate is the acceptance bound (norm 1, ``atol + rtol·|y|``)."""
 
     uses_linear_part = True
 
@@ -524,42 +781,83 @@ class Radau(_Scipy):
             jac = np.asarray(system.linear_part()[0], dtype=float)
         return {"jac": jac}
 
-    def _error_estimate(self, solver) -> float:
-        return math.nan
+    def _estimates(self, solver) -> tuple[float, float]:
+        return float(np.max(self.atol + self.rtol * np.abs(solver.y))), 1.0
+
+
+class Auto(Integrator):
+    """``auto``: a cheap primary method (compiled batch path); an interval it cannot bring within
+    the tolerance within the budget is done by the fallback (exprb, re-linearised at every
+    step), and so are the next ``AUTO_STICKY`` intervals (the hard stretch usually lasts), then
+    the primary is tried again. Both honour rtol/atol."""
+
+    def __init__(self, primary: "_Controlled", fallback: Integrator) -> None:
+        super().__init__(fallback.max_step, fallback.rtol, fallback.atol, fallback.max_substeps)
+        self.primary, self.fallback = primary, fallback
+        self.name = f"auto:{primary.name}+{fallback.name}"
+        self.order = primary.order
+        self.uses_linear_part = primary.uses_linear_part
+        self.n_fallback = 0
+        self.sticky = 0
+
+    def _advance(self, system, t0, y, t1):
+        if self.sticky == 0:
+            try:
+                return self.primary._advance(system, t0, y.copy(), t1)
+            except ToleranceError:
+                self.sticky = AUTO_STICKY
+        self.sticky -= 1
+        self.n_fallback += 1
+        if hasattr(self.primary, "_carry"):
+            self.primary._carry = 0.0          # the fallback reaches t1 exactly
+        return self.fallback._advance(system, t0, y, t1)
+
+    def reset(self) -> None:
+        self.primary.reset()
+        self.fallback.reset()
+        self.n_fallback = 0
+        self.sticky = 0
+
+
+#: intervals auto gives to its fallback after the primary refused one
+AUTO_STICKY = 100
 
 
 # --------------------------------------------------------------------------- registry
 
 INTEGRATORS: dict[str, str] = {
-    "rk4": "classic explicit Runge-Kutta 4, fixed step max_step (stable only for h*|lambda| <= 2.8)",
+    "rk4": "classic explicit Runge-Kutta 4 with embedded 3rd-order estimate, substeps to rtol/atol "
+           "(explicit: needs h*|lambda| < 2.8)",
     "dop853": "Dormand-Prince 8(5,3), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
     "rk45": "Dormand-Prince 5(4), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
     "radau": "Radau IIA order 5, implicit adaptive (rtol/atol), for stiff damped systems",
-    "implicit_midpoint": "implicit midpoint, fixed step, A-stable, symplectic, keeps quadratic invariants",
-    "etd2": "exponential ETD2RK (Cox-Matthews), fixed step, needs linear_part; exact for linear + const input",
-    "etd4": "exponential ETDRK4 (Krogstad), fixed step, needs linear_part; exact for linear + const input",
+    "implicit_midpoint": "implicit midpoint, step doubling to rtol/atol, A-stable, symplectic, keeps quadratic invariants",
+    "etd2": "exponential ETD2RK (Cox-Matthews) about the rest state, embedded estimate, substeps to rtol/atol",
+    "etd4": "exponential ETDRK4 (Krogstad) about the rest state, embedded estimate, substeps to rtol/atol",
+    "exprb": "exponential Rosenbrock exprb32, re-linearised every step, embedded estimate; large angles, fast rotors",
 }
 
 _CLASSES: dict[str, type[Integrator]] = {
     "rk4": RK4, "dop853": DOP853, "rk45": RK45, "radau": Radau,
-    "implicit_midpoint": ImplicitMidpoint, "etd2": ETD2, "etd4": ETD4,
+    "implicit_midpoint": ImplicitMidpoint, "etd2": ETD2, "etd4": ETD4, "exprb": ExpRosenbrock,
 }
 
 
 def make_integrator(name: str, *, max_step: float = 1e-3, rtol: float = 1e-8,
-                    atol: float = 1e-12) -> Integrator:
+                    atol: float = 1e-12, max_substeps: int = MAX_SUBSTEPS) -> Integrator:
     """A new integrator by name (see ``INTEGRATORS``).
 
-    ``max_step`` (s): substep bound of the fixed-step methods; ``rtol``, ``atol`` (state units):
-    tolerances of the adaptive methods. Raises ``ValueError`` for an unknown name or bad values.
+    ``max_step`` (s): step bound; ``rtol``, ``atol`` (state units): local error tolerance;
+    ``max_substeps``: budget (shortest step ``max_step/max_substeps``). Raises ``ValueError``
+    for an unknown name or bad values.
     """
     cls = _CLASSES.get(name)
     if cls is None:
         raise ValueError(f"unknown integrator {name!r}; known: {', '.join(INTEGRATORS)}")
-    if issubclass(cls, _FixedStep):
-        if not (0.0 < max_step < math.inf):
-            raise ValueError(f"{name}: max_step must be a positive finite time in s, got {max_step!r}")
-        return cls(max_step)
+    if not (0.0 < max_step < math.inf):
+        raise ValueError(f"{name}: max_step must be a positive finite time in s, got {max_step!r}")
     if not (rtol > 0.0 and atol > 0.0):
         raise ValueError(f"{name}: rtol and atol must be positive, got {rtol!r}, {atol!r}")
-    return cls(rtol, atol)
+    if not (int(max_substeps) >= 1):
+        raise ValueError(f"{name}: max_substeps must be ≥ 1, got {max_substeps!r}")
+    return cls(max_step, rtol, atol, int(max_substeps))

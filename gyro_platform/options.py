@@ -50,7 +50,10 @@ class ModelOptions:
     """``mode``: carried | stabilised; ``fidelity``: full | linear | precession;
     ``effects``: names from ``EFFECTS``; ``integrator``: a name from ``integrators`` or
     ``auto``; ``max_step`` (s): the largest internal step of a fixed-step integrator;
-    ``rtol``/``atol``: tolerances of adaptive integrators."""
+    ``rtol``/``atol``: the local error tolerance every integrator is held to (weighted RMS
+    norm of its error estimate ≤ 1, scale ``atol + rtol·|y|``; state units: rad, rad/s, …);
+    ``max_substeps``: budget, no step shorter than ``max_step / max_substeps`` (a method that
+    cannot meet the tolerance with it raises ``SimulationError``)."""
 
     mode: str = "stabilised"
     fidelity: str = DEFAULT_FIDELITY["stabilised"]
@@ -59,6 +62,7 @@ class ModelOptions:
     max_step: float = 1e-3
     rtol: float = 1e-8
     atol: float = 1e-12
+    max_substeps: int = 4096
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -75,6 +79,8 @@ class ModelOptions:
             raise OptionsError(f"option 'max_step' = {self.max_step} s; allowed (0, 1]")
         if not (0.0 < self.rtol < 1.0) or not (0.0 < self.atol < 1.0):
             raise OptionsError("options 'rtol' and 'atol' must lie in (0, 1)")
+        if not (isinstance(self.max_substeps, int) and 1 <= self.max_substeps <= 2 ** 24):
+            raise OptionsError(f"option 'max_substeps' = {self.max_substeps!r}; allowed: an integer in [1, 2^24]")
         object.__setattr__(self, "effects", eff)
 
     def has(self, effect: str) -> bool:

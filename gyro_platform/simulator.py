@@ -13,9 +13,9 @@ import math
 import numpy as np
 
 from . import effects as fx
-from .errors import GimbalLockError, InputError, SimulationError
+from .errors import GimbalLockError, InputError, SimulationError, ToleranceError
 from .inputs import RateSample
-from .integrators import Integrator, make_integrator
+from .integrators import Auto, Integrator, make_integrator
 from .model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
 from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
 from .outputs import Outputs
@@ -24,11 +24,19 @@ from .system import PRECESSION, PlatformSystem
 from .rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
 from .tree import TreeWork, tree_inverse_dynamics
 
-#: ``integrator: auto`` takes RK4 (4th order, the cheapest per step) where it is stable with
-#: margin at the step, i.e. the fastest mode λ of the model satisfies h·λ < AUTO_RK4_LIMIT
-#: (RK4's stability boundary is 2.8 on the imaginary axis); otherwise the exponential
-#: integrator etd2, which is stable at any step. See README "Integrators" and ``bench``.
+#: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
+#: step (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
+#: tolerance is tight enough that its numerical damping of the nutation stays negligible
+#: (rtol ≤ AUTO_RK4_MAX_RTOL); otherwise etd2, which integrates the gyroscopic linear part
+#: exactly at any spin. Intervals the primary cannot bring within tolerance go to exprb.
 AUTO_RK4_LIMIT = 1.5
+AUTO_RK4_MAX_RTOL = 1e-6
+#: below this rtol an excited nutation costs RK4 ≥ 1/(24 rtol)^¼·ωh ≈ 100 substeps per 1 ms
+#: sample at ×1: etd2 (exact on the nutation) is cheaper
+AUTO_RK4_MIN_RTOL = 1e-9
+#: below this rtol auto's exponential method is etd4 (order 4: its error falls much faster
+#: with the step than etd2's, and it keeps invariants to 1e-10 over 1000 nutation periods)
+AUTO_ETD4_BELOW = 1e-9
 
 
 def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
@@ -52,11 +60,30 @@ def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
     return max(rates)
 
 
+def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
+    """The method ``auto`` steps with: the cheaper one that reaches the tolerance without
+    damping the nutation.
+
+    RK4 (compiled, 4 right-hand sides per step) is the cheapest per step and its substeps
+    follow what the motion excites; but it must resolve the fastest mode λ for stability
+    (h·λ < 2.8), and it damps a nutation ω by ≈ (hω)⁶/72 per step. Held to rtol its local error
+    (hω)⁴/24 ≤ rtol gives hω ≤ (24 rtol)^¼, i.e. a T2 loss ≤ 1000·2π(hω)⁵/72 ≤ 1e-4 over 1000
+    nutation periods for rtol ≤ 1e-6; below rtol 1e-9 resolving an excited nutation costs RK4
+    more than etd2. Beyond the stability limit (fast rotors), at looser or at tighter tolerance:
+    etd2 (exact on the gyroscopic linear part, cost independent of the spin), etd4 below
+    rtol 1e-9 (fourth order: fewer substeps at tight tolerance)."""
+    if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT
+            and AUTO_RK4_MIN_RTOL <= options.rtol <= AUTO_RK4_MAX_RTOL):
+        return "rk4"
+    return "etd2" if options.rtol >= AUTO_ETD4_BELOW else "etd4"
+
+
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
-    name = options.integrator
-    if name == "auto":
-        name = "rk4" if fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT else "etd2"
-    return make_integrator(name, max_step=options.max_step, rtol=options.rtol, atol=options.atol)
+    """The integrator of ``options`` (``auto``: ``Auto(auto_primary(...), exprb)``)."""
+    kw = dict(max_step=options.max_step, rtol=options.rtol, atol=options.atol, max_substeps=options.max_substeps)
+    if options.integrator == "auto":
+        return Auto(make_integrator(auto_primary(options, params), **kw), make_integrator("exprb", **kw))
+    return make_integrator(options.integrator, **kw)
 
 
 class Simulator:
@@ -86,6 +113,8 @@ class Simulator:
         self.n_samples = 0
         self.n_steps = 0
         self.max_error_estimate = 0.0
+        self.max_error_norm = 0.0
+        self.n_rejected = 0
         self.integrator.reset()
         st = self.layout
         if self.system.stabilised and self.options.has("earth_rate"):
@@ -99,8 +128,27 @@ class Simulator:
 
     @property
     def stats(self) -> dict:
+        """Work and achieved accuracy of the run so far.
+
+        ``integrator``: method name (``auto:<primary>+exprb`` for auto); ``n_samples``,
+        ``n_steps`` (accepted substeps), ``n_rhs``; ``max_error_estimate``: the largest local
+        error estimate of any accepted step (max-norm over the state, state units: rad, rad/s;
+        the quantity the tolerance limits); ``max_error_norm``: the largest weighted norm of
+        those estimates (≤ 1: every step met rtol/atol); ``n_rejected``: rejected (redone)
+        intervals/steps; ``rtol``, ``atol``: the tolerance asked; ``n_fallback``: intervals
+        auto handed to exprb (0 otherwise)."""
         return {"integrator": self.integrator.name, "n_samples": self.n_samples, "n_steps": self.n_steps,
-                "n_rhs": self.system.n_rhs, "max_error_estimate": self.max_error_estimate}
+                "n_rhs": self.system.n_rhs, "max_error_estimate": self.max_error_estimate,
+                "max_error_norm": self.max_error_norm, "n_rejected": self.n_rejected,
+                "rtol": self.integrator.rtol, "atol": self.integrator.atol,
+                "n_fallback": getattr(self.integrator, "n_fallback", 0)}
+
+    def _account(self, est: float, norm: float, rejected: int) -> None:
+        if est == est:
+            self.max_error_estimate = max(self.max_error_estimate, float(est))
+        if norm == norm:
+            self.max_error_norm = max(self.max_error_norm, float(norm))
+        self.n_rejected += int(rejected)
 
     def _first(self, s: RateSample) -> None:
         self.t_start = s.t
@@ -128,15 +176,30 @@ class Simulator:
         t1 = sample.t - self.t_start
         if not t1 > self.t_rel:
             raise InputError(f"sample time {sample.t!r} is not after the last one ({self.t!r})")
+        integ = self.integrator
+        stepper = integ.primary if isinstance(integ, Auto) else integ
+        if stepper.name == "rk4" and getattr(integ, "sticky", 0) <= 0:
+            # RK4 needs no per-step matrices: the compiled loop serves single samples too (the
+            # same steps as push_many, and fast when the tolerance asks for many substeps)
+            f = sample.specific_force
+            self._push_many(np.array([sample.t]), np.asarray(sample.omega, float).reshape(1, 3),
+                            np.zeros((1, 3)) if f is None else np.asarray(f, float).reshape(1, 3), f is not None,
+                            0, [])
+            return
+        self._push_python(sample, t1)
+
+    def _push_python(self, sample: RateSample, t1: float) -> None:
+        """One sample through ``integrator.advance`` (Python)."""
         last = self._last
         self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
                               sample.specific_force)
-        if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
-            self.system.update_regime(self.y)
         try:
+            if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
+                self.system.update_regime(self.y)
             y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
-        except (FloatingPointError, np.linalg.LinAlgError) as e:
-            raise SimulationError(f"integration failed at t = {sample.t}: {e}") from e
+        except (ArithmeticError, np.linalg.LinAlgError) as e:   # ZeroDivisionError, FloatingPointError
+            raise SimulationError(f"integration failed at t = {sample.t}: {type(e).__name__}: {e}; "
+                                  f"state kept at t = {self.t}") from e
         if not np.all(np.isfinite(y1)):
             raise SimulationError(f"non-finite state after the step to t = {sample.t}; state kept at t = {self.t}")
         st = self.layout
@@ -148,16 +211,19 @@ class Simulator:
         self._last = sample
         self.n_samples += 1
         self.n_steps += stats.n_steps
-        if stats.error_estimate == stats.error_estimate:  # not nan
-            self.max_error_estimate = max(self.max_error_estimate, float(stats.error_estimate))
+        self._account(stats.error_estimate, stats.error_norm, stats.n_rejected)
 
     def push_many(self, t, omega, specific_force=None, output_every: int = 0) -> list[Outputs]:
         """Push many samples at once (arrays: t (N,) s, omega (N, 3) rad/s, specific_force
         (N, 3) m/s² or None); returns the outputs after every ``output_every``-th sample (0:
-        none). Uses the compiled batch loop (``fastpath``) when the integrator has one and the
-        steps are uniform (exponential methods); otherwise pushes one by one. Same results as
-        ``push``. Raises ``InputError`` before touching the state if any sample is bad."""
-        from .fastpath import NEED_REGIME, RegimeMatrices, run_batch, stage_matrices
+        none). Uses the compiled batch loop (``fastpath``) for rk4/etd2/etd4 (and auto's
+        primary) when the sample intervals are uniform; otherwise pushes one by one. Same
+        results and the same errors as ``push``.
+
+        Raises ``InputError`` before touching the state if any sample is bad. If the
+        integration fails at some sample, the ``SimulationError`` (``GimbalLockError``,
+        ``ToleranceError``, …) is raised with the state at the last good sample and the
+        outputs computed before the failure in its ``outputs`` attribute."""
         t = np.asarray(t, dtype=float).reshape(-1)
         w = np.ascontiguousarray(np.asarray(omega, dtype=float).reshape(-1, 3))
         has_f = specific_force is not None
@@ -170,80 +236,142 @@ class Simulator:
             raise InputError(f"non-finite sample at index {bad}")
         if self.needs_f and not has_f:
             raise InputError("these effects need the specific force, which the samples do not carry")
+        if self._last is not None and len(t):
+            d = np.diff(np.concatenate([[self.t], t]))
+            if np.any(d <= 0):
+                bad = int(np.argmax(d <= 0))
+                raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
+        elif len(t) > 1 and np.any(np.diff(t) <= 0):
+            bad = int(np.argmax(np.diff(t) <= 0)) + 1
+            raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
         outs: list[Outputs] = []
+        try:
+            self._push_many(t, w, fB, has_f, output_every, outs)
+        except SimulationError as e:
+            e.outputs = outs
+            raise
+        return outs
+
+    def _sample(self, t, w, fB, has_f, i) -> RateSample:
+        return RateSample(float(t[i]), w[i].copy(), fB[i].copy() if has_f else None)
+
+    def _push_many(self, t, w, fB, has_f, output_every, outs) -> None:
+        from .fastpath import (COMPILED, I_EBAD, I_EST, I_H, I_NBAD, I_NORM, I_REJ, I_STEPS, I_T, N_INFO,
+                               NEED_REGIME, ST_LOCK, ST_NOT_PD, ST_TOLERANCE, RegimeMatrices, run_batch)
         if len(t) == 0:
-            return outs
+            return
         start = 0
         if self._last is None:
-            self.push(RateSample(float(t[0]), w[0].copy(), fB[0].copy() if has_f else None))
+            self.push(self._sample(t, w, fB, has_f, 0))
             start = 1
             if output_every:
                 outs.append(self.outputs())
-        prev = self._last
         t_rel = np.concatenate([[self.t_rel], t[start:] - self.t_start])
-        if np.any(np.diff(t_rel) <= 0):
-            bad = int(np.argmax(np.diff(t_rel) <= 0)) + start
-            raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
-        W = np.vstack([prev.omega[None, :], w[start:]])
-        Fm = np.vstack([(prev.specific_force if prev.specific_force is not None else np.zeros(3))[None, :],
-                        fB[start:]])
+        W = np.vstack([self._last.omega[None, :], w[start:]])
+        prev_f = self._last.specific_force
+        Fm = np.vstack([(prev_f if prev_f is not None else np.zeros(3))[None, :], fB[start:]])
         sys_ = self.system
+        integ = self.integrator
+        auto = isinstance(integ, Auto)
+        stepper = integ.primary if auto else integ
         h_max = self.options.max_step
         dts = np.diff(t_rel)
+        if len(dts) == 0:
+            return
         nsub = np.maximum(1, np.ceil(dts / h_max - 1e-9))
         hs = dts / nsub
-        try:
-            method, c = stage_matrices(self.integrator, sys_, float(hs[0]))[0::2]
-            uniform = method == 0 or np.max(np.abs(hs - hs[0])) <= 1e-9 * hs[0]
-        except ValueError:
-            uniform = False
+        method = COMPILED.get(stepper.name)
+        uniform = method is not None and (method == 0 or np.max(np.abs(hs - hs[0])) <= 1e-9 * hs[0])
+
+        def emit(i: int) -> bool:                 # i: index into t_rel (sample index i − 1 + start)
+            return bool(output_every) and ((i - 1 + start) % output_every == 0)
+
         if not uniform:
-            for i in range(start, len(t)):
-                self.push(RateSample(float(t[i]), w[i].copy(), fB[i].copy() if has_f else None))
-                if output_every and (i % output_every == 0):
+            for i in range(1, len(t_rel)):
+                self.push(self._sample(t, w, fB, has_f, i - 1 + start))
+                if emit(i):
                     outs.append(self.outputs())
-            return outs
+            return
         idx = np.arange(1, len(t_rel))
-        sel = idx[((idx - 1 + start) % output_every) == 0] if output_every else idx[:0]
+        sel = idx[((idx - 1 + start) % output_every) == 0].astype(np.int64) if output_every else idx[:0].astype(np.int64)
         y_out = np.zeros((len(sel), self.layout.n))
-        y = self.y.copy()
+        c = np.array([0.0, 0.5, 0.5, 1.0]) if method == 0 else np.asarray(stepper.c, float)
         h_step = float(hs[0]) if method else h_max
-        sets = RegimeMatrices(self.integrator, sys_, h_step)
-        first, last, status = 0, 0, 0
+        sets = RegimeMatrices(stepper, sys_, h_step)
+        lev = np.array([stepper.level], dtype=np.int64)
+        info = np.zeros(N_INFO)
+        need = np.zeros(2, dtype=np.int64)
+        prog = np.zeros(1, dtype=np.int64)
+        first, j_done = 0, 0
+        y = self.y.copy()
         while True:
-            need = np.zeros(1, dtype=np.int64)
-            last, status = run_batch(method, h_step, sets.reg_of, sets.ptr, sets.idx, sets.dat, c, t_rel, W, Fm,
-                                     y, sel.astype(np.int64), y_out, first, need, sys_.fid, *sys_.kernel_args())
+            info[:] = 0.0
+            try:
+                last, status = run_batch(method, h_max, stepper.rtol, stepper.atol, stepper.q1, stepper.max_level,
+                                         lev, info, sets.reg_of, sets.ptr, sets.idx, sets.dat, c, t_rel, W, Fm, y,
+                                         sel, y_out, first, need, prog, sys_.fid, *sys_.kernel_args())
+                exc = None
+            except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
+                last, status, exc = int(prog[0]), -1, e
+            stepper.level = int(lev[0])
+            # commit what was reached: outputs, state, counters
+            steps = int(info[I_STEPS])
+            sys_.n_rhs += steps * len(c) + (last - first if method == 0 else 0)
+            self.n_steps += steps
+            self.n_samples += last - first
+            self._account(info[I_EST], info[I_NORM], int(info[I_REJ]))
+            while j_done < len(sel) and sel[j_done] <= last:
+                i = int(sel[j_done])
+                self._set_at(t_rel, W, Fm, t, has_f, start, i, y_out[j_done])
+                outs.append(self.outputs())
+                j_done += 1
+            self._set_at(t_rel, W, Fm, t, has_f, start, last, y)
+            if status == 0:
+                return
             if status == NEED_REGIME:
-                sets.add(int(need[0]))     # a friction regime met for the first time: build its matrices
+                sets.add(int(need[0]), int(need[1]))   # matrices for a new (regime, level)
                 first = last
                 continue
-            break
-        steps = int(np.sum(nsub[:last]))
-        sys_.n_rhs += steps * len(c)
-        # outputs at the selected samples (state restored afterwards)
-        for j, i in enumerate(sel):
-            if i > last:
-                break
-            self.y = y_out[j].copy()
-            self.t_rel = t_rel[i]
-            sys_.set_input(t_rel[i - 1], t_rel[i], W[i - 1], W[i], Fm[i - 1], Fm[i])
-            self._last = RateSample(float(t[i - 1 + start]), W[i].copy(), Fm[i].copy() if has_f else None)
-            outs.append(self.outputs())
-        self.y = y
-        self.t_rel = float(t_rel[last])
-        if last > 0:
-            self._last = RateSample(float(t[last - 1 + start]), W[last].copy(), Fm[last].copy() if has_f else None)
-            sys_.set_input(t_rel[last - 1], t_rel[last], W[last - 1], W[last], Fm[last - 1], Fm[last])
-        self.n_samples += last
-        self.n_steps += steps
-        if status:
+            if status > 0 and status & ST_TOLERANCE and auto:
+                # the primary cannot meet the tolerance here within its budget: this interval by
+                # auto's own push (primary again, then exprb), then back to the compiled loop
+                i = last + 1
+                while True:                        # the refused interval and auto's sticky ones
+                    smp = self._sample(t, w, fB, has_f, i - 1 + start)
+                    self._push_python(smp, smp.t - self.t_start)
+                    if emit(i):
+                        outs.append(self.outputs())
+                    while j_done < len(sel) and sel[j_done] <= i:
+                        j_done += 1
+                    if i >= len(t_rel) - 1:
+                        return
+                    if integ.sticky <= 0:
+                        break
+                    i += 1
+                first = i
+                y = self.y.copy()
+                lev[0] = stepper.level
+                continue
             at = float(t[min(last + start, len(t) - 1)])
-            if status & 1:
+            if exc is not None:
+                raise SimulationError(f"integration failed after t = {self.t} ({type(exc).__name__}: {exc}); "
+                                      f"state kept there, stopped before the sample at t = {at}") from exc
+            if status & ST_LOCK:
                 raise GimbalLockError(f"gimbal lock (precession model singular) after t = {self.t}; "
                                       f"stopped before the sample at t = {at}")
-            raise SimulationError(f"integration failed after t = {self.t} (status {status}); state kept there")
-        return outs
+            if status & ST_TOLERANCE:
+                raise stepper.refuse(float(info[I_T]), float(info[I_EBAD]), float(info[I_NBAD]), float(info[I_H]))
+            if status & ST_NOT_PD:
+                raise SimulationError(f"mass matrix not positive definite after t = {self.t}; state kept there")
+            raise SimulationError(f"non-finite state after the step to t = {at}; state kept at t = {self.t}")
+
+    def _set_at(self, t_rel, W, Fm, t, has_f, start, i, y) -> None:
+        """Make sample ``i`` of a batch (index into t_rel) the current one, with state y."""
+        self.y = np.array(y, dtype=float)
+        self.t_rel = float(t_rel[i])
+        if i > 0:
+            self.system.set_input(t_rel[i - 1], t_rel[i], W[i - 1], W[i], Fm[i - 1], Fm[i])
+            self._last = RateSample(float(t[i - 1 + start]), W[i].copy(), Fm[i].copy() if has_f else None)
 
     def run(self, samples, output_period: float | None = None) -> list[Outputs]:
         """Push all samples; collect outputs every ``output_period`` s (None: after each)."""

@@ -10,11 +10,14 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 
-from gyro_platform.errors import SimulationError
+from gyro_platform.errors import SimulationError, ToleranceError
 from gyro_platform.integrators import INTEGRATORS, Integrator, StepStats, make_integrator
 
 ALL = sorted(INTEGRATORS)
-FIXED = ["rk4", "implicit_midpoint", "etd2", "etd4"]
+FIXED = ["rk4", "implicit_midpoint", "etd2", "etd4", "exprb"]
+#: a tolerance so loose that the step controller never refines: the method's own map at
+#: h = max_step (for tests of orders, stability functions and invariants of the bare method)
+LOOSE = {"rtol": 0.5, "atol": 10.0}
 
 
 # --------------------------------------------------------------------------- test systems
@@ -123,13 +126,14 @@ def run(integ, system, y0, t_end, dt):
     ("implicit_midpoint", 2, (0.05, 0.025, 0.0125)),
     ("etd2", 2, (0.05, 0.025, 0.0125)),
     ("etd4", 4, (0.05, 0.025, 0.0125)),
+    ("exprb", 3, (0.05, 0.025, 0.0125)),
 ])
 def test_convergence_order(name, order, hs):
     sys = Manufactured()
     T = 2.0
     errs = []
     for h in hs:
-        integ = make_integrator(name, max_step=h)
+        integ = make_integrator(name, max_step=h, **LOOSE)
         y, st = integ.advance(sys, 0.0, sys.exact(0.0), T)
         assert st.n_steps == round(T / h)
         errs.append(np.abs(y - sys.exact(T)).max())
@@ -145,7 +149,7 @@ def test_etd4_order_at_least_3p5():
     sys = Manufactured()
     e = []
     for h in (0.02, 0.01):
-        y, _ = make_integrator("etd4", max_step=h).advance(sys, 0.0, sys.exact(0.0), 1.0)
+        y, _ = make_integrator("etd4", max_step=h, **LOOSE).advance(sys, 0.0, sys.exact(0.0), 1.0)
         e.append(np.abs(y - sys.exact(1.0)).max())
     assert math.log2(e[0] / e[1]) >= 3.5
 
@@ -201,10 +205,10 @@ class Oscillator:
         return math.hypot(self.w * y[0], y[1])
 
 
-def _oscillator_run(name, F, t_end=10.0, dt=1e-3):
+def _oscillator_run(name, F, t_end=10.0, dt=1e-3, **tol):
     osc = Oscillator(1e4, F)
     x0, v0 = 1e-3, 0.0
-    integ = make_integrator(name, max_step=dt)
+    integ = make_integrator(name, max_step=dt, **tol)
     y, t = np.array([x0, v0]), 0.0
     max_state_err = max_amp_err = 0.0
     for k in range(int(round(t_end / dt))):
@@ -230,22 +234,23 @@ def test_implicit_midpoint_keeps_amplitude_at_sample_period():
     """Unforced: the midpoint map is a Cayley transform, orthogonal in the energy norm, so the
     amplitude is kept to round-off over 1e4 steps although the phase is wrong (2·atan(5) per
     step instead of 10 rad)."""
-    state_err, amp_err, _ = _oscillator_run("implicit_midpoint", F=0.0)
+    state_err, amp_err, _ = _oscillator_run("implicit_midpoint", F=0.0, **LOOSE)
     assert amp_err < 1e-12
     assert state_err > 0.1             # phase is wrong at h ω = 10: that is expected
     # forced: stays bounded. The free part keeps its norm ω x0 = 10 exactly; the quasi-static
     # forced response (numerical and exact) is ≈ F/ω = 1e-4 in the energy norm, so the
     # amplitudes differ by at most ≈ 2 F/ω (asserted with 50 % slack)
-    _, amp_err, osc = _oscillator_run("implicit_midpoint", F=1.0)
+    _, amp_err, osc = _oscillator_run("implicit_midpoint", F=1.0, **LOOSE)
     assert amp_err < 3 * (1.0 / osc.w) / (osc.w * 1e-3)
 
 
 def test_rk4_unstable_at_sample_period():
-    """RK4 at h ω = 10 amplifies the energy norm by |R(10i)| ≈ 400 per step; within 10 s it
-    overflows and the integrator raises instead of returning inf/NaN."""
+    """RK4 at h ω = 10 amplifies the energy norm by |R(10i)| ≈ 400 per step (the bare map,
+    loose tolerance); within 10 s it overflows and the integrator raises instead of returning
+    inf/NaN."""
     osc = Oscillator(1e4, F=0.0)
     y0 = np.array([1e-3, 0.0])
-    integ = make_integrator("rk4", max_step=1e-3)
+    integ = make_integrator("rk4", max_step=1e-3, rtol=1e30, atol=1e30)
     y, t = y0, 0.0
     for k in range(3):
         y, _ = integ.advance(osc, t, y, t + 1e-3)
@@ -254,8 +259,30 @@ def test_rk4_unstable_at_sample_period():
     expected = abs(rk4_amplification(10j)) ** 3
     assert growth > 1e6
     assert growth == pytest.approx(expected, rel=1e-9)
-    with np.errstate(all="ignore"), pytest.raises(SimulationError, match="non-finite state after rk4"):
+    with np.errstate(all="ignore"), pytest.raises(SimulationError, match="non-finite"):
         run(integ, osc, y0, 10.0, 1e-3)
+
+
+def test_rk4_held_to_tolerance_substeps_to_stability_and_accuracy():
+    """The same oscillator (h ω = 10 at the sample period) with rtol 1e-8: the embedded
+    estimate sees the instability and the controller substeps until the local error meets the
+    tolerance: the result is accurate. With a budget of one substep it refuses instead, naming
+    the method and the tolerance, and the caller's state is untouched."""
+    osc = Oscillator(1e4, F=1.0)
+    x0, v0 = 1e-3, 0.0
+    integ = make_integrator("rk4", max_step=1e-3, rtol=1e-8, atol=1e-12)
+    y, t = np.array([x0, v0]), 0.0
+    for k in range(20):
+        y, st = integ.advance(osc, t, y, t + 1e-3)
+        t += 1e-3
+        assert st.error_norm <= 1.0 and st.n_steps >= 10 * 1e-3 * osc.w / 2.8
+    ye = osc.exact(t, x0, v0)
+    assert math.hypot(osc.w * (y[0] - ye[0]), y[1] - ye[1]) < 1e-5 * osc.amplitude(ye)
+    tight = make_integrator("rk4", max_step=1e-3, rtol=1e-8, atol=1e-12, max_substeps=1)
+    y0 = np.array([x0, v0])
+    with pytest.raises(ToleranceError, match=r"rk4 cannot meet the tolerance at t=0\.0 s.*rtol=1e-08, atol=1e-12"):
+        tight.advance(osc, 0.0, y0, 1e-3)
+    assert np.array_equal(y0, [x0, v0])
 
 
 # --------------------------------------------------------------------------- quadratic invariants
@@ -266,8 +293,8 @@ def test_implicit_midpoint_keeps_gyroscopic_energy():
     A, M, K = gyro_2dof(50.0, 3.0)
     sys = Linear(A)
     y0 = np.array([0.01, -0.02, 0.3, 0.1])
-    integ = make_integrator("implicit_midpoint", max_step=1e-3)
-    y, _ = run(integ, sys, y0, 100.0, 1e-2)          # 1e4 calls × 10 substeps = 1e5 steps
+    integ = make_integrator("implicit_midpoint", max_step=1e-3, **LOOSE)
+    y, _ = run(integ, sys, y0, 100.0, 1e-2)          # 1e4 calls × 10 substeps × 2 half steps
     E0 = energy(y0, M, K)
     assert abs(energy(y, M, K) - E0) <= 1e-11 * E0
 
@@ -287,8 +314,8 @@ def test_rk4_energy_drift_matches_theory_and_exceeds_midpoint():
         E_pred += energy(yk, M, K) * abs(rk4_amplification(1j * h * lam[k].imag)) ** (2 * N)
     E0 = energy(y0, M, K)
     assert w1 * h < 2.8                                # RK4 is stable here
-    y_rk4, _ = make_integrator("rk4", max_step=h).advance(Linear(A), 0.0, y0, N * h)
-    y_mid, _ = make_integrator("implicit_midpoint", max_step=h).advance(Linear(A), 0.0, y0, N * h)
+    y_rk4, _ = make_integrator("rk4", max_step=h, **LOOSE).advance(Linear(A), 0.0, y0, N * h)
+    y_mid, _ = make_integrator("implicit_midpoint", max_step=h, **LOOSE).advance(Linear(A), 0.0, y0, N * h)
     drift_rk4 = abs(energy(y_rk4, M, K) - E0) / E0
     drift_mid = abs(energy(y_mid, M, K) - E0) / E0
     assert drift_rk4 == pytest.approx(abs(E_pred - E0) / E0, rel=1e-3)
@@ -322,12 +349,12 @@ def test_implicit_midpoint_nonlinear_quadratic_invariants(with_jacobian):
     at most, not by the 1e-14-per-step a looser Newton tolerance would give."""
     body = RigidBody(with_jacobian)
     w0 = np.array([0.3, 1.0, -0.4])
-    integ = make_integrator("implicit_midpoint", max_step=0.01)
+    integ = make_integrator("implicit_midpoint", max_step=0.01, **LOOSE)
     w, t = w0, 0.0
     for k in range(200):
         w, st = integ.advance(body, t, w, t + 0.05)
         t += 0.05
-        assert st.n_halvings == 0
+        assert st.n_rejected == 0
         if not with_jacobian:
             assert st.n_rhs >= 3 + st.n_steps      # FD Jacobian costs n = 3 calls per advance
     I = body.I
@@ -337,7 +364,8 @@ def test_implicit_midpoint_nonlinear_quadratic_invariants(with_jacobian):
 
 def test_implicit_midpoint_halves_step_when_newton_fails():
     """With a useless Newton matrix (A = 0 → fixed-point iteration, contraction h/2·λ) the
-    iteration diverges at h λ = 3; halving until it converges is reported in the stats."""
+    iteration diverges at h λ = 3; the interval is redone with finer substeps until it
+    converges, reported in the stats (``n_rejected``)."""
     lam = 3000.0
 
     class Decay:
@@ -347,13 +375,14 @@ def test_implicit_midpoint_halves_step_when_newton_fails():
         def linear_part(self):
             return np.zeros((1, 1)), "zero"
 
-    integ = make_integrator("implicit_midpoint", max_step=1e-3)
+    integ = make_integrator("implicit_midpoint", max_step=1e-3, **LOOSE)
     y, st = integ.advance(Decay(), 0.0, np.array([1.0]), 1e-3)
-    assert st.n_halvings >= 1
-    # the result is the midpoint rule at the halved step: R(z) = (1 + z/2)/(1 − z/2), z = −λh
-    h = 1e-3 / st.n_steps
+    assert st.n_rejected >= 1 and st.level >= 1
+    # the result is the midpoint rule at the refined step (each substep kept as two half
+    # steps): R(z) = (1 + z/2)/(1 − z/2), z = −λh, h = 1 ms / (2 n_steps)
+    h = 1e-3 / (2 * st.n_steps)
     R = (1 - lam * h / 2) / (1 + lam * h / 2)
-    assert y[0] == pytest.approx(R ** st.n_steps, rel=1e-12)
+    assert y[0] == pytest.approx(R ** (2 * st.n_steps), rel=1e-12)
 
 
 # --------------------------------------------------------------------------- adaptive methods
@@ -466,13 +495,13 @@ def test_attributes_and_stats(name):
     integ = make_integrator(name)
     assert isinstance(integ, Integrator)
     assert integ.name == name and integ.order >= 2
-    assert integ.adaptive == (name in ("dop853", "rk45", "radau"))
+    assert integ.adaptive                           # every method is held to rtol/atol
     sys = Manufactured()
     y, st = integ.advance(sys, 0.0, sys.exact(0.0), 2.5e-3)
     assert isinstance(st, StepStats) and st.n_steps >= 1 and st.n_rhs >= st.n_steps
-    if not integ.adaptive:
-        assert st.n_steps == 3                       # ceil(2.5 ms / 1 ms)
-        assert math.isnan(st.error_estimate)
+    assert st.error_estimate >= 0.0 and st.error_norm <= 1.0      # achieved accuracy is reported
+    if name in FIXED:
+        assert st.n_steps % 3 == 0                   # ceil(2.5 ms / 1 ms) · 2^level
 
 
 @pytest.mark.parametrize("name", ALL)
@@ -525,7 +554,7 @@ def test_interval_of_max_step_plus_roundoff_is_one_substep():
     t0 = 3600.0
     t1 = t0 + 1e-3
     assert (t1 - t0) / 1e-3 > 1.0                     # round-off makes it slightly above 1 here
-    _, st = make_integrator("rk4", max_step=1e-3).advance(Manufactured(), t0, np.ones(2), t1)
+    _, st = make_integrator("rk4", max_step=1e-3, **LOOSE).advance(Manufactured(), t0, np.ones(2), t1)
     assert st.n_steps == 1
 
 
