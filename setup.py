@@ -38,7 +38,7 @@ setup(
     entry_points={
         "console_scripts": [
             "gyro-platform = gyro_platform.cli:main",
-            "platform_node = gyro_platform.node:main",
+            "platform_node = gyro_platform.ros.node:main",
         ],
     },
 )

@@ -1,21 +1,24 @@
 """gyro_platform — K. Magnus's gyro-stabilised three-gyro platform, simulated.
 
-The physics (``params``, ``tree``, ``model``, ``effects``, ``integrators``, ``simulator``) knows
-nothing of ROS; ``messages``, ``replay`` and ``scene`` map ROS 2 messages, bags and scene files
-onto it; ``node`` is the thin rclpy adapter. Units are SI and radians; frames follow REP-103.
+Rooms, imports pointing down only (README "Architecture"): ``physics`` (what the platform is
+and how it moves) ← ``engine`` (integrators, simulator) ← ``io`` (ROS messages, input gate,
+bags, recordings) ← ``pipeline`` (messages → gate → engine → outputs) ← ``scenes``, ``replay``
+← ``sweep``, ``bench``, ``ros`` (node core, rclpy node, DDS transport) ← ``cli``. The physics
+and the engine know nothing of ROS. Units are SI and radians; frames follow REP-103/105.
 
 Public API, re-exported here (imported on first use, so that ``gyro-platform --help`` stays
 fast): ``Simulator``, ``ModelOptions``, ``RateSample``, ``NAV1``, ``PlatformParams``,
-``SimulationError``, ``InputError``, ``INTEGRATORS``.
+``SimulationError``, ``InputError``, ``INTEGRATORS``, ``load_scene``, ``run_scene``, ``replay``.
 """
 from importlib import import_module
 
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "Simulator": ".simulator", "ModelOptions": ".options", "RateSample": ".inputs", "NAV1": ".params",
-    "PlatformParams": ".params", "SimulationError": ".errors", "InputError": ".errors",
-    "INTEGRATORS": ".integrators",
+    "Simulator": ".engine.simulator", "ModelOptions": ".physics.options", "RateSample": ".engine.inputs",
+    "NAV1": ".physics.params", "PlatformParams": ".physics.params", "SimulationError": ".errors",
+    "InputError": ".errors", "INTEGRATORS": ".engine.integrators", "load_scene": ".scenes.runner",
+    "run_scene": ".scenes.runner", "replay": ".replay",
 }
 __all__ = [*_EXPORTS, "__version__"]
 

@@ -19,7 +19,6 @@ import os
 import sys
 
 from . import __version__
-
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_CODES: dict[int, str] = {
     EXIT_OK: "success",
@@ -31,10 +30,10 @@ EXIT_CODES: dict[int, str] = {
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
 
 SUBCOMMANDS = {
-    "run": ("gyro_platform.scene", "run a scene (file or name): summary table, CSV/JSON, plot"),
+    "run": ("gyro_platform.scenes.runner", "run a scene (file or name): summary table, CSV/JSON, plot"),
     "replay": ("gyro_platform.replay", "replay a rosbag2 bag through the simulator into an output bag"),
-    "bench": ("gyro_platform.bench", "benchmarks: accuracy versus time, hot path, effects cost"),
-    "node": ("gyro_platform.node_main", "run the ROS 2 node (rclpy or plain DDS transport)"),
+    "bench": ("gyro_platform.bench.accuracy", "benchmarks: accuracy versus time, hot path, effects cost"),
+    "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
 }
 
 

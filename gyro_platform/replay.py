@@ -6,11 +6,11 @@
 * Input: a rosbag2 directory (any version rosbags reads, sqlite3 or mcap; bags without type
   definitions are read with the Jazzy typestore) or a single ``.db3``/``.mcap`` file. The input
   topic (``--topic``; default: the first ``Imu``/``Twist``/``TwistStamped`` topic) goes through
-  :mod:`gyro_platform.messages` (mounting rotation → base_link) and the
-  :class:`~gyro_platform.timebase.TimeGate`, whose decisions drive the simulator.
+  :mod:`gyro_platform.io.messages` (mounting rotation → base_link) and the
+  :class:`~gyro_platform.io.gate.TimeGate`, whose decisions drive the simulator.
 * Output: a rosbag2 version-9 bag (storage of the input unless ``--storage``) with every input
   connection copied byte for byte (same record times) plus the output topics of
-  :mod:`gyro_platform.messages` in the root namespace (or ``--namespace``): header stamps in the
+  :mod:`gyro_platform.io.messages` in the root namespace (or ``--namespace``): header stamps in the
   input's time base (header stamp, or receive time when the stamps are 0), record time = the
   receive time of the input message that produced them, i.e. when a live node would publish.
   Outputs every accepted sample on the grid ``floor((t − t_origin)·rate)`` (default 10 Hz,
@@ -18,7 +18,7 @@
 * Streams: one message in memory at a time (rosbags readers are generators; the writer writes
   as it goes), so memory does not grow with the bag length. Also written, next to the bag:
   ``OUT_BAG.summary.json`` (counts, drops by reason, resets, duration, wall time, real-time
-  factor, output ranges, drift rate) and ``OUT_BAG.png`` (via ``gyro_platform.recording``).
+  factor, output ranges, drift rate) and ``OUT_BAG.png`` (via ``gyro_platform.io.recording``).
 * Damage: a bag that rosbags cannot open (truncated mcap without footer, sqlite3 file cut
   short) is salvaged — its readable messages are streamed up to the damage — and a read
   error mid-stream ends the replay. Either way the output bag is closed properly (readable),
@@ -45,11 +45,11 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from . import messages as msgs
+from .io import messages as msgs
 from .errors import InputError, SimulationError
-from .inputs import RateSample
-from .messages import INPUT_TYPES, MessageTypes, Mounting, Rejected
-from .timebase import Action, Decision, GateConfig, TimeGate
+from .engine.inputs import RateSample
+from .io.messages import INPUT_TYPES, MessageTypes, Mounting, Rejected
+from .io.gate import Action, Decision, GateConfig, TimeGate
 
 NS = 1_000_000_000
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -706,7 +706,7 @@ class _Stats:
         self._fit = _LineFit()
 
     def add(self, out: Any, new_segment: bool) -> None:
-        from .recording import csv_row
+        from .io.recording import csv_row
 
         self.n += 1
         for k, v in csv_row(out).items():
@@ -868,7 +868,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     A read error after the start ends the replay; the output bag is closed (readable) and the
     summary's ``error`` names it.
     """
-    from .simulator import Simulator
+    from .engine.simulator import Simulator
 
     cfg = config or ReplayConfig()
     in_bag, out_bag = Path(in_bag), Path(out_bag)
@@ -1093,7 +1093,7 @@ class _Run:
         if not self.series.items:
             return None, None
         try:
-            from .recording import Recorder
+            from .io.recording import Recorder
         except ImportError as e:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
             return None, {"unavailable": str(e)}
@@ -1174,9 +1174,9 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         namespace=args.namespace, plot=not args.no_plot, progress=not args.quiet)
     if args.scene:
         try:
-            from .scene import load_scene
+            from .scenes.runner import load_scene
         except ImportError as e:
-            raise ReplayError(f"--scene needs gyro_platform.scene.load_scene: {e}") from None
+            raise ReplayError(f"--scene needs gyro_platform.scenes.runner.load_scene: {e}") from None
         scene = load_scene(args.scene)
         cfg.params, cfg.options = scene.params, scene.options
         if getattr(scene, "output_rate", None):

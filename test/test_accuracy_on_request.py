@@ -9,7 +9,7 @@ import pytest
 from gyro_platform import (INTEGRATORS, NAV1, InputError, ModelOptions, PlatformParams, RateSample,
                            SimulationError, Simulator)
 from gyro_platform.errors import ToleranceError
-from gyro_platform.hardcases import ASK, CASES, angle_error, run_case, run_reference, verdict
+from gyro_platform.engine.hardcases import ASK, CASES, angle_error, run_case, run_reference, verdict
 
 #: methods that run in Python per step (no compiled batch path): a shorter window in the tests
 SLOW = {"implicit_midpoint", "exprb", "radau"}

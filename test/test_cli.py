@@ -18,9 +18,11 @@ from pathlib import Path
 
 import pytest
 
-from gyro_platform import __version__, cli
+from gyro_platform import __version__
+
+from gyro_platform import cli
 from gyro_platform import replay as rp
-from gyro_platform.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
+from gyro_platform.io.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
 from test_replay import CABRILLO, HUSKY, S, imu_msg, need, write_bag
 
 REPO = Path(__file__).resolve().parents[1]
@@ -268,16 +270,16 @@ def test_scenes_by_name_from_any_folder(tmp_path, monkeypatch, capsys):
 def test_default_fidelity_is_one_per_mode_everywhere(tmp_path, capsys):
     """Replay without a scene, a scene without ``fidelity`` and the library all take the
     mode's default from ``options.DEFAULT_FIDELITY``."""
-    from gyro_platform.options import DEFAULT_FIDELITY, ModelOptions
-    from gyro_platform.scene import scene_from_dict
-    from gyro_platform.simulator import Simulator
+    from gyro_platform.physics.options import DEFAULT_FIDELITY, ModelOptions
+    from gyro_platform.scenes.runner import scene_from_dict
+    from gyro_platform.engine.simulator import Simulator
 
     bag = small_bag(tmp_path / "b")
     assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o"), "--quiet", "--no-plot"]) == 0
     s = json.loads(rp.sidecar_paths(tmp_path / "o")[0].read_text())
     assert s["simulator"]["mode"] == "stabilised"
     assert s["simulator"]["fidelity"] == DEFAULT_FIDELITY["stabilised"] == Simulator().options.fidelity
-    from gyro_platform.core import NodeConfig
+    from gyro_platform.ros.core import NodeConfig
 
     assert NodeConfig.from_ros_params({}).options.fidelity == DEFAULT_FIDELITY["stabilised"]
     for mode in ("stabilised", "carried"):
@@ -318,8 +320,8 @@ def test_every_csv_column_has_a_unit_and_is_documented_once(tmp_path, capsys):
 
 def test_csv_round_trips_the_outputs_exactly(tmp_path):
     """Values in outputs.csv equal the simulator's outputs bit for bit (repr of floats)."""
-    from gyro_platform.recording import csv_row
-    from gyro_platform.scene import load_scene, run_scene
+    from gyro_platform.io.recording import csv_row
+    from gyro_platform.scenes.runner import load_scene, run_scene
 
     rec, _, _ = run_scene(load_scene("default").with_duration(0.3), out_dir=tmp_path)
     rows = list(csv.DictReader((tmp_path / "outputs.csv").open()))
@@ -418,7 +420,7 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     p = subprocess.run([PY, str(exe), "run", "earth_rest.yaml", "--duration", "2", "--out", "r"], cwd=work,
                        capture_output=True, text=True, env=env, timeout=600)
     assert (work / "r" / "outputs.csv").is_file(), p.stderr
-    probe = ("import gyro_platform, gyro_platform.core as c; "
+    probe = ("import gyro_platform, gyro_platform.ros.core as c; "
              "print(gyro_platform.__file__); print(c.resolve_scene('default'))")
     p = subprocess.run([PY, "-c", probe], cwd=work, capture_output=True, text=True, env=env, timeout=600)
     mod, scene = p.stdout.split()
@@ -431,7 +433,7 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
 def test_every_plot_panel_has_title_units_and_legend_and_the_title_fits(scene):
     import matplotlib.pyplot as plt
 
-    from gyro_platform.scene import load_scene, run_scene
+    from gyro_platform.scenes.runner import load_scene, run_scene
 
     sc = load_scene(scene)
     rec, summary, _ = run_scene(sc.with_duration(0.5))

@@ -25,7 +25,7 @@ pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedd
 from rosbags.typesys.base import Nodetype  # noqa: E402
 
 from gyro_platform import dds, messages as m  # noqa: E402
-from gyro_platform.params import NAV1  # noqa: E402
+from gyro_platform.physics.params import NAV1  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LOOPBACK_XML = ROOT / "config" / "cyclonedds_loopback.xml"
@@ -537,7 +537,7 @@ def test_carried_free_gyro_follows_constant_vehicle_rate(start_node, driver_fact
     assert all(np.isfinite([x.wrench.torque.x, x.wrench.torque.y, x.wrench.torque.z]).all() for x in w)
 
     # one core, two shells: the same inputs through NodeCore in this process give the same bytes
-    from gyro_platform.core import NodeConfig, NodeCore
+    from gyro_platform.ros.core import NodeConfig, NodeCore
 
     core = NodeCore(NodeConfig.from_ros_params(CARRIED), m.MessageTypes.rosbags())
     local = {"gimbal/joint_states": [], "bearing/gimbal4/torque": []}
@@ -870,12 +870,12 @@ def test_bad_parameter_value_names_the_parameter(tmp_path):
 
 
 # =========================================================================================
-# node_main: transport choice and the rclpy path (with a stand-in for gyro_platform.node)
+# node_main: transport choice and the rclpy path (with a stand-in for gyro_platform.ros.node)
 # =========================================================================================
 def _fake_rclpy_node(calls: list):
     import types
 
-    mod = types.ModuleType("gyro_platform.node")
+    mod = types.ModuleType("gyro_platform.ros.node")
 
     def main(args=None):      # like rclpy.spin: returns on SIGINT
         stop = threading.Event()
@@ -898,10 +898,9 @@ def _fake_rclpy_node(calls: list):
 def test_ros_transport_passes_the_options_as_ros_arguments(monkeypatch, tmp_path, capsys):
     import argparse
 
-    from gyro_platform import node_main
-
+    from gyro_platform.ros import command
     calls: list = []
-    monkeypatch.setitem(sys.modules, "gyro_platform.node", _fake_rclpy_node(calls))
+    monkeypatch.setitem(sys.modules, "gyro_platform.ros.node", _fake_rclpy_node(calls))
     monkeypatch.setenv("ROS_DOMAIN_ID", "3")
     monkeypatch.delenv("CYCLONEDDS_URI", raising=False)
     params = tmp_path / "p.yaml"
@@ -920,9 +919,8 @@ def test_ros_transport_passes_the_options_as_ros_arguments(monkeypatch, tmp_path
 
 
 def test_auto_falls_back_to_dds_without_rclpy(monkeypatch):
-    from gyro_platform import node_main
-
-    monkeypatch.setitem(sys.modules, "gyro_platform.node", None)      # import fails, as without ROS
+    from gyro_platform.ros import command
+    monkeypatch.setitem(sys.modules, "gyro_platform.ros.node", None)      # import fails, as without ROS
     ok, why = node_main.rclpy_available()
     assert not ok and why
 
@@ -954,8 +952,8 @@ def test_robot_description_and_tf_from_the_dds_node(start_node, driver_factory):
     from scipy.spatial.transform import Rotation
     from urdf_parser_py.urdf import URDF
 
-    from gyro_platform.params import NAV1
-    from gyro_platform.urdf import platform_model
+    from gyro_platform.physics.params import NAV1
+    from gyro_platform.io.urdf import platform_model
 
     mounting = (0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8))      # 45° about z
     node = start_node({"mode": "carried", "output_rate": 0.0, "frame_prefix": "robot1/",

@@ -7,13 +7,13 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from gyro_platform.errors import GimbalLockError, PrecessionInvalidError
-from gyro_platform.inputs import RateSample
-from gyro_platform.model import rest_matrices
-from gyro_platform.options import ModelOptions
-from gyro_platform.params import NAV1
-from gyro_platform.simulator import Simulator
-from gyro_platform.system import PlatformSystem
-from gyro_platform.tree import TreeWork, tree_inverse_dynamics
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.physics.model import rest_matrices
+from gyro_platform.physics.options import ModelOptions
+from gyro_platform.physics.params import NAV1
+from gyro_platform.engine.simulator import Simulator
+from gyro_platform.physics.system import PlatformSystem
+from gyro_platform.physics.tree import TreeWork, tree_inverse_dynamics
 
 L = NAV1.L[0]
 J = NAV1.lumped()
@@ -379,7 +379,7 @@ def test_newton_euler_axial_torques_equal_applied_forces():
         yd = s.rhs(0.2, y)
         wk = TreeWork(s.tree)
         F, f, _ = tree_inverse_dynamics(s.tree, wk, y[0:5], y[5:13], yd[5:13], np.zeros(3), np.zeros(3), p.L)
-        from gyro_platform import effects as fx
+        from gyro_platform.physics import effects as fx
         Q = np.zeros(5)
         fx.gimbal_forces(s.on, s.k, s.L, y[0:5], y[8:13], np.zeros(3), Q)
         np.testing.assert_allclose(F[3:], Q, atol=1e-14)
@@ -483,8 +483,8 @@ def test_precession_refuses_without_rotor_momentum_and_with_stiff_springs():
 def test_paper_matrices_match_the_tree():
     """[M76] builds the equations from B(q), A_R, A* = A + BᵀA_R B and the skew gyroscopic
     matrix G_R; the engine evaluates them by Newton–Euler. Both must give the same forces."""
-    from gyro_platform.model import paper_matrices, spin_momentum
-    from gyro_platform.tree import TreeWork, tree_mass_and_bias
+    from gyro_platform.physics.model import paper_matrices, spin_momentum
+    from gyro_platform.physics.tree import TreeWork, tree_mass_and_bias
     rng = np.random.default_rng(2)
     for _ in range(4):
         q = rng.uniform(-1.2, 1.2, size=5)

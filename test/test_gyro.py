@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from gyro_platform.errors import GimbalLockError
-from gyro_platform.gyro import GimballedGyro, GyroModel
-from gyro_platform.params import ParameterError
+from gyro_platform.physics.gyro import GimballedGyro, GyroModel
+from gyro_platform.physics.params import ParameterError
 
 A, C = 1.2e-5, 2.0e-5
 SPIN = 2513.274

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from gyro_platform.errors import GimbalLockError, InputError, PrecessionInvalidError, ToleranceError
-from gyro_platform.inputs import RateSample
-from gyro_platform.options import ModelOptions
-from gyro_platform.params import NAV1
-from gyro_platform.simulator import Simulator, choose_integrator, fastest_mode
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.physics.options import ModelOptions
+from gyro_platform.physics.params import NAV1
+from gyro_platform.engine.simulator import Simulator, choose_integrator, fastest_mode
 
 SPIN = NAV1.rotor_speed[0]
 

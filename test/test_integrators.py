@@ -1,4 +1,4 @@
-"""Tests of gyro_platform.integrators: orders, exactness, stability, invariants, contract.
+"""Tests of gyro_platform.engine.integrators: orders, exactness, stability, invariants, contract.
 
 Expected numbers come from theory (orders 2^p, stability functions, exact solutions by expm),
 never from this module's own output.
@@ -11,7 +11,7 @@ import scipy.integrate
 import scipy.linalg
 
 from gyro_platform.errors import SimulationError, ToleranceError
-from gyro_platform.integrators import INTEGRATORS, Integrator, StepStats, make_integrator
+from gyro_platform.engine.integrators import INTEGRATORS, Integrator, StepStats, make_integrator
 
 ALL = sorted(INTEGRATORS)
 FIXED = ["rk4", "implicit_midpoint", "etd2", "etd4", "exprb"]

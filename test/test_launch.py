@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from gyro_platform import launch_setup as L
-from gyro_platform.core import NodeConfig, load_params_file
-from gyro_platform.urdf import config_urdf
+from gyro_platform.ros import launch_setup as L
+from gyro_platform.ros.core import NodeConfig, load_params_file
+from gyro_platform.io.urdf import config_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH = ROOT / "launch" / "platform.launch.py"
@@ -19,7 +19,7 @@ PARAMS = str(ROOT / "config" / "platform.yaml")
 def test_launch_file_parses_and_declares_every_argument_of_the_plan():
     tree = ast.parse(LAUNCH.read_text(), str(LAUNCH))
     imports = {(n.module, a.name) for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
-    assert ("gyro_platform.launch_setup", "ARGUMENTS") in imports and ("gyro_platform.launch_setup", "plan") in imports
+    assert ("gyro_platform.ros.launch_setup", "ARGUMENTS") in imports and ("gyro_platform.ros.launch_setup", "plan") in imports
     # DeclareLaunchArgument(name, default_value=default, description=desc) for each entry of ARGUMENTS
     comps = [n for n in ast.walk(tree) if isinstance(n, ast.ListComp)
              and isinstance(n.elt, ast.Call) and getattr(n.elt.func, "id", "") == "DeclareLaunchArgument"]
@@ -35,7 +35,7 @@ def test_launch_file_parses_and_declares_every_argument_of_the_plan():
               for k in n.keywords if k.arg == "package" and isinstance(k.value, ast.Constant)}
     assert starts == {"gyro_platform", "robot_state_publisher"}
     # executables exist: the console script of setup.py
-    assert "platform_node = gyro_platform.node:main" in (ROOT / "setup.py").read_text()
+    assert "platform_node = gyro_platform.ros.node:main" in (ROOT / "setup.py").read_text()
 
 
 def test_default_plan_starts_the_node_and_robot_state_publisher_with_the_same_model():

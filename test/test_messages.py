@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gyro_platform import messages as m
-from gyro_platform.rotations import euler_xyz_axes
-from gyro_platform.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+from gyro_platform.io import messages as m
+from gyro_platform.physics.rotations import euler_xyz_axes
+from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 TYPES = m.MessageTypes.rosbags()

@@ -6,9 +6,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from gyro_platform import motions as m
-from gyro_platform.inputs import RateSample
-from gyro_platform.params import EARTH_RATE
+from gyro_platform.scenes import motions as m
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.physics.params import EARTH_RATE
 
 G = 9.80665
 

@@ -1,6 +1,6 @@
 """The node core without ROS: rosbags Jazzy messages in, (topic, message) pairs out.
 
-Drives :class:`gyro_platform.core.NodeCore` the way the rclpy node and the DDS adapter do —
+Drives :class:`gyro_platform.ros.core.NodeCore` the way the rclpy node and the DDS adapter do —
 one message per call with its receive time — with scripted rate samples at 1 kHz and 100 Hz,
 and checks the published topics, types, stamps and values against the physics (spec O6, O9b),
 the handling of bad input (counted, never raised), live parameters, resets and the config files.
@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyro_platform import core as C
-from gyro_platform.core import ConfigError, NodeConfig, NodeCore
-from gyro_platform.messages import MessageTypes, jazzy_typestore, stamp_ns
-from gyro_platform.params import NAV1, PlatformParams
+from gyro_platform.ros import core as C
+from gyro_platform.ros.core import ConfigError, NodeConfig, NodeCore
+from gyro_platform.io.messages import MessageTypes, jazzy_typestore, stamp_ns
+from gyro_platform.physics.params import NAV1, PlatformParams
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted((ROOT / "config" / "scenes").glob("*.yaml"))
@@ -422,7 +422,7 @@ def test_params_file_sections_merge_wildcard_then_node(tmp_path):
 
 @pytest.mark.parametrize("scene_file", SCENES, ids=[p.stem for p in SCENES])
 def test_every_scene_file_configures_the_node(scene_file):
-    from gyro_platform.scene import load_scene
+    from gyro_platform.scenes.runner import load_scene
 
     scene = load_scene(scene_file)
     for name in (str(scene_file), scene_file.stem):               # by path and by name
@@ -456,14 +456,14 @@ def test_every_platform_parameter_is_a_documented_node_parameter():
 
 def test_docs_carry_the_current_parameter_and_topic_tables():
     doc = (ROOT / "README.md").read_text()
-    hint = ("README.md is stale: paste gyro_platform.core.parameters_markdown() / topics_markdown() "
+    hint = ("README.md is stale: paste gyro_platform.ros.core.parameters_markdown() / topics_markdown() "
             "between its <!-- parameters --> / <!-- topics --> markers")
     assert C.parameters_markdown() in doc, hint
     assert C.topics_markdown() in doc, hint
 
 
 def test_importing_the_package_and_core_does_not_import_rclpy():
-    code = ("import sys, gyro_platform, gyro_platform.core, gyro_platform.messages; "
+    code = ("import sys, gyro_platform, gyro_platform.ros.core, gyro_platform.io.messages; "
             "assert 'rclpy' not in sys.modules; print('ok')")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert res.returncode == 0 and "ok" in res.stdout, res.stderr
@@ -477,4 +477,4 @@ def test_node_module_without_rclpy_fails_with_a_clear_import_error():
     else:
         pytest.skip("rclpy is installed here")
     with pytest.raises(ImportError, match="rclpy"):
-        import gyro_platform.node  # noqa: F401
+        import gyro_platform.ros.node  # noqa: F401

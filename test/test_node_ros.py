@@ -32,8 +32,8 @@ from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from gyro_platform.node import PlatformNode  # noqa: E402
-from gyro_platform.params import NAV1  # noqa: E402
+from gyro_platform.ros.node import PlatformNode  # noqa: E402
+from gyro_platform.physics.params import NAV1  # noqa: E402
 
 PARAMS = Path(__file__).resolve().parents[1] / "config" / "platform.yaml"
 BASE = 1_700_000_000 * 10**9
@@ -234,7 +234,7 @@ def test_every_parameter_has_a_value_for_param_dump(harness):
 
 
 def test_joint_state_is_finite_and_matches_the_urdf(harness):
-    from gyro_platform.urdf import config_model
+    from gyro_platform.io.urdf import config_model
 
     h = harness()
     for k in range(3):

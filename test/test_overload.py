@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyro_platform.core import InputLoss, NodeConfig, NodeCore
-from gyro_platform.messages import MessageTypes, jazzy_typestore
+from gyro_platform.ros.core import InputLoss, NodeConfig, NodeCore
+from gyro_platform.io.messages import MessageTypes, jazzy_typestore
 
 T = jazzy_typestore().types
 TYPES = MessageTypes.rosbags()

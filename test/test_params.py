@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from gyro_platform.options import ModelOptions, OptionsError
-from gyro_platform.params import NAV1, ParameterError, PlatformParams
+from gyro_platform.physics.options import ModelOptions, OptionsError
+from gyro_platform.physics.params import NAV1, ParameterError, PlatformParams
 
 
 @pytest.mark.parametrize("changes,match", [

@@ -17,10 +17,12 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from gyro_platform import cli, replay as rp
-from gyro_platform import messages as m
-from gyro_platform.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
-from gyro_platform.timebase import Action, GateConfig, TimeGate
+from gyro_platform import cli
+
+from gyro_platform import replay as rp
+from gyro_platform.io import messages as m
+from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
+from gyro_platform.io.gate import Action, GateConfig, TimeGate
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from gyro_platform.tree import REVOLUTE, ROOT, BodyTree, TreeWork, tree_mass_and_bias
+from gyro_platform.physics.tree import REVOLUTE, ROOT, BodyTree, TreeWork, tree_mass_and_bias
 
 U = 7.292115e-5          # rad/s
 G = 9.80620              # m/s², g' of the oracle

@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from gyro_platform.inputs import RateSample
-from gyro_platform.options import ModelOptions
-from gyro_platform.params import NAV1, STANDARD_GRAVITY
-from gyro_platform.simulator import Simulator
-from gyro_platform.system import PlatformSystem
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.physics.options import ModelOptions
+from gyro_platform.physics.params import NAV1, STANDARD_GRAVITY
+from gyro_platform.engine.simulator import Simulator
+from gyro_platform.physics.system import PlatformSystem
 
 L = NAV1.L[2]
 

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from gyro_platform.messages import Reading, Rejected
-from gyro_platform.timebase import (ACCEPT_REASONS, DROP_REASONS, NOTES, RESET_REASONS, Action,
+from gyro_platform.io.messages import Reading, Rejected
+from gyro_platform.io.gate import (ACCEPT_REASONS, DROP_REASONS, NOTES, RESET_REASONS, Action,
                                     GateConfig, TimeGate)
-import gyro_platform.timebase as timebase
+import gyro_platform.io.gate as timebase
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S

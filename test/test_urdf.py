@@ -1,4 +1,4 @@
-"""URDF and TF of the platform against the model's own kinematics (gyro_platform.urdf).
+"""URDF and TF of the platform against the model's own kinematics (gyro_platform.io.urdf).
 
 The URDF is parsed with urdf_parser_py (urdfdom-py, what ROS tools use) and its forward
 kinematics is computed here from the parsed origins and axes (independently of urdf.py);
@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gyro_platform import messages as m
-from gyro_platform import urdf as U
-from gyro_platform.inputs import RateSample
-from gyro_platform.model import GIMBAL_AXES, SPIN_AXES, platform_tree
-from gyro_platform.options import ModelOptions
-from gyro_platform.outputs import GIMBAL_NAMES, MOUNT_NAMES
-from gyro_platform.params import PlatformParams
-from gyro_platform.simulator import Simulator
-from gyro_platform.tree import kinematics
+from gyro_platform.io import messages as m
+from gyro_platform.io import urdf as U
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.physics.model import GIMBAL_AXES, SPIN_AXES, platform_tree
+from gyro_platform.physics.options import ModelOptions
+from gyro_platform.engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
+from gyro_platform.physics.params import PlatformParams
+from gyro_platform.engine.simulator import Simulator
+from gyro_platform.physics.tree import kinematics
 
 urdf_parser = pytest.importorskip("urdf_parser_py.urdf", reason="urdf_parser_py (pip install urdf-parser-py)")
 

@@ -15,11 +15,17 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = r"""
 import json, sys
-from gyro_platform import effects, fastpath, integrators, model, rotations, system, tree
-from gyro_platform.core import NodeConfig, NodeCore
-from gyro_platform.dds import zero_message
-from gyro_platform.messages import MessageTypes, jazzy_typestore
-from gyro_platform.node_main import warm_up
+from gyro_platform.physics import effects
+from gyro_platform.engine import batch
+from gyro_platform.engine import integrators
+from gyro_platform.physics import model
+from gyro_platform.physics import rotations
+from gyro_platform.physics import system
+from gyro_platform.physics import tree
+from gyro_platform.ros.core import NodeConfig, NodeCore
+from gyro_platform.ros.dds import zero_message
+from gyro_platform.io.messages import MessageTypes, jazzy_typestore
+from gyro_platform.ros.command import warm_up
 
 def signatures():
     res = {}

@@ -22,7 +22,7 @@ Frames and conventions (spec sections 0 and 2.1):
       ω_z = −θ̇ sin φ + ψ̇ cos φ cos θ
 
 All functions are vectorised over an array of times ``t`` (s) and return arrays with one row per
-time. ``samples(duration, rate)`` turns a motion into the :class:`~gyro_platform.inputs.RateSample`
+time. ``samples(duration, rate)`` turns a motion into the :class:`~gyro_platform.engine.inputs.RateSample`
 stream that drives the simulator. The simulator interpolates the rate linearly between samples,
 so a motion's rate should be smooth on the scale of the sample interval (or piecewise linear
 with breakpoints on sample instants, as :class:`RateSteps` with ``rise_time``).
@@ -36,8 +36,8 @@ from typing import Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .inputs import RateSample
-from .params import EARTH_RATE, STANDARD_GRAVITY
+from ..engine.inputs import RateSample
+from ..physics.params import EARTH_RATE, STANDARD_GRAVITY
 
 G = STANDARD_GRAVITY
 _GRAV_UP = np.array([0.0, 0.0, G])  # −g_N: specific force of a vehicle at rest, N axes

@@ -1,6 +1,6 @@
 """Input gate between messages and the simulator: timing and sanity of every rate sample.
 
-:meth:`TimeGate.offer` takes what :func:`gyro_platform.messages.reading_from_msg` made of one
+:meth:`TimeGate.offer` takes what :func:`gyro_platform.io.messages.reading_from_msg` made of one
 message (a ``Reading`` or a ``Rejected``) and the message's receive time, and returns an explicit
 :class:`Decision`. The gate never touches the physics; the caller applies the decision:
 
@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from .inputs import RateSample
+from ..engine.inputs import RateSample
 from .messages import Reading, Rejected
 
 NS = 1_000_000_000

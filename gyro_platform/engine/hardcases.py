@@ -22,12 +22,12 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import SimulationError
-from .gyro import GimballedGyro, GyroModel
+from ..errors import SimulationError
+from ..physics.gyro import GimballedGyro, GyroModel
 from .integrators import make_integrator
-from .options import DEFAULT_EFFECTS, ModelOptions
-from .params import NAV1, PlatformParams
-from .rotations import quat_matrix, matrix_rotvec
+from ..physics.options import DEFAULT_EFFECTS, ModelOptions
+from ..physics.params import NAV1, PlatformParams
+from ..physics.rotations import quat_matrix, matrix_rotvec
 from .simulator import Simulator
 
 RATE = 1000.0                 # Hz, vehicle input

@@ -11,7 +11,7 @@ The launch file only declares the arguments (:data:`ARGUMENTS`) and turns :func:
   ``robot_state_publisher``'s own ``frame_prefix`` convention and REP-105 multi-robot setups),
   else none; the same prefix goes to the node (its output frame ids) and to
   robot_state_publisher (TF), so outputs and TF agree;
-* robot_state_publisher: ``robot_description`` = the URDF of :mod:`gyro_platform.urdf` for the
+* robot_state_publisher: ``robot_description`` = the URDF of :mod:`gyro_platform.io.urdf` for the
   same parameters (so it never disagrees with the node's model), ``joint_states`` remapped to
   the node's ``gimbal/joint_states``; it publishes ``/robot_description`` (transient local),
   ``/tf_static`` (fixed joints) and ``/tf`` (every moving joint, from the JointState).
@@ -84,7 +84,7 @@ def plan(values: Mapping[str, str], default_params_file: str) -> LaunchPlan:
     """The launch plan for argument ``values`` (name → string, as LaunchConfiguration gives
     them). Raises :class:`LaunchArgumentError` (one line naming the argument) on a bad value,
     and ``core.ConfigError`` when the parameters do not give a valid model."""
-    from .urdf import urdf_from_params_file
+    from ..io.urdf import urdf_from_params_file
 
     cfg = {name: str(values.get(name, default)) for name, default, _ in ARGUMENTS}
     params_file = cfg["params_file"] or default_params_file

@@ -49,7 +49,7 @@ import scipy.integrate
 import scipy.linalg
 from numba import njit
 
-from .errors import SimulationError, ToleranceError
+from ..errors import SimulationError, ToleranceError
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "make_integrator", "INTEGRATORS", "error_norm",
            "MAX_SUBSTEPS"]

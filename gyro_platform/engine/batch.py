@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from .integrators import COARSEN, MAX_JUMP
-from .system import FASTMATH, platform_rhs, support_regime
+from ..physics.system import FASTMATH, platform_rhs, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
 #: run_batch status bits: 1 gimbal lock (precession), 2 mass matrix not positive definite,

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import PrecessionInvalidError
+from ..errors import PrecessionInvalidError
 from .options import ModelOptions
 from .params import PlatformParams
 from .tree import REVOLUTE, ROOT, BodyTree, TreeWork, kinematics, mass_matrix, newton_euler, generalised

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from . import effects as fx
-from .errors import GimbalLockError, SimulationError
+from ..errors import GimbalLockError, SimulationError
 from .model import (LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions

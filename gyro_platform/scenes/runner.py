@@ -92,11 +92,11 @@ import numpy as np
 import yaml
 
 from . import motions as mo
-from .options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
-from .outputs import BEARING_NAMES, GIMBAL_NAMES
-from .params import ParameterError, PlatformParams
-from .inputs import RateSample
-from .recording import ROTORS, Recorder, print_summary_table
+from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
+from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
+from ..physics.params import ParameterError, PlatformParams
+from ..engine.inputs import RateSample
+from ..io.recording import ROTORS, Recorder, print_summary_table
 
 AXIS_KEYS = ("x", "y", "z", "norm")
 #: quantity -> (selector key or None, allowed selector values, unit)
@@ -329,7 +329,7 @@ class Scene:
 
     def with_integrator(self, integrator: str | None = None, max_step: float | None = None) -> "Scene":
         """Copy with another integrator and/or internal step bound (s)."""
-        from .integrators import INTEGRATORS
+        from ..engine.integrators import INTEGRATORS
 
         name = self.integrator if integrator is None else integrator
         step = self.max_step if max_step is None else float(max_step)
@@ -352,7 +352,7 @@ def scene_dirs() -> list[Path]:
     ``config/scenes``; the installed share folder ``<prefix>/share/gyro_platform/config/scenes``
     of the prefix this package is installed under (pip, ``--prefix``, ``--user``, colcon) and
     of ``sys.prefix``; the ament index's share folder when ``ament_index_python`` is there."""
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parents[1]        # the gyro_platform package folder
     dirs = [here.parent / "config" / "scenes"]
     share = Path("share") / "gyro_platform" / "config" / "scenes"
     # <prefix>/lib/pythonX.Y/site-packages/gyro_platform -> <prefix>
@@ -462,7 +462,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
         m = re.search(r"parameter '([A-Za-z_0-9]+)", str(e))
         v.fail(f"params.{m.group(1)}" if m else "params", str(e))
 
-    from .integrators import INTEGRATORS
+    from ..engine.integrators import INTEGRATORS
 
     integrator = v.choice(d.get("integrator", "auto"), "integrator", ("auto", *INTEGRATORS))
     max_step = v.number(d.get("max_step", 1e-3), "max_step", lo=0.0, hi=1.0, lo_open=True)
@@ -683,7 +683,7 @@ def run_scene(scene: Scene, out_dir=None):
     decisions (drops, resets) are applied with ``replay.apply_decision``; their counts are in
     ``summary['bag']``.
     """
-    from .simulator import Simulator
+    from ..engine.simulator import Simulator
 
     sim = Simulator(params=scene.params, options=scene.options)
     rec = Recorder()
@@ -697,8 +697,8 @@ def run_scene(scene: Scene, out_dir=None):
 
     error = None            # a bag damaged after some readable samples
     if scene.motion.is_bag:
-        from .replay import BagReadError, apply_decision, read_samples
-        from .timebase import TimeGate
+        from ..replay import BagReadError, apply_decision, read_samples
+        from ..io.gate import TimeGate
 
         kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
         gate = TimeGate()
@@ -741,7 +741,7 @@ def run_scene(scene: Scene, out_dir=None):
     if n_in == 0:
         hint = ""
         if scene.motion.is_bag:
-            from .replay import no_sample_hint
+            from ..replay import no_sample_hint
 
             snap = gate.snapshot()
             hint = ": " + no_sample_hint(snap["dropped_by_reason"], snap["received"])
@@ -856,9 +856,9 @@ def _error(message: str) -> None:
 def run(args) -> int:
     """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable,
     2 bad scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
-    from .cli import EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE
-    from .errors import SimulationError
-    from .replay import BagPathError, BagReadError, ReplayError
+    from ..cli import EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE
+    from ..errors import SimulationError
+    from ..replay import BagPathError, BagReadError, ReplayError
 
     try:
         scene = load_scene(args.scene)

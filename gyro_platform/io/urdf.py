@@ -1,7 +1,7 @@
 """URDF of the platform, generated from its parameters (ROS-free), and the joint transforms for TF.
 
 Frames (REP-105, REP-103 FLU) and joints; joint names equal the ``JointState`` names the node
-publishes (:func:`gyro_platform.messages.joint_state`):
+publishes (:func:`gyro_platform.io.messages.joint_state`):
 
 * ``base_link`` (vehicle) → ``platform``: carried mode: fixed joint ``platform_mount`` with the
   ``mounting`` rotation; stabilised mode: the mount joints ``mount_roll`` (x), ``mount_pitch``
@@ -35,9 +35,9 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .model import GIMBAL_AXES, SPIN_AXES
-from .outputs import GIMBAL_NAMES, MOUNT_NAMES
-from .params import PlatformParams
+from ..physics.model import GIMBAL_AXES, SPIN_AXES
+from ..engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
+from ..physics.params import PlatformParams
 
 #: densities of the equivalent solids (kg/m³): aluminium frames and housings, steel rotors
 DENSITY = {"structure": 2700.0, "rotor": 7850.0}
@@ -298,7 +298,7 @@ def urdf_from_params_file(params_file: str | None, scene: str = "", node_name: s
     """URDF for a ROS params file (+ scene and other overrides), as the node would configure
     itself from them — used by the launch file to hand ``robot_state_publisher`` the same
     model. Raises ``core.ConfigError`` on a bad parameter."""
-    from .core import NODE_NAME, NodeConfig, load_params_file
+    from ..ros.core import NODE_NAME, NodeConfig, load_params_file
 
     params = dict(load_params_file(params_file, node_name or NODE_NAME)) if params_file else {}
     if scene:

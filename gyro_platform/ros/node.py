@@ -2,7 +2,7 @@
 
 The only module of the package that imports rclpy. Everything the node does with a message —
 mounting, time gate, integration, output grid, diagnostics content, parameter validation —
-is in :mod:`gyro_platform.core` (ROS-free, tested without ROS); this file wires it to rclpy:
+is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wires it to rclpy:
 
 * parameters: every entry of ``core.PARAMETERS`` declared with a ``ParameterDescriptor``
   (description, ``FloatingPointRange`` for every double, ``read_only``); a ``scene`` supplies
@@ -20,7 +20,7 @@ is in :mod:`gyro_platform.core` (ROS-free, tested without ROS); this file wires 
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
   ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
   come from ``robot_state_publisher`` (started by the launch file with the URDF of
-  :mod:`gyro_platform.urdf`) fed by ``gimbal/joint_states``;
+  :mod:`gyro_platform.io.urdf`) fed by ``gimbal/joint_states``;
 * ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a timer —
   the same status names as the plain-DDS transport;
 * ``~/reset`` (``std_srvs/srv/Trigger``) and a backward jump of the node clock (looped
@@ -50,14 +50,14 @@ try:
     from std_srvs.srv import Trigger
 except ImportError as e:  # pragma: no cover - depends on the machine
     raise ImportError(
-        f"gyro_platform.node needs rclpy and the ROS 2 message packages ({e}); source a ROS 2 Jazzy "
+        f"gyro_platform.ros.node needs rclpy and the ROS 2 message packages ({e}); source a ROS 2 Jazzy "
         "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
-        "(gyro_platform.core) / 'gyro-platform node' on plain DDS") from e
+        "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
 from . import core as core_mod
 from .core import PARAMETERS, SPECS, ConfigError, NodeConfig, NodeCore, ParamSpec
-from .messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
-from .node_main import warm_up
+from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from .command import warm_up
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,

@@ -19,7 +19,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from .outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 AXES = ("x", "y", "z")
@@ -133,7 +133,7 @@ def _max_abs_axes(a: np.ndarray) -> dict[str, float]:
 
 
 class Recorder:
-    """Collects :class:`~gyro_platform.outputs.Outputs` (one per output instant).
+    """Collects :class:`~gyro_platform.engine.outputs.Outputs` (one per output instant).
 
     ``append(outputs, **extra)`` stores the outputs and optional extra per-instant series, e.g.
     ``vehicle_omega`` (3,) rad/s and ``vehicle_attitude`` (4,) quaternion x, y, z, w

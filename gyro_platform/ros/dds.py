@@ -23,8 +23,8 @@ so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
   ``ros_discovery_info`` announcement (``rmw_dds_common/ParticipantEntitiesInfo``) that lets
   ``ros2 node list`` show the node.
 * **The platform node** (:class:`PlatformDdsNode`): the thin adapter around
-  :class:`gyro_platform.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
-  ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node), ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of :mod:`gyro_platform.urdf`), ``~/reset``
+  :class:`gyro_platform.ros.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
+  ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node), ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of :mod:`gyro_platform.io.urdf`), ``~/reset``
   (``std_msgs/msg/Empty``) instead of the rclpy reset service, wall-clock jumps forwarded to
   the core.
 
@@ -257,7 +257,7 @@ class IdlTypes:
 
     def __init__(self, typestore: Any = None):
         if typestore is None:
-            from .messages import jazzy_typestore
+            from ..io.messages import jazzy_typestore
 
             typestore = jazzy_typestore()
         self.typestore = typestore
@@ -744,7 +744,7 @@ class _ClockWatch:
 
 
 class PlatformDdsNode:
-    """The platform node on DDS, a thin adapter around :class:`gyro_platform.core.NodeCore`:
+    """The platform node on DDS, a thin adapter around :class:`gyro_platform.ros.core.NodeCore`:
     one subscription on the core's input topic (sensor-data QoS), one reliable publisher per
     output topic and ``/diagnostics`` every ``1 / diagnostics_rate`` s (the core's statuses plus
     ``gyro_platform: transport``), ``~/reset`` (``std_msgs/msg/Empty``) →
@@ -763,7 +763,7 @@ class PlatformDdsNode:
     def __init__(self, core: Any, node: DdsNode, *, diagnostics_period: float = 1.0,
                  log: Callable[[str], None] | None = None, reset_topic: bool = True,
                  robot_description: bool = True):
-        from .messages import DIAGNOSTIC_ARRAY
+        from ..io.messages import DIAGNOSTIC_ARRAY
 
         self.core = core
         self.node = node
@@ -801,9 +801,9 @@ class PlatformDdsNode:
 
     def warm_up(self) -> None:
         """Compile/load the kernels and build the CDR encoders before the first real sample
-        (:func:`gyro_platform.node_main.warm_up`; outputs encoded, not sent), so that the
+        (:func:`gyro_platform.ros.command.warm_up`; outputs encoded, not sent), so that the
         first samples are not stalled (and dropped by the keep-last-5 input queue)."""
-        from .node_main import warm_up
+        from .command import warm_up
 
         def encode(topic: str, msg: Any) -> None:
             if topic in self.publishers:
@@ -846,8 +846,8 @@ class PlatformDdsNode:
     def _setup_robot_description(self) -> None:
         """``/robot_description`` (URDF, transient local) and ``/tf_static`` (fixed joints)
         published once, latched; ``/tf`` (moving joints) with every JointState output."""
-        from .messages import STRING, TF_MESSAGE, string_message, tf_message
-        from .urdf import config_model, config_urdf
+        from ..io.messages import STRING, TF_MESSAGE, string_message, tf_message
+        from ..io.urdf import config_model, config_urdf
 
         self.model = config_model(self.core.config)
         self.publishers["robot_description"] = self.node.create_publisher(STRING, "robot_description", LATCHED)
@@ -859,7 +859,7 @@ class PlatformDdsNode:
             self.publishers["/tf_static"].publish(static)
 
     def _publish_tf(self, joint_state: Any) -> None:
-        from .messages import stamp_ns, tf_message
+        from ..io.messages import stamp_ns, tf_message
 
         positions = dict(zip(joint_state.name, (float(x) for x in joint_state.position)))
         msg = tf_message(self.model, positions, self.core.types, stamp_ns(joint_state.header.stamp), self.frame_prefix)
@@ -916,7 +916,7 @@ class PlatformDdsNode:
         status names as the rclpy node): WARN after a transport error. Lost input (samples DDS
         overwrote in the keep-last queue: the node is slower than its input) is fed to the
         core's ``InputLoss`` in :meth:`poll` and makes ``gyro_platform: node`` WARN."""
-        from .messages import transport_status
+        from ..io.messages import transport_status
 
         arr = self.core.diagnostics(time.time_ns())
         warn = f"{self.errors} transport error(s); last: {self.last_error}" if self.errors else ""

@@ -12,17 +12,17 @@ import math
 
 import numpy as np
 
-from . import effects as fx
-from .errors import GimbalLockError, InputError, SimulationError, ToleranceError
+from ..physics import effects as fx
+from ..errors import GimbalLockError, InputError, SimulationError, ToleranceError
 from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
-from .model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
-from .options import NEEDS_SPECIFIC_FORCE, ModelOptions
+from ..physics.model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
+from ..physics.options import NEEDS_SPECIFIC_FORCE, ModelOptions
 from .outputs import Outputs
-from .params import NAV1, PlatformParams
-from .system import PRECESSION, PlatformSystem
-from .rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
-from .tree import TreeWork, tree_inverse_dynamics
+from ..physics.params import NAV1, PlatformParams
+from ..physics.system import PRECESSION, PlatformSystem
+from ..physics.rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
+from ..physics.tree import TreeWork, tree_inverse_dynamics
 
 #: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
 #: step (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
@@ -256,7 +256,7 @@ class Simulator:
         return RateSample(float(t[i]), w[i].copy(), fB[i].copy() if has_f else None)
 
     def _push_many(self, t, w, fB, has_f, output_every, outs) -> None:
-        from .fastpath import (COMPILED, I_EBAD, I_EST, I_H, I_NBAD, I_NORM, I_REJ, I_STEPS, I_T, N_INFO,
+        from .batch import (COMPILED, I_EBAD, I_EST, I_H, I_NBAD, I_NORM, I_REJ, I_STEPS, I_T, N_INFO,
                                NEED_REGIME, ST_LOCK, ST_NOT_PD, ST_TOLERANCE, RegimeMatrices, run_batch)
         if len(t) == 0:
             return
@@ -423,7 +423,7 @@ class Simulator:
         torque-free invariants of spec 4.5 (full fidelity)."""
         st = self.layout
         tree, wk = self._out_tree, self._out_work
-        from .tree import kinematics, mass_matrix
+        from ..physics.tree import kinematics, mass_matrix
         v = self.y[st.v]
         w0 = np.zeros(3) if self.system.stabilised else self.platform_rate()
         kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
@@ -432,7 +432,7 @@ class Simulator:
         mass_matrix(wk.J, tree.inertia, M)
         out = {"T2": 0.5 * float(v @ M @ v)}
         if self.system.stabilised:
-            from .model import spin_momentum
+            from ..physics.model import spin_momentum
             h = np.zeros(3)
             spin_momentum(self.system.L, self.y[st.q], np.zeros(5), h, np.zeros(3))
             p = (M @ v)[:3] + h
@@ -482,7 +482,7 @@ class Simulator:
         tree, wk = self._out_tree, self._out_work
         tau_ext = np.zeros((tree.nb, 3))
         if self.needs_f:
-            from .tree import kinematics
+            from ..physics.tree import kinematics
             fP = R_IP.T @ (R_IB @ fB)
             kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
                        q, v, self.platform_rate(), wk.R, wk.w, wk.J)

@@ -17,11 +17,11 @@ Topics (names relative to the node namespace, except ``/diagnostics``; copy this
 | `platform/servo_torque` (out, stabilised mode) | `geometry_msgs/msg/Vector3Stamped` | servo (mount torquer) torque on the platform, N m | `platform` |
 | `bearing/<name>/torque` (out, one per bearing: `support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11`) | `geometry_msgs/msg/WrenchStamped` | torque = bearing reaction torque N m; force always 0: the model is torque-only (rotational dynamics about coincident gimbal centres), bearing forces are not computed | `BEARING_FRAMES[name]`: `platform, gyro_frame4, gyro_housing5, gyro_housing7, gyro_frame9, gyro_housing10, gyro_housing5, gyro_housing7, gyro_housing10` |
 | `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | statuses `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz), `gyro_platform: platform` (`Outputs.status`), `gyro_platform: node` (counters, real-time margin, input lost; WARN on overload) and `gyro_platform: transport` (the transport's counters) — the same names on rclpy and on plain DDS | `""` |
-| `/robot_description` (out, transient local) | `std_msgs/msg/String` | URDF of the platform (`gyro_platform.urdf`), generated from the parameters | - |
+| `/robot_description` (out, transient local) | `std_msgs/msg/String` | URDF of the platform (`gyro_platform.io.urdf`), generated from the parameters | - |
 | `/tf`, `/tf_static` (out; DDS transport, under rclpy via robot_state_publisher) | `tf2_msgs/msg/TFMessage` | transforms of every joint of the URDF (`/tf_static`: fixed joints, transient local) | REP-105: `base_link` → platform → gimbals → rotors |
 
 Output stamps are in the input's time base (the sample's header stamp, or its receive time when
-the stamps are not set), see :mod:`gyro_platform.timebase`.
+the stamps are not set), see :mod:`gyro_platform.io.gate`.
 """
 from __future__ import annotations
 
@@ -34,8 +34,8 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .rotations import euler_xyz_axes
-from .outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+from ..physics.rotations import euler_xyz_axes
+from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 # ---- names -------------------------------------------------------------------------------
 IMU = "sensor_msgs/msg/Imu"
@@ -340,7 +340,7 @@ def wrap_angle(x: float) -> float:
 
 
 def joint_positions(out: Outputs) -> dict[str, float]:
-    """Joint name → position (rad) of every moving joint of the URDF (:mod:`gyro_platform.urdf`):
+    """Joint name → position (rad) of every moving joint of the URDF (:mod:`gyro_platform.io.urdf`):
     the gimbals, the mount joints (stabilised mode) and the rotors (spin angle ``ω_r t`` of
     the ideal speed control, wrapped to [-π, π)). Every value is finite for finite outputs."""
     pos = dict(zip(GIMBAL_NAMES, (float(x) for x in out.gimbal_angles)))
@@ -515,7 +515,7 @@ STRING = "std_msgs/msg/String"
 
 def tf_message(model: Any, positions: Mapping[str, float], types: MessageTypes, t_ns: int,
                frame_prefix: str = "", static: bool = False) -> Any:
-    """``tf2_msgs/TFMessage`` of the joints of a :class:`gyro_platform.urdf.PlatformModel`: the
+    """``tf2_msgs/TFMessage`` of the joints of a :class:`gyro_platform.io.urdf.PlatformModel`: the
     fixed joints when ``static`` (for ``/tf_static``), else the moving ones at ``positions``
     (rad; for ``/tf``), as robot_state_publisher sends them: header frame = parent link,
     child frame = child link, both with ``frame_prefix``; translation m, rotation x, y, z, w."""

@@ -3,9 +3,9 @@
 ``gyro-platform node [--transport auto|ros|dds] [--params-file FILE] [--scene S]
 [--domain-id N] [--namespace NS] [--node-name NAME] [--cyclonedds-config FILE] [--duration S]``
 
-* ``ros``: the rclpy node :func:`gyro_platform.node.main` (needs a sourced ROS 2 Jazzy);
-  ``dds``: :class:`gyro_platform.dds.PlatformDdsNode` around the same
-  :class:`gyro_platform.core.NodeCore`, speaking rmw_cyclonedds' wire format through the
+* ``ros``: the rclpy node :func:`gyro_platform.ros.node.main` (needs a sourced ROS 2 Jazzy);
+  ``dds``: :class:`gyro_platform.ros.dds.PlatformDdsNode` around the same
+  :class:`gyro_platform.ros.core.NodeCore`, speaking rmw_cyclonedds' wire format through the
   ``cyclonedds`` package; ``auto`` (default): rclpy if it imports, else DDS. The first log line
   says which transport runs and why.
 * ``--params-file``: the rclpy params file (``config/platform.yaml``): its ``/**`` section and
@@ -149,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
     from .core import ConfigError, NodeCore
-    from .messages import MessageTypes
+    from ..io.messages import MessageTypes
 
     try:
         from . import dds

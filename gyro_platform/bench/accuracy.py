@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .motions import CoordinatedTurn, RateSteps, Sine, Sinusoidal
-from .options import DEFAULT_EFFECTS, ModelOptions
-from .params import NAV1
-from .simulator import Simulator
+from ..scenes.motions import CoordinatedTurn, RateSteps, Sine, Sinusoidal
+from ..physics.options import DEFAULT_EFFECTS, ModelOptions
+from ..physics.params import NAV1
+from ..engine.simulator import Simulator
 
 SAMPLE_RATE = 1000.0     # Hz, vehicle input
 OUT_EVERY = 100          # compare at 10 Hz
@@ -291,7 +291,7 @@ def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
     """CPU µs per sample (compiled batch, 1 kHz, 20 s ship motion) with each effect on alone
     on top of the minimum (rotor gyroscopic + servo), per fidelity."""
     sc = ship_scene(20.0)
-    from .options import EFFECTS
+    from ..physics.options import EFFECTS
     rows = []
     base = {"rotor_gyroscopic", "servo"}
     for fid in ("full", "linear"):
@@ -319,7 +319,7 @@ def hotpath(repeats: int = 5) -> dict:
     res = {}
     for fid, integ in (("full", "etd2"), ("linear", "etd2"), ("linear", "rk4"), ("full", "rk4")):
         opt = ModelOptions.make("stabilised", fid, DEFAULT_EFFECTS["stabilised"], integrator=integ, max_step=1e-3)
-        from .inputs import RateSample
+        from ..engine.inputs import RateSample
         tp, tb = [], []
         for _ in range(repeats):
             sim = Simulator(NAV1, opt)
@@ -377,7 +377,7 @@ if __name__ == "__main__":
 def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> list[dict]:
     """Case × method table (``hardcases``): error against the reference, CPU s per simulated s,
     verdict (ok / refused / WRONG). ``quick``: the tests' durations (the hour: 60 s)."""
-    from .hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
+    from ..engine.hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
     rows: list[dict] = []
     for case in CASES:
         if cases and case.name not in cases:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import GimbalLockError
+from ..errors import GimbalLockError
 from .params import ParameterError
 from .tree import REVOLUTE, ROOT, SPIN, BodyTree, TreeWork, tree_inverse_dynamics, tree_mass_and_bias
 

@@ -1,0 +1,8 @@
+"""io — the edge to the outside world: ROS 2 messages, the input time gate, bags, recordings.
+
+Holds the ROS message mapping (``messages``: inputs → readings, outputs → messages, topics,
+diagnostics, TF), the input time gate (``gate``: stamps, gaps, rates, resets), the recorder
+(``recording``: CSV, JSON summaries, plots) and the URDF generated from the parameters
+(``urdf``). May import ``physics`` (parameters, geometry), the engine's public records
+(``engine.inputs``, ``engine.outputs``) and ``errors`` — never integrators or the simulator.
+"""
