@@ -1,0 +1,194 @@
+"""``gyro-platform sweep SPEC.yaml --out DIR``: a Monte Carlo budget or a fleet replay on Dask.
+
+Runs go to a Dask cluster: by default a local cluster of worker processes (one per core, one
+thread each, on 127.0.0.1, no dashboard); ``--scheduler ADDRESS`` uses any running cluster
+(start one with ``dask scheduler`` and ``dask worker ADDRESS`` on each machine; the workers need
+this package installed). Every finished run is written at once (``store``), so Ctrl-C, SIGTERM
+or a killed worker lose at most the runs in flight, and the same command again runs only what
+is missing.
+
+Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
+``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them); 2 a bad
+sweep file, flag or output folder; 130 interrupted (Ctrl-C or SIGTERM; the table holds the runs
+finished so far).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from .plots import budget_stats, plot_budget
+from .runs import execute_run, lost_record
+from .spec import SweepSpec, SweepSpecError, load_sweep
+from .store import ResultStore, StoreError, atomic_write
+
+EXIT_OK, EXIT_RUNS_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class Interrupted(Exception):
+    """Ctrl-C or SIGTERM while the sweep runs."""
+
+
+@dataclass
+class SweepResult:
+    records: list[dict[str, Any]]
+    executed: int = 0
+    skipped: int = 0
+    interrupted: bool = False
+    wall_s: float = 0.0
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def make_client(workers: int | None = None, scheduler: str | None = None):
+    """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler, timeout="20s")
+    n = workers or os.cpu_count() or 1
+    # the worker processes inherit an ignored SIGINT: Ctrl-C (sent to the whole process group)
+    # reaches only this process, which cancels the runs and shuts the cluster down in order
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=40)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old)
+    return Client(cluster)
+
+
+def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler: str | None = None,
+              progress: Callable[[str], None] | None = None) -> SweepResult:
+    """Run the runs of ``spec`` not yet finished in ``out``; return every record of the folder."""
+    from distributed import as_completed
+
+    say = progress or (lambda s: None)
+    store = ResultStore(out, spec.fingerprint(), {"sweep": str(spec.source), "scene": str(spec.scene_path),
+                                                  "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed}).open()
+    done = store.finished()
+    tasks = spec.tasks(skip=done)
+    res = SweepResult(records=[], skipped=len(done))
+    t0 = time.perf_counter()
+    if tasks:
+        client = make_client(workers, scheduler)
+        futures = []
+        try:
+            say(f"{len(tasks)} run(s) to do, {len(done)} already done, on {len(client.scheduler_info()['workers'])} worker(s)")
+            futures = client.map(execute_run, tasks, key=[f"gyro-sweep-{spec.fingerprint()}-{t.run}" for t in tasks],
+                                 pure=False, retries=0)
+            by_key = {f.key: t for f, t in zip(futures, tasks)}
+            for fut in as_completed(futures):
+                task = by_key[fut.key]
+                try:
+                    rec = fut.result()
+                except Exception as e:  # noqa: BLE001 — KilledWorker, lost connection, …
+                    rec = lost_record(task, f"{type(e).__name__}: {e}")
+                store.put(rec)
+                res.executed += 1
+                say(f"run {rec['run']}: {rec['status']}" + (f" ({rec['message']})" if rec.get("message") else ""))
+        except (KeyboardInterrupt, Interrupted):
+            res.interrupted = True
+            for f in futures:
+                f.cancel()
+        finally:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    res.wall_s = time.perf_counter() - t0
+    res.records = store.records()
+    for r in res.records:
+        res.counts[r["status"]] = res.counts.get(r["status"], 0) + 1
+    return res
+
+
+def finish(spec: SweepSpec, out: Path, res: SweepResult, plots: bool = True) -> dict[str, Any]:
+    """Write the table, summary.json and the plot; return the summary."""
+    store = ResultStore(out, spec.fingerprint(), {})
+    parquet, csv = store.write_table(res.records)
+    summary = {"sweep": str(spec.source), "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed,
+               "records": len(res.records), "status_counts": res.counts, "executed_now": res.executed,
+               "skipped_finished": res.skipped, "interrupted": res.interrupted, "wall_s": res.wall_s,
+               "drift_budget": budget_stats(res.records), "table": [str(parquet), str(csv)]}
+    if plots and any(r["status"] == "ok" for r in res.records):
+        summary["plot"] = str(plot_budget(res.records, out / "budget.png",
+                                          f"{spec.source.name}: {spec.kind.replace('_', ' ')}, "
+                                          f"{res.counts.get('ok', 0)} of {spec.n_runs} runs ok"))
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=str, allow_nan=True).encode())
+    return summary
+
+
+def _fmt(x: float) -> str:
+    return "nan" if not math.isfinite(x) else f"{x:.4g}"
+
+
+def print_summary(summary: dict[str, Any], file=None) -> None:
+    out = file or sys.stdout
+    print(f"runs: {summary['records']} of {summary['runs']} recorded "
+          f"({', '.join(f'{k} {v}' for k, v in sorted(summary['status_counts'].items()))})", file=out)
+    print("drift rate budget over the ok runs (°/h):", file=out)
+    print(f"  {'axis':<5}{'n':>6}{'mean':>12}{'σ':>12}{'|mean|+1σ':>12}{'|mean|+3σ':>12}{'q99.73 |r|':>12}", file=out)
+    for r in summary["drift_budget"]:
+        print(f"  {r['axis']:<5}{r['n']:>6}{_fmt(r['mean_deg_per_h']):>12}{_fmt(r['std_deg_per_h']):>12}"
+              f"{_fmt(r['bound_1sigma_deg_per_h']):>12}{_fmt(r['bound_3sigma_deg_per_h']):>12}"
+              f"{_fmt(r['q99.73_abs_deg_per_h']):>12}", file=out)
+    print("wrote " + ", ".join(summary["table"] + ([summary["plot"]] if "plot" in summary else [])), file=out)
+
+
+def add_arguments(parser) -> None:
+    parser.description = (__doc__ or "").split("\n\n")[0]
+    parser.epilog = "exit codes: 0 every run recorded; 1 some runs failed or lost; 2 bad sweep file, flag or folder; 130 interrupted"
+    parser.add_argument("spec", help="sweep YAML file (see config/sweeps/)")
+    parser.add_argument("--out", metavar="DIR", help="output folder (default results/sweeps/<sweep file name>)")
+    parser.add_argument("--workers", type=int, metavar="N", help="local cluster worker processes (default: all cores)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask cluster, e.g. tcp://10.0.0.5:8786")
+    parser.add_argument("--no-plots", action="store_true", help="write no plot")
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signal.Signals(signum).name)
+
+
+def run(args) -> int:
+    prog = "gyro-platform sweep"
+    if args.workers is not None and not 1 <= args.workers <= 4096:
+        print(f"{prog}: --workers must be between 1 and 4096, got {args.workers}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.workers is not None and args.scheduler:
+        print(f"{prog}: give --workers or --scheduler, not both", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        spec = load_sweep(args.spec)
+    except SweepSpecError as e:
+        print(f"{prog}: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    out = Path(args.out) if args.out else Path("results") / "sweeps" / Path(args.spec).stem
+    old = signal.signal(signal.SIGTERM, _raise_interrupted)
+    try:
+        res = run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
+                        progress=lambda s: print(s, file=sys.stderr, flush=True))
+    except StoreError as e:
+        print(f"{prog}: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as e:  # e.g. the scheduler address cannot be reached
+        print(f"{prog}: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    summary = finish(spec, out, res, plots=not args.no_plots)
+    print_summary(summary)
+    if res.interrupted:
+        print(f"{prog}: interrupted; {res.executed} run(s) finished now, run the same command to go on",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return EXIT_RUNS_FAILED if res.counts.get("failed", 0) + res.counts.get("lost", 0) else EXIT_OK

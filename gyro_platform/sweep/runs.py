@@ -1,0 +1,105 @@
+"""One sweep run: a self-contained task in, one flat record of figures out (a pure function).
+
+A run never raises: its ``status`` says how it ended —
+
+* ``ok``: the scene ran; the figures are filled in;
+* ``refused``: the model refused this configuration (a parameter out of range, a
+  ``SimulationError`` such as a tolerance that cannot be met) — a verdict, not a failure;
+* ``failed_input``: the input could not be read (a damaged or missing bag, a missing topic);
+* ``failed``: anything else (a bug): the message names the exception.
+
+Figures (SI units and °/h, named with their unit): the least-squares drift rate per platform axis
+and its norm, the final drift angle per axis, the peak gimbal angle (over all five gimbals) and
+per gimbal, the peak bearing torque per bearing (norm), the integrator's achieved local error
+estimate, the CPU and wall time of the run.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
+from ..errors import SimulationError
+from ..replay import BagReadError, ReplayError
+from ..scenes.runner import ScenarioError, run_scene, scene_from_dict
+
+AXES = ("x", "y", "z")
+FINISHED = ("ok", "refused", "failed_input")  # a re-run skips these; 'failed'/'lost' run again
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """Everything one run needs (picklable: it travels to a Dask worker)."""
+
+    run: int
+    scene: dict                       # the scene mapping with this run's values applied
+    source: str                       # names the run in error messages
+    base_dir: str                     # the scene file's folder (relative bag paths)
+    values: dict[str, float] = field(default_factory=dict)   # varied parameter -> value
+    bag: str | None = None            # fleet replay: the bag of this run
+
+
+def figure_columns() -> list[str]:
+    """The figure columns of a run record, in table order."""
+    cols = [f"drift_rate_{a}_deg_per_h" for a in AXES] + ["drift_rate_norm_deg_per_h"]
+    cols += [f"final_drift_{a}_rad" for a in AXES] + ["peak_gimbal_angle_rad"]
+    cols += [f"peak_{g}_rad" for g in GIMBAL_NAMES]
+    cols += [f"peak_torque_{b}_N_m" for b in BEARING_NAMES]
+    cols += ["error_estimate", "n_samples", "sim_duration_s", "expectations_failed", "cpu_s", "wall_s"]
+    return cols
+
+
+def _figures(summary: dict[str, Any], results: list) -> dict[str, Any]:
+    nan = math.nan
+    dr = summary.get("drift_rate_deg_per_h", {})
+    fd = summary.get("final_drift_angle", {})
+    mg = summary.get("max_abs_gimbal_angle", {})
+    bt = summary.get("max_abs_bearing_torque", {})
+    f: dict[str, Any] = {f"drift_rate_{a}_deg_per_h": dr.get(a, nan) for a in AXES}
+    f["drift_rate_norm_deg_per_h"] = math.sqrt(sum(dr.get(a, nan) ** 2 for a in AXES))
+    f.update({f"final_drift_{a}_rad": fd.get(a, nan) for a in AXES})
+    f["peak_gimbal_angle_rad"] = max(mg.values()) if mg else nan
+    f.update({f"peak_{g}_rad": mg.get(g, nan) for g in GIMBAL_NAMES})
+    f.update({f"peak_torque_{b}_N_m": bt.get(b, nan) for b in BEARING_NAMES})
+    f["error_estimate"] = summary.get("max_error_estimate", nan)
+    f["n_samples"] = summary.get("n_samples", 0)
+    f["sim_duration_s"] = summary.get("duration", nan)
+    f["expectations_failed"] = sum(1 for r in results if not r[1])
+    return f
+
+
+def execute_run(task: RunTask) -> dict[str, Any]:
+    """Run one task; return its record (never raises)."""
+    rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
+    rec.update({f"param:{k}": v for k, v in task.values.items()})
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    try:
+        try:
+            scene = scene_from_dict(task.scene, source=task.source, base_dir=Path(task.base_dir),
+                                    default_name=str(task.scene.get("name", "sweep")))
+        except ScenarioError as e:
+            # a bag that cannot be found is bad input; any other rejection is the model refusing
+            rec.update(status="failed_input" if task.bag and "motion.path" in str(e) else "refused",
+                       message=str(e))
+        else:
+            try:
+                _, summary, results = run_scene(scene)
+                rec.update(_figures(summary, results))
+            except SimulationError as e:
+                rec.update(status="refused", message=f"{type(e).__name__}: {e}")
+            except (ScenarioError, BagReadError, ReplayError, OSError) as e:
+                rec.update(status="failed_input", message=f"{type(e).__name__}: {e}")
+    except Exception as e:  # noqa: BLE001 — a sweep records every failure and goes on
+        rec.update(status="failed", message=f"{type(e).__name__}: {e}".splitlines()[0])
+    rec["cpu_s"] = time.process_time() - cpu0
+    rec["wall_s"] = time.perf_counter() - wall0
+    return rec
+
+
+def lost_record(task: RunTask, why: str) -> dict[str, Any]:
+    """The record of a run whose worker died (the scheduler gave up on it)."""
+    return {"run": task.run, "status": "lost", "message": why.splitlines()[0] if why else "worker lost",
+            "bag": task.bag or "", **{f"param:{k}": v for k, v in task.values.items()}}

@@ -1,0 +1,191 @@
+"""Sweeps on a real Dask ``distributed.LocalCluster`` (no mocks): Monte Carlo budgets and fleets.
+
+Physics: the drift rate about platform z is −Q10/L11 (oracle O9 b; the default scene's
+expectation −0.41035 °/h at Q10 = 1e-7 N m), so a sweep over the bias torque must give drift
+rates proportional to it. Behaviour: draws depend on the seed and run index only; the table is
+identical on 1 and 2 workers; a refused run does not stop the sweep; a re-run skips finished
+runs; Ctrl-C leaves a readable table and exit code 130.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed", reason="sweeps run on Dask: pip install '.[sweep]'")
+pq = pytest.importorskip("pyarrow.parquet", reason="the results table is Parquet: pip install '.[sweep]'")
+
+from gyro_platform.sweep.command import finish, run_sweep  # noqa: E402
+from gyro_platform.sweep.spec import SweepSpecError, load_sweep  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT.parent / "shared" / "data" / "bags"
+O9B_DEG_H_PER_NM = -0.41035 / 1e-7      # drift z per unit bias torque on beta10 (default scene)
+TIMING = {"cpu_s", "wall_s"}
+
+
+def _write(tmp_path: Path, text: str, name: str = "sweep.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _table(out: Path) -> list[dict]:
+    return pq.read_table(out / "results.parquet").to_pylist()
+
+
+def _same(a: list[dict], b: list[dict]) -> bool:
+    strip = [[{k: v for k, v in r.items() if k not in TIMING} for r in t] for t in (a, b)]
+    return json.dumps(strip[0], sort_keys=True) == json.dumps(strip[1], sort_keys=True)
+
+
+BIAS_SWEEP = """
+scene: default
+duration: 12
+seed: 7
+runs: 4
+vary:
+  bias_torque[4]: {dist: list, values: [1.0e-7, 2.0e-7, -1.0e-7, 0.5e-7]}
+  support_coulomb: {dist: uniform, low: 2.0e-3, high: 8.0e-3}
+"""
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("scene: default\nruns: 2\nvary: {nonsense_param: {dist: fixed, value: 1}}\n", "nonsense_param"),
+    ("scene: default\nruns: 2\nvary: {unbalance: {dist: gamma, k: 1}}\n", "dist"),
+    ("scene: default\nruns: 2\nvary: {unbalance: {dist: uniform, low: 2, high: 1}}\n", "low"),
+    ("scene: default\nruns: 0\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "runs"),
+    ("scene: default\nruns: 2\nvary: {\"bias_torque[9]\": {dist: fixed, value: 1.0e-8}}\n", "index 9"),
+    ("scene: default\nruns: 2\nvary: {servo_limit: {dist: fixed, value: -1.0}}\n", "servo_limit"),
+    ("scene: no_such_scene\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "scene"),
+    ("scene: default\nbags: [x.mcap]\n", "motion type is 'bag'"),
+    ("scene: default\n", "either 'vary'"),
+    ("scene: default\nruns: 2\nwat: 1\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "wat"),
+    ("scene: default\nruns: [2\n", "line"),
+])
+def test_bad_sweep_files_are_refused_naming_the_key(tmp_path, text, fragment):
+    with pytest.raises(SweepSpecError) as e:
+        load_sweep(_write(tmp_path, text))
+    assert fragment in str(e.value)
+    assert "\n" not in str(e.value).strip()
+
+
+def test_draws_depend_on_seed_and_run_only(tmp_path):
+    text = ("scene: default\nseed: 11\nruns: {n}\nvary:\n"
+            "  unbalance: {{dist: normal, mean: 2.5e-8, std: 1.0e-8}}\n"
+            "  bias_torque[1]: {{dist: uniform, low: -1.0e-8, high: 1.0e-8}}\n")
+    small = load_sweep(_write(tmp_path, text.format(n=5), "a.yaml"))
+    large = load_sweep(_write(tmp_path, text.format(n=50), "b.yaml"))
+    assert [t.values for t in small.tasks()] == [t.values for t in large.tasks()[:5]]
+    assert small.fingerprint() == large.fingerprint()          # a sweep can be extended in place
+    vals = np.array([t.values["unbalance"] for t in large.tasks()])
+    assert abs(vals.mean() - 2.5e-8) < 4 * 1e-8 / np.sqrt(vals.size)
+    assert len({t.values["bias_torque[1]"] for t in large.tasks()}) == 50
+    # the value lands where the key says: element 1 of the vector, the others from the scene
+    task = large.task(3)
+    assert task.scene["params"]["bias_torque"][1] == task.values["bias_torque[1]"]
+    assert task.scene["params"]["bias_torque"][4] == 1.0e-7
+
+
+@pytest.fixture(scope="module")
+def bias_sweep(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("bias")
+    spec = load_sweep(_write(tmp, BIAS_SWEEP))
+    one = run_sweep(spec, tmp / "w1", workers=1)
+    finish(spec, tmp / "w1", one, plots=True)
+    two = run_sweep(spec, tmp / "w2", workers=2)
+    finish(spec, tmp / "w2", two, plots=False)
+    return spec, tmp, one, two
+
+
+def test_monte_carlo_drift_follows_the_bias_torque(bias_sweep):
+    spec, tmp, one, _ = bias_sweep
+    rows = _table(tmp / "w1")
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    for r in rows:
+        q10 = r["param:bias_torque[4]"]
+        assert r["drift_rate_z_deg_per_h"] == pytest.approx(O9B_DEG_H_PER_NM * q10, rel=0.05)
+        assert abs(r["drift_rate_x_deg_per_h"]) < 0.01 and abs(r["drift_rate_y_deg_per_h"]) < 0.01
+        assert r["peak_gimbal_angle_rad"] < 1e-4 and r["cpu_s"] > 0
+    summary = json.loads((tmp / "w1" / "summary.json").read_text())
+    z = next(b for b in summary["drift_budget"] if b["axis"] == "z")
+    rates = [r["drift_rate_z_deg_per_h"] for r in rows]
+    assert z["std_deg_per_h"] == pytest.approx(np.std(rates, ddof=1))
+    assert (tmp / "w1" / "budget.png").stat().st_size > 10_000
+
+
+def test_results_identical_on_one_and_two_workers(bias_sweep):
+    _, tmp, one, two = bias_sweep
+    assert one.executed == two.executed == 4
+    assert _same(_table(tmp / "w1"), _table(tmp / "w2"))
+    csv = (tmp / "w2" / "results.csv").read_text().splitlines()
+    assert len(csv) == 5 and "drift_rate_z_deg_per_h" in csv[0]
+
+
+def test_refused_run_does_not_stop_the_sweep_and_rerun_skips_finished(tmp_path):
+    spec = load_sweep(_write(tmp_path, "scene: default\nduration: 3\nruns: 3\n"
+                                       "vary: {\"spring[0]\": {dist: list, values: [0.5, -1.0, 0.25]}}\n"))
+    out = tmp_path / "out"
+    first = run_sweep(spec, out, workers=1)
+    assert [r["status"] for r in first.records] == ["ok", "refused", "ok"]
+    assert "spring" in first.records[1]["message"]
+    before = json.dumps(first.records, sort_keys=True)
+    again = run_sweep(spec, out, workers=1)           # nothing left to do: no cluster, no run
+    assert again.executed == 0 and again.skipped == 3
+    (out / "runs" / "run_000002.json").unlink()       # as if killed before run 2 was written
+    third = run_sweep(spec, out, workers=1)
+    assert third.executed == 1
+    assert _same(json.loads(before), third.records)
+    other = load_sweep(_write(tmp_path, "scene: default\nduration: 3\nruns: 1\nseed: 5\n"
+                                        "vary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "other.yaml"))
+    from gyro_platform.sweep.store import StoreError
+
+    with pytest.raises(StoreError, match="another sweep"):
+        run_sweep(other, out, workers=1)
+
+
+@pytest.mark.skipif(not BAGS.is_dir(), reason=f"real recordings absent: {BAGS}")
+def test_fleet_replay_one_run_per_bag(tmp_path):
+    spec = load_sweep(_write(tmp_path, f"scene: husky_replay\nduration: 8\nbags: [{BAGS}]\n"))
+    assert len(spec.bags) == 2
+    res = run_sweep(spec, tmp_path / "out", workers=2)
+    by_bag = {Path(r["bag"]).name: r for r in res.records}
+    husky = by_bag["robot_localization_husky_test1"]
+    assert husky["status"] == "ok" and husky["n_samples"] > 100
+    # the cabrillo recording has no /imu/data: bad input for this scene, and the sweep goes on
+    cab = by_bag["cabrillo_rov_bno085_imu"]
+    assert cab["status"] == "failed_input" and "/imu/data" in cab["message"]
+
+
+def test_ctrl_c_leaves_a_readable_table_and_exit_130(tmp_path):
+    spec = _write(tmp_path, "scene: default\nduration: 4\nruns: 400\n"
+                            "vary: {unbalance: {dist: uniform, low: 0.0, high: 5.0e-8}}\n")
+    out = tmp_path / "out"
+    log = open(tmp_path / "log.txt", "w")
+    proc = subprocess.Popen([sys.executable, "-m", "gyro_platform.cli", "sweep", str(spec), "--out", str(out),
+                             "--workers", "1", "--no-plots"], cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
+                            stdin=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and len(list((out / "runs").glob("run_*.json"))) < 2:
+            assert proc.poll() is None, (tmp_path / "log.txt").read_text()
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGINT)          # Ctrl-C in a terminal: the whole process group
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        log.close()
+    text = (tmp_path / "log.txt").read_text()
+    assert code == 130, text
+    assert "Traceback" not in text
+    rows = _table(out)
+    assert 2 <= len(rows) < 400 and all(r["status"] == "ok" for r in rows)
+    assert len(rows) == len(list((out / "runs").glob("run_*.json")))
