@@ -1,4 +1,4 @@
-"""gyro-platform command line: run a scene, replay a bag, benchmark, run the ROS 2 node.
+"""gyro-platform command line: run a scene, replay a bag, benchmark, run the ROS 2 node, sweep.
 
 Each subcommand lives in the module that owns it; that module provides
 ``add_arguments(parser)`` and ``run(args) -> int``. Imports are lazy so that a missing optional
@@ -34,6 +34,7 @@ SUBCOMMANDS = {
     "replay": ("gyro_platform.replay", "replay a rosbag2 bag through the simulator into an output bag"),
     "bench": ("gyro_platform.bench.accuracy", "benchmarks: accuracy versus time, hot path, effects cost"),
     "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
+    "sweep": ("gyro_platform.sweep.command", "Monte Carlo drift budgets and fleet replays on Dask"),
 }
 
 

@@ -60,8 +60,8 @@ class ModelOptions:
     effects: frozenset[str] = field(default_factory=lambda: DEFAULT_EFFECTS["stabilised"])
     integrator: str = "auto"
     max_step: float = 1e-3
-    rtol: float = 1e-8
-    atol: float = 1e-12
+    rtol: float = 1e-6
+    atol: float = 1e-9
     max_substeps: int = 4096
 
     def __post_init__(self) -> None:

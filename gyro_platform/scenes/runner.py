@@ -22,8 +22,8 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
                               # overrides of PlatformParams fields (SI units, angles in rad)
     integrator: auto          # integrator name (see integrators), default auto
     max_step: 1.0e-3          # s, largest internal step                     (default 1e-3)
-    rtol: 1.0e-8              # adaptive integrators only                    (optional)
-    atol: 1.0e-12             #                                              (optional)
+    rtol: 1.0e-6              # local error tolerance every integrator is held to (default 1e-6)
+    atol: 1.0e-9              # absolute part, state units rad, rad/s (default 1e-9)
     duration: 60              # s simulated (required, > 0)
     test_duration: 20         # s; the shortest run for which the expectations still hold —
                               # the test suite runs the scene this long    (optional, ≤ duration)

@@ -146,8 +146,6 @@ def print_summary(summary: dict[str, Any], file=None) -> None:
 
 
 def add_arguments(parser) -> None:
-    parser.description = (__doc__ or "").split("\n\n")[0]
-    parser.epilog = "exit codes: 0 every run recorded; 1 some runs failed or lost; 2 bad sweep file, flag or folder; 130 interrupted"
     parser.add_argument("spec", help="sweep YAML file (see config/sweeps/)")
     parser.add_argument("--out", metavar="DIR", help="output folder (default results/sweeps/<sweep file name>)")
     parser.add_argument("--workers", type=int, metavar="N", help="local cluster worker processes (default: all cores)")
@@ -160,7 +158,7 @@ def _raise_interrupted(signum, frame):
 
 
 def run(args) -> int:
-    prog = "gyro-platform sweep"
+    prog = "gyro-platform sweep: error"
     if args.workers is not None and not 1 <= args.workers <= 4096:
         print(f"{prog}: --workers must be between 1 and 4096, got {args.workers}", file=sys.stderr)
         return EXIT_USAGE
@@ -188,7 +186,7 @@ def run(args) -> int:
     summary = finish(spec, out, res, plots=not args.no_plots)
     print_summary(summary)
     if res.interrupted:
-        print(f"{prog}: interrupted; {res.executed} run(s) finished now, run the same command to go on",
+        print(f"gyro-platform sweep: interrupted; {res.executed} run(s) finished now, run the same command to go on",
               file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_RUNS_FAILED if res.counts.get("failed", 0) + res.counts.get("lost", 0) else EXIT_OK

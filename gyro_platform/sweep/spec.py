@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from ..physics.params import PlatformParams
-from ..scenes.runner import ScenarioError, resolve_scene, scene_from_dict
+from ..scenes.runner import ScenarioError, find_scene, scene_from_dict
 from .runs import RunTask
 
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
@@ -229,6 +229,14 @@ def _find_bags(entries: list, base: Path, where: str) -> tuple[Path, ...]:
     return tuple(dict.fromkeys(out))
 
 
+def _scene_path(name: str, base: Path) -> Path:
+    """A scene path relative to the sweep file's folder, else a path or name as ``run`` takes it."""
+    p = Path(name).expanduser()
+    if not p.is_absolute() and (base / p).is_file():
+        return base / p
+    return find_scene(name)
+
+
 def _where(e: yaml.YAMLError) -> str:
     mark = getattr(e, "problem_mark", None)
     what = getattr(e, "problem", None) or type(e).__name__
@@ -255,7 +263,7 @@ def load_sweep(path) -> SweepSpec:
     if ("vary" in raw) == ("bags" in raw):
         raise SweepSpecError(f"{src}: give either 'vary' (Monte Carlo) or 'bags' (fleet replay)")
     try:
-        scene_path = resolve_scene(str(raw["scene"]), base_dir=path.resolve().parent)
+        scene_path = _scene_path(str(raw["scene"]), path.resolve().parent)
         scene = yaml.safe_load(scene_path.read_text())
     except (ScenarioError, OSError) as e:
         raise SweepSpecError(f"{src}: scene: {e}") from None
