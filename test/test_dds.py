@@ -24,7 +24,8 @@ pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedd
 
 from rosbags.typesys.base import Nodetype  # noqa: E402
 
-from gyro_platform import dds, messages as m  # noqa: E402
+from gyro_platform.io import messages as m  # noqa: E402
+from gyro_platform.ros import dds  # noqa: E402
 from gyro_platform.physics.params import NAV1  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -537,7 +538,8 @@ def test_carried_free_gyro_follows_constant_vehicle_rate(start_node, driver_fact
     assert all(np.isfinite([x.wrench.torque.x, x.wrench.torque.y, x.wrench.torque.z]).all() for x in w)
 
     # one core, two shells: the same inputs through NodeCore in this process give the same bytes
-    from gyro_platform.ros.core import NodeConfig, NodeCore
+    from gyro_platform.ros.config import NodeConfig
+from gyro_platform.ros.core import NodeCore
 
     core = NodeCore(NodeConfig.from_ros_params(CARRIED), m.MessageTypes.rosbags())
     local = {"gimbal/joint_states": [], "bearing/gimbal4/torque": []}

@@ -22,7 +22,8 @@ from gyro_platform.physics import model
 from gyro_platform.physics import rotations
 from gyro_platform.physics import system
 from gyro_platform.physics import tree
-from gyro_platform.ros.core import NodeConfig, NodeCore
+from gyro_platform.ros.config import NodeConfig
+from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.dds import zero_message
 from gyro_platform.io.messages import MessageTypes, jazzy_typestore
 from gyro_platform.ros.command import warm_up

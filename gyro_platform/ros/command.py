@@ -97,7 +97,7 @@ def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any
 # =========================================================================================
 def build_config(args: argparse.Namespace, node_name: str) -> Any:
     """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value)."""
-    from .core import NodeConfig, load_params_file
+    from .config import NodeConfig, load_params_file
 
     params = load_params_file(args.params_file, node_name) if args.params_file else {}
     if args.scene:
@@ -119,7 +119,7 @@ def rclpy_available() -> tuple[bool, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .core import NODE_NAME
+    from .parameters import NODE_NAME
 
     name = args.node_name or NODE_NAME
     log = _log(name)
@@ -148,7 +148,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
-    from .core import ConfigError, NodeCore
+    from .core import NodeCore
+    from .parameters import ConfigError
     from ..io.messages import MessageTypes
 
     try:
