@@ -153,20 +153,24 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
     from ..io.messages import MessageTypes
 
     try:
+        from .dds_types import import_cyclonedds
+        import_cyclonedds()
         from . import dds
-        dds._cyclone()
     except ImportError as e:
         log(f"error: {e}")
         return EXIT_FAILED
-    uri, hint = dds.default_discovery(dict(os.environ), dds.interface_flags())
+    from .dds_discovery import default_discovery, interface_flags
+    from .dds_names import domain_id_from_env, normalize_namespace, validate_node_name
+
+    uri, hint = default_discovery(dict(os.environ), interface_flags())
     if uri is not None:
         os.environ["CYCLONEDDS_URI"] = uri
         log(hint)
     try:
         config = build_config(args, name)
-        dds.validate_node_name(name)
-        namespace = dds.normalize_namespace(args.namespace)
-        domain = dds.domain_id_from_env(args.domain_id)
+        validate_node_name(name)
+        namespace = normalize_namespace(args.namespace)
+        domain = domain_id_from_env(args.domain_id)
     except (ConfigError, ValueError) as e:
         log(f"error: {e}")
         return EXIT_USAGE
