@@ -279,7 +279,7 @@ def test_default_fidelity_is_one_per_mode_everywhere(tmp_path, capsys):
     s = json.loads(rp.sidecar_paths(tmp_path / "o")[0].read_text())
     assert s["simulator"]["mode"] == "stabilised"
     assert s["simulator"]["fidelity"] == DEFAULT_FIDELITY["stabilised"] == Simulator().options.fidelity
-    from gyro_platform.ros.core import NodeConfig
+    from gyro_platform.ros.config import NodeConfig
 
     assert NodeConfig.from_ros_params({}).options.fidelity == DEFAULT_FIDELITY["stabilised"]
     for mode in ("stabilised", "carried"):
@@ -420,7 +420,7 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     p = subprocess.run([PY, str(exe), "run", "earth_rest.yaml", "--duration", "2", "--out", "r"], cwd=work,
                        capture_output=True, text=True, env=env, timeout=600)
     assert (work / "r" / "outputs.csv").is_file(), p.stderr
-    probe = ("import gyro_platform, gyro_platform.ros.core as c; "
+    probe = ("import gyro_platform, gyro_platform.ros.config as c; "
              "print(gyro_platform.__file__); print(c.resolve_scene('default'))")
     p = subprocess.run([PY, "-c", probe], cwd=work, capture_output=True, text=True, env=env, timeout=600)
     mod, scene = p.stdout.split()

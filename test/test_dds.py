@@ -24,18 +24,19 @@ pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedd
 
 from rosbags.typesys.base import Nodetype  # noqa: E402
 
-from gyro_platform import dds, messages as m  # noqa: E402
+from gyro_platform.io import messages as m  # noqa: E402
+from gyro_platform.ros import dds, dds_discovery, dds_names, dds_types  # noqa: E402
 from gyro_platform.physics.params import NAV1  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LOOPBACK_XML = ROOT / "config" / "cyclonedds_loopback.xml"
 STORE = m.jazzy_typestore()
 T = STORE.types
-IDL = dds.IdlTypes(STORE)
+IDL = dds_types.IdlTypes(STORE)
 
 #: every message type the node uses on the wire (inputs, outputs, graph announcement, reset)
 WIRE_TYPES = (m.IMU, m.TWIST, m.TWIST_STAMPED, m.JOINT_STATE, m.VECTOR3_STAMPED, m.WRENCH_STAMPED,
-              m.DIAGNOSTIC_ARRAY, dds.DISCOVERY_TYPE, "std_msgs/msg/Empty")
+              m.DIAGNOSTIC_ARRAY, dds_names.DISCOVERY_TYPE, "std_msgs/msg/Empty")
 
 
 # =========================================================================================
@@ -159,7 +160,7 @@ def test_random_messages_are_byte_identical_to_rosbags_cdr(ros_type):
 
 def test_zero_messages_for_the_warm_up_are_valid():
     for ros_type in WIRE_TYPES:
-        assert_byte_identical(dds.zero_message(STORE, ros_type))
+        assert_byte_identical(dds_types.zero_message(STORE, ros_type))
 
 
 def test_all_string_lengths_mod_8_before_a_double():
@@ -193,7 +194,7 @@ def test_generated_classes_follow_rmw_cyclonedds_type_names_and_layout():
     assert time_hints.__idl_typename__ == "builtin_interfaces::msg::dds_::Time_"
     js = get_extended_type_hints(IDL.idl_class(m.JOINT_STATE))
     assert js["name"] == it.sequence(str) and js["position"] == it.sequence(it.float64)
-    gid = get_extended_type_hints(IDL.idl_class(dds.DISCOVERY_TYPE))["gid"]
+    gid = get_extended_type_hints(IDL.idl_class(dds_names.DISCOVERY_TYPE))["gid"]
     assert get_extended_type_hints(gid)["data"] == it.array(it.uint8, 16)
     node = get_extended_type_hints(IDL.idl_class("rmw_dds_common/msg/NodeEntitiesInfo"))
     assert node["node_name"] == it.bounded_str(256)
@@ -229,48 +230,48 @@ def test_unknown_type_is_a_clean_error():
     ("{namespace}/x", "platform", "/a", "/a/x"),
 ])
 def test_topic_names_expand_as_rclpy(name, node, ns, expected):
-    full = dds.expand_topic_name(name, node, ns)
+    full = dds_names.expand_topic_name(name, node, ns)
     assert full == expected
-    assert dds.dds_topic_name(full) == "rt" + expected
-    assert dds.ros_topic_name("rt" + expected) == expected
+    assert dds_names.dds_topic_name(full) == "rt" + expected
+    assert dds_names.ros_topic_name("rt" + expected) == expected
 
 
 @pytest.mark.parametrize("name", ["", "a//b", "a/", "~a", "1abc", "a/2b", "a b", "{bad}/x", "a-b", "/"])
 def test_invalid_topic_names_are_rejected(name):
-    with pytest.raises(dds.NameError_):
-        dds.expand_topic_name(name, "platform", "/")
+    with pytest.raises(dds_names.NameError_):
+        dds_names.expand_topic_name(name, "platform", "/")
 
 
 @pytest.mark.parametrize("node,ns", [("1node", "/"), ("a-b", "/"), ("ok", "/a//b"), ("ok", "/1a")])
 def test_invalid_node_names_and_namespaces_are_rejected(node, ns):
-    with pytest.raises(dds.NameError_):
-        dds.expand_topic_name("x", node, ns)
+    with pytest.raises(dds_names.NameError_):
+        dds_names.expand_topic_name("x", node, ns)
 
 
 def test_type_names_and_topics_of_the_node():
-    assert dds.dds_type_name(m.IMU) == "sensor_msgs::msg::dds_::Imu_"
-    assert dds.dds_type_name(m.TWIST_STAMPED) == "geometry_msgs::msg::dds_::TwistStamped_"
-    assert dds.dds_type_name(m.DIAGNOSTIC_ARRAY) == "diagnostic_msgs::msg::dds_::DiagnosticArray_"
-    assert dds.ros_type_name("sensor_msgs::msg::dds_::JointState_") == m.JOINT_STATE
-    assert dds.ros_type_name("JointState") is None
+    assert dds_names.dds_type_name(m.IMU) == "sensor_msgs::msg::dds_::Imu_"
+    assert dds_names.dds_type_name(m.TWIST_STAMPED) == "geometry_msgs::msg::dds_::TwistStamped_"
+    assert dds_names.dds_type_name(m.DIAGNOSTIC_ARRAY) == "diagnostic_msgs::msg::dds_::DiagnosticArray_"
+    assert dds_names.ros_type_name("sensor_msgs::msg::dds_::JointState_") == m.JOINT_STATE
+    assert dds_names.ros_type_name("JointState") is None
     with pytest.raises(ValueError):
-        dds.dds_type_name("Imu")
-    outs = {dds.dds_topic_name(t) for t in m.output_topics("/robot")}
+        dds_names.dds_type_name("Imu")
+    outs = {dds_names.dds_topic_name(t) for t in m.output_topics("/robot")}
     assert {"rt/robot/gimbal/joint_states", "rt/robot/drift/rate", "rt/robot/bearing/rotor11/torque",
             "rt/diagnostics"} <= outs
-    assert dds.dds_topic_name("/") == "rt/" and dds.ros_topic_name("ros_discovery_info") is None
+    assert dds_names.dds_topic_name("/") == "rt/" and dds_names.ros_topic_name("ros_discovery_info") is None
 
 
 def test_domain_id_from_env(monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", "42")
-    assert dds.domain_id_from_env() == 42
-    assert dds.domain_id_from_env(7) == 7
+    assert dds_names.domain_id_from_env() == 42
+    assert dds_names.domain_id_from_env(7) == 7
     monkeypatch.delenv("ROS_DOMAIN_ID")
-    assert dds.domain_id_from_env() == 0
+    assert dds_names.domain_id_from_env() == 0
     for bad in ("x", "233", "-1"):
         monkeypatch.setenv("ROS_DOMAIN_ID", bad)
         with pytest.raises(ValueError, match="ROS_DOMAIN_ID"):
-            dds.domain_id_from_env()
+            dds_names.domain_id_from_env()
 
 
 # =========================================================================================
@@ -279,18 +280,18 @@ def test_domain_id_from_env(monkeypatch):
 def test_qos_profiles_match_the_rclpy_node():
     from cyclonedds.core import Policy
 
-    sensor = dds.dds_qos(dds.SENSOR_DATA)
+    sensor = dds_types.dds_qos(dds_types.SENSOR_DATA)
     assert sensor[Policy.Reliability] == Policy.Reliability.BestEffort
     assert sensor[Policy.History] == Policy.History.KeepLast(5)
     assert sensor[Policy.Durability] == Policy.Durability.Volatile
-    out = dds.dds_qos(dds.DEFAULT, dds.type_hash_user_data(IDL.type_hash(m.JOINT_STATE)))
+    out = dds_types.dds_qos(dds_types.DEFAULT, dds_types.type_hash_user_data(IDL.type_hash(m.JOINT_STATE)))
     assert isinstance(out[Policy.Reliability], Policy.Reliability.Reliable)
     assert out[Policy.History] == Policy.History.KeepLast(10)
     assert out[Policy.Durability] == Policy.Durability.Volatile
-    for q in (sensor, out, dds.dds_qos(dds.DISCOVERY_INFO)):
+    for q in (sensor, out, dds_types.dds_qos(dds_types.DISCOVERY_INFO)):
         assert q[Policy.DataRepresentation] == Policy.DataRepresentation(use_cdrv0_representation=True)
     assert out[Policy.Userdata].data.startswith(b"typehash=RIHS01_") and out[Policy.Userdata].data.endswith(b";")
-    assert dds.dds_qos(dds.DISCOVERY_INFO)[Policy.Durability] == Policy.Durability.TransientLocal
+    assert dds_types.dds_qos(dds_types.DISCOVERY_INFO)[Policy.Durability] == Policy.Durability.TransientLocal
 
 
 # =========================================================================================
@@ -301,7 +302,7 @@ READY_TIMEOUT = 300.0      # s: the first start in a fresh clone compiles the nu
 WAIT = 10.0                # s: discovery, one output, one diagnostics period …
 Q10 = 1e-4                 # N m, gimbal bias torque on beta10
 L11 = float(NAV1.L[2])     # kg m²/s, rotor 11 momentum C·Ω
-COLLECT = dds.QosProfile("reliable", "volatile", 1000)   # test readers: lose nothing
+COLLECT = dds_types.QosProfile("reliable", "volatile", 1000)   # test readers: lose nothing
 _domains = iter(range(10_000))
 
 
@@ -416,7 +417,7 @@ class Driver:
         self.subs: dict[str, dds.DdsSubscription] = {}
         self.got: dict[str, list] = {}
 
-    def publisher(self, ros_type: str, topic: str, profile=dds.SENSOR_DATA) -> dds.DdsPublisher:
+    def publisher(self, ros_type: str, topic: str, profile=dds_types.SENSOR_DATA) -> dds.DdsPublisher:
         return self.node.create_publisher(ros_type, topic, profile)
 
     def subscribe(self, ros_type: str, topic: str, profile=COLLECT) -> dds.DdsSubscription:
@@ -537,7 +538,8 @@ def test_carried_free_gyro_follows_constant_vehicle_rate(start_node, driver_fact
     assert all(np.isfinite([x.wrench.torque.x, x.wrench.torque.y, x.wrench.torque.z]).all() for x in w)
 
     # one core, two shells: the same inputs through NodeCore in this process give the same bytes
-    from gyro_platform.ros.core import NodeConfig, NodeCore
+    from gyro_platform.ros.config import NodeConfig
+    from gyro_platform.ros.core import NodeCore
 
     core = NodeCore(NodeConfig.from_ros_params(CARRIED), m.MessageTypes.rosbags())
     local = {"gimbal/joint_states": [], "bearing/gimbal4/torque": []}
@@ -646,14 +648,14 @@ def test_twist_stamped_input_namespace_qos_and_graph(start_node, driver_factory)
     assert diag.reader.get_matched_publication_data(h).topic_name == "rt/diagnostics"   # absolute: no namespace
 
     # -- ros_discovery_info (transient local: the node's last announcement is delivered late too)
-    cls = IDL.idl_class(dds.DISCOVERY_TYPE)
-    reader = DataReader(drv.node.participant, Topic(drv.node.participant, dds.DISCOVERY_TOPIC, cls),
-                        qos=dds.dds_qos(dds.DISCOVERY_INFO))
+    cls = IDL.idl_class(dds_names.DISCOVERY_TYPE)
+    reader = DataReader(drv.node.participant, Topic(drv.node.participant, dds_names.DISCOVERY_TOPIC, cls),
+                        qos=dds_types.dds_qos(dds_types.DISCOVERY_INFO))
     info = None
     deadline = time.monotonic() + WAIT
     while info is None and time.monotonic() < deadline:
         for s in reader.take(N=100):
-            msg = IDL.from_idl(s, dds.DISCOVERY_TYPE)
+            msg = IDL.from_idl(s, dds_names.DISCOVERY_TYPE)
             if any(n.node_name == NODE for n in msg.node_entities_info_seq):
                 info = msg
         time.sleep(0.05)
@@ -681,7 +683,7 @@ def test_bad_input_over_the_wire_is_dropped_and_counted(start_node, driver_facto
     pub = drv.publisher(m.IMU, "imu")
     js = drv.subscribe(m.JOINT_STATE, "gimbal/joint_states")
     diag = drv.subscribe(m.DIAGNOSTIC_ARRAY, "/diagnostics")
-    reset = drv.publisher("std_msgs/msg/Empty", f"/{NODE}/reset", dds.DEFAULT)
+    reset = drv.publisher("std_msgs/msg/Empty", f"/{NODE}/reset", dds_types.DEFAULT)
     connect(drv, [pub], [js, diag])
     assert dds.wait_matched([reset], WAIT)
     w = (0.0, 0.5, 0.0)
@@ -898,7 +900,7 @@ def _fake_rclpy_node(calls: list):
 def test_ros_transport_passes_the_options_as_ros_arguments(monkeypatch, tmp_path, capsys):
     import argparse
 
-    from gyro_platform.ros import command
+    from gyro_platform.ros import command as node_main
     calls: list = []
     monkeypatch.setitem(sys.modules, "gyro_platform.ros.node", _fake_rclpy_node(calls))
     monkeypatch.setenv("ROS_DOMAIN_ID", "3")
@@ -919,7 +921,7 @@ def test_ros_transport_passes_the_options_as_ros_arguments(monkeypatch, tmp_path
 
 
 def test_auto_falls_back_to_dds_without_rclpy(monkeypatch):
-    from gyro_platform.ros import command
+    from gyro_platform.ros import command as node_main
     monkeypatch.setitem(sys.modules, "gyro_platform.ros.node", None)      # import fails, as without ROS
     ok, why = node_main.rclpy_available()
     assert not ok and why
@@ -961,8 +963,8 @@ def test_robot_description_and_tf_from_the_dds_node(start_node, driver_factory):
                       "--namespace", "robot1")
     drv = driver_factory(node.domain, "/robot1")
     time.sleep(1.0)                                              # late joiners: latched topics still arrive
-    desc = drv.subscribe("std_msgs/msg/String", "robot_description", dds.LATCHED)
-    static = drv.subscribe("tf2_msgs/msg/TFMessage", "/tf_static", dds.LATCHED)
+    desc = drv.subscribe("std_msgs/msg/String", "robot_description", dds_types.LATCHED)
+    static = drv.subscribe("tf2_msgs/msg/TFMessage", "/tf_static", dds_types.LATCHED)
     tf = drv.subscribe("tf2_msgs/msg/TFMessage", "/tf", COLLECT)
     js = drv.subscribe(m.JOINT_STATE, "gimbal/joint_states")
     pub = drv.publisher(m.IMU, "imu")
@@ -995,8 +997,8 @@ def test_default_discovery_without_multicast_is_localhost_unicast():
     """A host whose only up interface is a loopback without MULTICAST (flags 0x9, as in a
     loopback-only network namespace): unicast localhost discovery and a hint naming what the
     ROS side sets; an explicit CYCLONEDDS_URI or a multicast interface keeps Cyclone's default."""
-    lo_only = {"lo": dds.IFF_UP | dds.IFF_LOOPBACK}
-    uri, hint = dds.default_discovery({}, lo_only)
+    lo_only = {"lo": dds_discovery.IFF_UP | dds_discovery.IFF_LOOPBACK}
+    uri, hint = dds_discovery.default_discovery({}, lo_only)
     assert "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in hint
     import xml.etree.ElementTree as ET
 
@@ -1005,13 +1007,13 @@ def test_default_discovery_without_multicast_is_localhost_unicast():
     assert root.findtext(".//c:AllowMulticast", namespaces=ns) == "false"
     assert root.find(".//c:Peers/c:Peer", ns).get("address") == "localhost"
     assert root.findtext(".//c:ParticipantIndex", namespaces=ns) == "auto"
-    assert dds.default_discovery({"CYCLONEDDS_URI": "file:///x.xml"}, lo_only) == (None, "")
-    eth = {**lo_only, "eth0": dds.IFF_UP | dds.IFF_MULTICAST}
-    assert dds.default_discovery({}, eth) == (None, "")
-    down = {**lo_only, "eth0": dds.IFF_MULTICAST}                    # multicast-capable but down
-    assert dds.default_discovery({}, down)[0] is not None
-    flags = dds.interface_flags()                                    # this host, read from sysfs
-    assert "lo" in flags and flags["lo"] & dds.IFF_LOOPBACK
+    assert dds_discovery.default_discovery({"CYCLONEDDS_URI": "file:///x.xml"}, lo_only) == (None, "")
+    eth = {**lo_only, "eth0": dds_discovery.IFF_UP | dds_discovery.IFF_MULTICAST}
+    assert dds_discovery.default_discovery({}, eth) == (None, "")
+    down = {**lo_only, "eth0": dds_discovery.IFF_MULTICAST}                    # multicast-capable but down
+    assert dds_discovery.default_discovery({}, down)[0] is not None
+    flags = dds_discovery.interface_flags()                                    # this host, read from sysfs
+    assert "lo" in flags and flags["lo"] & dds_discovery.IFF_LOOPBACK
 
 
 def test_discovery_writer_carries_the_type_hash():
@@ -1022,5 +1024,5 @@ def test_discovery_writer_carries_the_type_hash():
     with dds.DdsNode("hash_probe", "/", next_domain(), types=IDL) as node:
         node.create_publisher(m.JOINT_STATE, "probe")
         ud = node._discovery_writer.get_qos()[Policy.Userdata].data
-        assert ud == f"typehash={IDL.type_hash(dds.DISCOVERY_TYPE)};".encode()
+        assert ud == f"typehash={IDL.type_hash(dds_names.DISCOVERY_TYPE)};".encode()
         assert ud.startswith(b"typehash=RIHS01_") and len(ud) == len("typehash=RIHS01_;") + 64

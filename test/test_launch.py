@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from gyro_platform.ros import launch_setup as L
-from gyro_platform.ros.core import NodeConfig, load_params_file
+from gyro_platform.ros.config import NodeConfig, load_params_file
 from gyro_platform.io.urdf import config_urdf
 
 ROOT = Path(__file__).resolve().parents[1]

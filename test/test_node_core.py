@@ -18,8 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyro_platform.ros import core as C
-from gyro_platform.ros.core import ConfigError, NodeConfig, NodeCore
+from gyro_platform.ros import parameters as P
+from gyro_platform.ros.config import NodeConfig, parameter_defaults
+from gyro_platform.ros.core import NodeCore
+from gyro_platform.ros.parameters import ConfigError
 from gyro_platform.io.messages import MessageTypes, jazzy_typestore, stamp_ns
 from gyro_platform.physics.params import NAV1, PlatformParams
 
@@ -356,7 +358,7 @@ def test_unknown_key_suggests_the_closest_name_and_ros_keys_are_accepted():
         NodeConfig.from_ros_params({"output_rat": 5.0})
     cfg = NodeConfig.from_ros_params({"use_sim_time": True, "qos_overrides": {"/imu": {"subscription": {"depth": 5}}},
                                       "diagnostic_updater": {"period": 1.0}})
-    assert cfg.values == C.parameter_defaults()
+    assert cfg.values == parameter_defaults()
 
 
 # =========================================================================================
@@ -399,9 +401,9 @@ def test_clock_jump_back_resets_when_enabled(enabled):
 def test_platform_yaml_loads_and_documents_every_parameter():
     path = ROOT / "config" / "platform.yaml"
     cfg = NodeConfig.from_yaml(path)
-    assert cfg.values == C.parameter_defaults()
+    assert cfg.values == parameter_defaults()
     text = path.read_text()
-    for p in C.PARAMETERS:
+    for p in P.PARAMETERS:
         key = p.name.rpartition(".")[2]
         assert f" {key}: " in text or f"# {key}: " in text, p.name
     for key in ("output_rate", "mode", "effects"):               # scene keys stay commented out
@@ -447,19 +449,19 @@ def test_explicit_parameters_override_the_scene():
 
 def test_every_platform_parameter_is_a_documented_node_parameter():
     for f in fields(PlatformParams):
-        assert f.name in C.PHYSICS_DOCS, f"document PlatformParams.{f.name} in core.PHYSICS_DOCS"
-        assert C.SPECS[C.PHYSICS_PREFIX + f.name].read_only == (f.name not in C.LIVE_PHYSICS)
-    for p in C.PARAMETERS:
+        assert f.name in P.PHYSICS_DOCS, f"document PlatformParams.{f.name} in parameters.PHYSICS_DOCS"
+        assert P.SPECS[P.PHYSICS_PREFIX + f.name].read_only == (f.name not in P.LIVE_PHYSICS)
+    for p in P.PARAMETERS:
         assert p.description and p.default is not None
         assert p.coerce(p.default) == p.default                    # every default passes its own checks
 
 
 def test_docs_carry_the_current_parameter_and_topic_tables():
     doc = (ROOT / "README.md").read_text()
-    hint = ("README.md is stale: paste gyro_platform.ros.core.parameters_markdown() / topics_markdown() "
+    hint = ("README.md is stale: paste gyro_platform.ros.parameters.parameters_markdown() / topics_markdown() "
             "between its <!-- parameters --> / <!-- topics --> markers")
-    assert C.parameters_markdown() in doc, hint
-    assert C.topics_markdown() in doc, hint
+    assert P.parameters_markdown() in doc, hint
+    assert P.topics_markdown() in doc, hint
 
 
 def test_importing_the_package_and_core_does_not_import_rclpy():

@@ -8,7 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyro_platform.ros.core import InputLoss, NodeConfig, NodeCore
+from gyro_platform.ros.config import NodeConfig
+from gyro_platform.ros.core import NodeCore
+from gyro_platform.ros.overload import InputLoss
 from gyro_platform.io.messages import MessageTypes, jazzy_typestore
 
 T = jazzy_typestore().types

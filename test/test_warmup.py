@@ -17,19 +17,20 @@ SCRIPT = r"""
 import json, sys
 from gyro_platform.physics import effects
 from gyro_platform.engine import batch
-from gyro_platform.engine import integrators
+from gyro_platform.engine.integrators import exponential as integrators
 from gyro_platform.physics import model
 from gyro_platform.physics import rotations
 from gyro_platform.physics import system
 from gyro_platform.physics import tree
-from gyro_platform.ros.core import NodeConfig, NodeCore
-from gyro_platform.ros.dds import zero_message
+from gyro_platform.ros.config import NodeConfig
+from gyro_platform.ros.core import NodeCore
+from gyro_platform.ros.dds_types import zero_message
 from gyro_platform.io.messages import MessageTypes, jazzy_typestore
 from gyro_platform.ros.command import warm_up
 
 def signatures():
     res = {}
-    for mod in (effects, fastpath, integrators, model, rotations, system, tree):
+    for mod in (effects, batch, integrators, model, rotations, system, tree):
         for name in dir(mod):
             obj = getattr(mod, name)
             if hasattr(obj, "signatures") and hasattr(obj, "py_func"):

@@ -1,22 +1,14 @@
-"""Benchmarks: what accuracy costs in time.
+"""Work-precision study: what accuracy costs in time (``gyro-platform bench accuracy``).
 
-``gyro-platform bench accuracy`` — work-precision study: every fidelity × integrator × asked
-tolerance (rtol 1e-4 … 1e-10, steps ≤ 1 ms) on
-two standard scenes (a ship rolling and pitching, stabilised, 10 min; an aircraft manoeuvre with
-coordinated turns and rate steps, 2 min; vehicle rates at 1 kHz), each compared with a
-``full``-fidelity reference (RK4 held to rtol 1e-12, steps ≤ 0.25 ms; gimbal angles and drift angle, end and maximum over
-time), timed in CPU seconds per simulated second (median of repeats), as a real-time factor and
-as a speed ratio to the naive baseline a Python user would write (``scipy.integrate.solve_ivp``
-on the ``full`` model over the whole run, input interpolated with ``np.interp``). Writes CSV,
-Markdown and a PNG plot, and names the cheapest configuration that reaches 1e-3, 1e-6 and
-1e-9 rad.
-
-``gyro-platform bench hard`` — the hard-case catalogue (``hardcases``): every method asked for
-rtol 1e-9 / atol 1e-12, error against DOP853 at rtol 1e-12, CPU s per simulated s, verdict
-(ok / refused / WRONG); exit code 1 if any cell is WRONG.
-
-``gyro-platform bench effects`` — the cost of each effect (CPU µs per sample with the effect
-on versus off): what is off costs nothing.
+Every fidelity × integrator × asked tolerance (rtol 1e-4 … 1e-10, steps ≤ 1 ms) on two standard
+scenes (:mod:`.bench_scenes`: a ship rolling and pitching, stabilised, 10 min; an aircraft manoeuvre
+with coordinated turns and rate steps, 2 min; vehicle rates at 1 kHz), each compared with a
+``full``-fidelity reference (RK4 held to rtol 1e-12, steps ≤ 0.25 ms; gimbal angles and drift
+angle, end and maximum over time), timed in CPU seconds per simulated second (median of
+repeats), as a real-time factor and as a speed ratio to the naive baseline a Python user would
+write (``scipy.integrate.solve_ivp`` on the ``full`` model over the whole run, input
+interpolated with ``np.interp``). Writes CSV, Markdown and a PNG plot, and names the cheapest
+configuration that reaches 1e-3, 1e-6 and 1e-9 rad.
 
 Timing is CPU time (``time.process_time``) of this process; the machine is shared, so medians
 are quoted. Nothing here asserts speed: tests assert physics, benchmarks measure time.
@@ -25,59 +17,18 @@ from __future__ import annotations
 
 import csv
 import json
-import math
-import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..scenes.motions import CoordinatedTurn, RateSteps, Sine, Sinusoidal
-from ..physics.options import DEFAULT_EFFECTS, ModelOptions
-from ..physics.params import NAV1
 from ..engine.simulator import Simulator
+from ..physics.options import ModelOptions
+from ..physics.params import NAV1
+from .bench_scenes import SAMPLE_RATE, BenchScene, aircraft_scene, ship_scene
 
-SAMPLE_RATE = 1000.0     # Hz, vehicle input
 OUT_EVERY = 100          # compare at 10 Hz
 THRESHOLDS = (1e-3, 1e-6, 1e-9)
-
-
-# ---------------------------------------------------------------------------------------------
-# scenes
-
-@dataclass
-class BenchScene:
-    name: str
-    description: str
-    t: np.ndarray
-    omega: np.ndarray
-    force: np.ndarray
-    effects: frozenset
-
-
-def ship_scene(duration: float = 600.0) -> BenchScene:
-    """Ship rolling and pitching, 10° at 0.1 Hz (pitch 5° at 0.1 Hz, quarter period later)."""
-    m = Sinusoidal(roll=Sine(math.radians(10.0), 0.1, 0.0), pitch=Sine(math.radians(5.0), 0.1, math.pi / 2))
-    t, w, f = m.arrays(duration, SAMPLE_RATE)
-    eff = DEFAULT_EFFECTS["stabilised"] | {"mass_unbalance"}
-    return BenchScene("ship", f"ship rolling 10° / pitching 5° at 0.1 Hz, stabilised, {duration:g} s", t, w, f, eff)
-
-
-def aircraft_scene(duration: float = 120.0) -> BenchScene:
-    """Aircraft: right coordinated turn (60 m/s, 30° bank), then yaw/roll rate steps."""
-    half = duration / 2
-    turn = CoordinatedTurn(speed=60.0, bank=math.radians(30.0), roll_time=3.0, start=2.0, hold=half - 10.0)
-    t1, w1, f1 = turn.arrays(half, SAMPLE_RATE)
-    steps = RateSteps(times=[0.0, 5.0, 10.0, 15.0, 25.0, 35.0, 45.0],
-                      rates=[[0, 0, 0], [0.5, 0, 0], [0, 0, 0], [0, 0, 0.3], [0, 0, 0], [0, 0.2, 0], [0, 0, 0]])
-    t2, w2, f2 = steps.arrays(half, SAMPLE_RATE)
-    t = np.concatenate([t1, t2[1:] + t1[-1]])
-    w = np.vstack([w1, w2[1:]])
-    f = np.vstack([f1, f2[1:]])
-    eff = DEFAULT_EFFECTS["stabilised"] | {"mass_unbalance"}
-    return BenchScene("aircraft", f"aircraft: coordinated turn then rate steps, stabilised, {duration:g} s",
-                      t, w, f, eff)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -284,182 +235,10 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-# ---------------------------------------------------------------------------------------------
-# effects cost
 
-def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
-    """CPU µs per sample (compiled batch, 1 kHz, 20 s ship motion) with each effect on alone
-    on top of the minimum (rotor gyroscopic + servo), per fidelity."""
-    sc = ship_scene(20.0)
-    from ..physics.options import EFFECTS
-    rows = []
-    base = {"rotor_gyroscopic", "servo"}
-    for fid in ("full", "linear"):
-        for extra in [None] + sorted(set(EFFECTS) - base - {"vehicle_angular_acceleration"}):
-            eff = frozenset(base | ({extra} if extra else set()))
-            opt = ModelOptions.make("stabilised", fid, eff, integrator="rk4", max_step=1e-3)
-            ts = []
-            for _ in range(repeats):
-                sim = Simulator(NAV1, opt)
-                sim.push_many(sc.t[:2], sc.omega[:2], sc.force[:2])
-                t0 = time.process_time()
-                sim.push_many(sc.t[2:], sc.omega[2:], sc.force[2:])
-                ts.append((time.process_time() - t0) / (len(sc.t) - 2) * 1e6)
-            rows.append({"fidelity": fid, "effect": extra or "(minimum)", "us_per_sample": float(np.median(ts))})
-            print(f"{fid:7s} {extra or '(minimum)':30s} {np.median(ts):6.2f} µs/sample", flush=True)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "effects.json").write_text(json.dumps(rows, indent=1))
-    return rows
-
-
-def hotpath(repeats: int = 5) -> dict:
-    """µs per sample: Python ``push`` (what the ROS node does per message) and compiled
-    ``push_many``, stabilised default effects, 1 kHz."""
-    sc = ship_scene(10.0)
-    res = {}
-    for fid, integ in (("full", "etd2"), ("linear", "etd2"), ("linear", "rk4"), ("full", "rk4")):
-        opt = ModelOptions.make("stabilised", fid, DEFAULT_EFFECTS["stabilised"], integrator=integ, max_step=1e-3)
-        from ..engine.inputs import RateSample
-        tp, tb = [], []
-        for _ in range(repeats):
-            sim = Simulator(NAV1, opt)
-            sim.push_many(sc.t[:3], sc.omega[:3])
-            t0 = time.process_time()
-            for i in range(3, 2003):
-                sim.push(RateSample(float(sc.t[i]), sc.omega[i]))
-            tp.append((time.process_time() - t0) / 2000 * 1e6)
-            sim = Simulator(NAV1, opt)
-            sim.push_many(sc.t[:3], sc.omega[:3])
-            t0 = time.process_time()
-            sim.push_many(sc.t[3:], sc.omega[3:])
-            tb.append((time.process_time() - t0) / (len(sc.t) - 3) * 1e6)
-        res[f"{fid}+{integ}"] = {"push_us": float(np.median(tp)), "batch_us": float(np.median(tb))}
-        print(f"{fid:7s} {integ:5s}  push {np.median(tp):7.2f} µs/sample   batch {np.median(tb):6.2f} µs/sample "
-              f"(real time ×{1e3 / np.median(tb):.0f} at 1 kHz)", flush=True)
-    return res
-
-
-# ---------------------------------------------------------------------------------------------
-# CLI
-
-def add_arguments(p) -> None:
-    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard"], help="which benchmark")
-    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
-    p.add_argument("--quick", action="store_true",
-                   help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
-    p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
-    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
-
-
-def run(args) -> int:
-    out = Path(args.out)
-    if args.what == "accuracy":
-        accuracy(out, quick=args.quick, repeats=args.repeats)
-    elif args.what == "hard":
-        rows = hard(out, quick=args.quick, cases=args.case)
-        return 1 if any(r["verdict"] == "WRONG" for r in rows) else 0
-    elif args.what == "effects":
-        effects_cost(out, repeats=args.repeats)
-    else:
-        res = hotpath(repeats=args.repeats)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "hotpath.json").write_text(json.dumps(res, indent=1))
-    return 0
+__all__ = ["accuracy", "run_config", "naive_baseline", "errors", "cheapest", "write_outputs", "plot", "CONFIGS",
+           "RTOLS", "REF", "SLOW", "THRESHOLDS", "OUT_EVERY"]
 
 
 if __name__ == "__main__":
-    sys.exit(run(__import__("argparse").Namespace(what="accuracy", out="results/bench", quick=True, repeats=1)))
-
-
-# ---------------------------------------------------------------------------------------------
-# hard cases: every method asked for the same tolerance, verdict against a tight reference
-
-def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> list[dict]:
-    """Case × method table (``hardcases``): error against the reference, CPU s per simulated s,
-    verdict (ok / refused / WRONG). ``quick``: the tests' durations (the hour: 60 s)."""
-    from ..engine.hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
-    rows: list[dict] = []
-    for case in CASES:
-        if cases and case.name not in cases:
-            continue
-        dur = case.duration if not quick else (60.0 if case.bench_only else case.test_duration)
-        rn, rr, ra = case.reference
-        run_case(case, rn, rr, ra, duration=0.005)                 # warm-up: compile, matrices
-        ref = run_reference(case, dur)
-        print(f"\n== {case.name} ({dur:g} s): {case.description}\n   reference {rn} rtol {rr:g}: "
-              f"{ref.cpu / max(ref.sim_s, 1e-9):.3g} CPU s per sim s", flush=True)
-        for m in case.methods:
-            run_case(case, m, *ASK, duration=0.005)
-            res = run_case(case, m, *ASK, duration=dur)
-            v, err = verdict(res, ref)
-            cpu = res.cpu / max(res.sim_s, 1e-3 / 2)
-            row = dict(case=case.name, method=m, integrator=res.stats.get("integrator", m), duration=dur,
-                       error=err, cpu_per_sim_s=cpu, verdict=v,
-                       error_estimate=res.stats.get("max_error_estimate", math.nan),
-                       steps_per_sample=res.stats.get("n_steps", 0) / max(res.stats.get("n_samples", 1), 1),
-                       refused=(res.refused or "")[:160])
-            rows.append(row)
-            print(f"   {m:18s} {v:8s} error {err:9.2e} rad  {cpu:9.3g} CPU s/sim s  "
-                  f"{row['steps_per_sample']:7.1f} steps/sample  {row['refused'][:90]}", flush=True)
-    _write_hard(rows, out_dir, OK_RAD, ASK)
-    return rows
-
-
-def _write_hard(rows: list[dict], out_dir: Path, ok_rad: float, ask) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    keys = ["case", "method", "integrator", "duration", "error", "cpu_per_sim_s", "verdict", "error_estimate",
-            "steps_per_sample", "refused"]
-    with open(out_dir / "hard.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
-    cases = list(dict.fromkeys(r["case"] for r in rows))
-    methods = list(dict.fromkeys(r["method"] for r in rows))
-    cell = {(r["case"], r["method"]): r for r in rows}
-    lines = [f"Asked: rtol {ask[0]:g}, atol {ask[1]:g}; verdict ok = within {ok_rad:g} rad of the reference. "
-             "Cell: error (rad) / CPU s per simulated s / verdict.", "",
-             "| case | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
-    for c in cases:
-        cells = []
-        for m in methods:
-            r = cell.get((c, m))
-            if r is None:
-                cells.append("")
-            elif r["verdict"] == "refused":
-                cells.append(f"refused / {r['cpu_per_sim_s']:.2g} s")
-            else:
-                cells.append(f"{r['error']:.1e} / {r['cpu_per_sim_s']:.2g} s / {r['verdict']}")
-        lines.append(f"| {c} | " + " | ".join(cells) + " |")
-    (out_dir / "hard.md").write_text("\n".join(lines) + "\n")
-    print("\n" + "\n".join(lines))
-    _plot_hard(rows, cases, methods, out_dir / "hard.png", ok_rad)
-    print(f"\nwrote {out_dir / 'hard.csv'}, {out_dir / 'hard.md'}, {out_dir / 'hard.png'}")
-
-
-def _plot_hard(rows, cases, methods, path: Path, ok_rad: float) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(1.3 * len(methods) + 3, 0.62 * len(cases) + 1.8))
-    colors = {"ok": "#b7e4b0", "refused": "#f6e3a1", "WRONG": "#f4a6a6"}
-    cell = {(r["case"], r["method"]): r for r in rows}
-    for i, c in enumerate(cases):
-        for j, m in enumerate(methods):
-            r = cell.get((c, m))
-            if r is None:
-                continue
-            ax.add_patch(plt.Rectangle((j, i), 1, 1, color=colors[r["verdict"]], ec="w"))
-            txt = "refused" if r["verdict"] == "refused" else f"{r['error']:.0e} rad"
-            ax.text(j + 0.5, i + 0.38, txt, ha="center", va="center", fontsize=7)
-            ax.text(j + 0.5, i + 0.7, f"{r['cpu_per_sim_s']:.2g} s/s", ha="center", va="center", fontsize=6,
-                    color="0.3")
-    ax.set_xlim(0, len(methods))
-    ax.set_ylim(len(cases), 0)
-    ax.set_xticks(np.arange(len(methods)) + 0.5, methods, rotation=30, fontsize=8)
-    ax.set_yticks(np.arange(len(cases)) + 0.5, cases, fontsize=8)
-    ax.set_title(f"hard cases: error vs reference and CPU s per simulated s (green: ≤ {ok_rad:g} rad, "
-                 "yellow: refused, red: wrong)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    accuracy(Path("results/bench"), quick=True, repeats=1)

@@ -7,8 +7,8 @@ per sample.
 
 Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
 Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
-M_ij f_j``; see ``integrators._ETD``; estimate ``y1 − U_last``). The step-size controller is the
-one of ``integrators._Controlled`` (levels of ``nsub·2^level`` substeps per interval, the same
+M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``). The step-size controller is the
+one of ``integrators.base.Controlled`` (levels of ``nsub·2^level`` substeps per interval, the same
 acceptance test, the same level updates), so the results equal ``Simulator.push`` with the
 same integrator to round-off, and the failures are the same.
 """

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..physics.gyro import GimballedGyro, GyroModel
-from .integrators import make_integrator
+from .integrators import fd_jacobian, make_integrator
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
 from ..physics.rotations import quat_matrix, matrix_rotvec
@@ -191,8 +191,7 @@ class _GyroSystem:
     def __init__(self, model: GyroModel, y0: np.ndarray):
         self.model = model
         self.rhs = model.rhs
-        from .integrators import _fd_jacobian
-        self._A = _fd_jacobian(model.rhs, 0.0, y0)
+        self._A = fd_jacobian(model.rhs, 0.0, y0)
 
     def linear_part(self):
         return self._A, ("gyro", id(self))

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..physics import effects as fx
-from ..errors import GimbalLockError, InputError, SimulationError, ToleranceError
+from ..errors import GimbalLockError, InputError, SimulationError
 from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
 from ..physics.model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
@@ -120,6 +120,20 @@ class Simulator:
         if self.system.stabilised and self.options.has("earth_rate"):
             # consistent start (spec 4.7): the platform already turns with the local level
             self.y[st.Om] = self.system.w_IN
+
+    def carry_state_from(self, old: "Simulator") -> None:
+        """Continue from the integration state of ``old`` (state, time base, last sample,
+        counters), when both have the same state layout (same mode and fidelity; else nothing
+        is carried): used when live parameters rebuild the simulator."""
+        if old.t_start is None or old.layout.n != self.layout.n:
+            return
+        self.y = old.y.copy()
+        self.t_start = old.t_start
+        self.t_rel = old.t_rel
+        self._last = old._last
+        self.n_samples = old.n_samples
+        self.n_steps = old.n_steps
+        self.max_error_estimate = old.max_error_estimate
 
     @property
     def t(self) -> float | None:

@@ -284,24 +284,13 @@ def platform_urdf(p: PlatformParams, stabilised: bool, name: str = ROBOT_NAME) -
 
 
 def config_model(config) -> PlatformModel:
-    """:class:`PlatformModel` of a ``core.NodeConfig`` (its parameters and mode)."""
+    """:class:`PlatformModel` of a node configuration (``ros.config.NodeConfig``: its ``params``
+    and ``options.mode``)."""
     return platform_model(config.params, config.options.mode == "stabilised")
 
 
 def config_urdf(config) -> str:
-    """URDF text of a ``core.NodeConfig`` (what the node and the launch file publish)."""
+    """URDF text of a node configuration (``ros.config.NodeConfig``; what the node and the launch
+    file publish)."""
     return platform_urdf(config.params, config.options.mode == "stabilised")
 
-
-def urdf_from_params_file(params_file: str | None, scene: str = "", node_name: str | None = None,
-                          overrides: Mapping[str, object] | None = None) -> str:
-    """URDF for a ROS params file (+ scene and other overrides), as the node would configure
-    itself from them — used by the launch file to hand ``robot_state_publisher`` the same
-    model. Raises ``core.ConfigError`` on a bad parameter."""
-    from ..ros.core import NODE_NAME, NodeConfig, load_params_file
-
-    params = dict(load_params_file(params_file, node_name or NODE_NAME)) if params_file else {}
-    if scene:
-        params["scene"] = scene
-    params.update(overrides or {})
-    return config_urdf(NodeConfig.from_ros_params(params))

@@ -1,8 +1,11 @@
 """ros — the platform as a ROS 2 node, on rclpy or on plain DDS.
 
-Holds the transport-independent node core and parameter schema (``core``), the rclpy node
-(``node``, the only module that imports rclpy), the plain-DDS transport (``dds``, cyclonedds),
-the ``gyro-platform node`` command (``command``) and the launch file's argument logic
-(``launch_setup``). May import everything below it (``replay``, ``pipeline``, ``scenes``,
-``engine``, ``io``, ``physics``, ``errors``); nothing imports it but ``cli`` and ``bench``.
+Holds the parameter schema (``parameters``), the validated configuration and params files
+(``config``), the transport-independent node core (``core``) and its input-loss count
+(``overload``), the rclpy node (``node``, the only module that imports rclpy), the plain-DDS
+transport (``dds``; its naming ``dds_names``, discovery ``dds_discovery``, types and QoS
+``dds_types``; cyclonedds), the ``gyro-platform node`` command (``command``) and the launch
+file's argument logic (``launch_setup``). May import everything below it (``replay``,
+``pipeline``, ``scenes``, ``engine``, ``io``, ``physics``, ``errors``); nothing imports it but
+``cli`` and ``bench``.
 """

@@ -97,7 +97,7 @@ def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any
 # =========================================================================================
 def build_config(args: argparse.Namespace, node_name: str) -> Any:
     """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value)."""
-    from .core import NodeConfig, load_params_file
+    from .config import NodeConfig, load_params_file
 
     params = load_params_file(args.params_file, node_name) if args.params_file else {}
     if args.scene:
@@ -119,7 +119,7 @@ def rclpy_available() -> tuple[bool, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .core import NODE_NAME
+    from .parameters import NODE_NAME
 
     name = args.node_name or NODE_NAME
     log = _log(name)
@@ -148,24 +148,29 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
-    from .core import ConfigError, NodeCore
+    from .core import NodeCore
+    from .parameters import ConfigError
     from ..io.messages import MessageTypes
 
     try:
+        from .dds_types import import_cyclonedds
+        import_cyclonedds()
         from . import dds
-        dds._cyclone()
     except ImportError as e:
         log(f"error: {e}")
         return EXIT_FAILED
-    uri, hint = dds.default_discovery(dict(os.environ), dds.interface_flags())
+    from .dds_discovery import default_discovery, interface_flags
+    from .dds_names import domain_id_from_env, normalize_namespace, validate_node_name
+
+    uri, hint = default_discovery(dict(os.environ), interface_flags())
     if uri is not None:
         os.environ["CYCLONEDDS_URI"] = uri
         log(hint)
     try:
         config = build_config(args, name)
-        dds.validate_node_name(name)
-        namespace = dds.normalize_namespace(args.namespace)
-        domain = dds.domain_id_from_env(args.domain_id)
+        validate_node_name(name)
+        namespace = normalize_namespace(args.namespace)
+        domain = domain_id_from_env(args.domain_id)
     except (ConfigError, ValueError) as e:
         log(f"error: {e}")
         return EXIT_USAGE

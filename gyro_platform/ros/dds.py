@@ -4,22 +4,14 @@ Speaks the DDS wire format of ``rmw_cyclonedds_cpp`` through the ``cyclonedds`` 
 so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
 ``ROS_DOMAIN_ID``) and ROS 2 tools see its topics. Pieces:
 
-* **Naming** (as rcl/rmw_cyclonedds): :func:`expand_topic_name` expands a relative name with the
-  namespace, ``~`` with the node's namespace and name, ``{node}``/``{ns}`` substitutions, and
-  validates the result as rcl does; :func:`dds_topic_name` prefixes ``rt`` (``/ns/imu`` →
-  ``rt/ns/imu``); :func:`dds_type_name` gives ``sensor_msgs::msg::dds_::Imu_``.
-* **Types** (:class:`IdlTypes`): ``cyclonedds.idl`` ``IdlStruct`` classes generated at run time
-  from the field definitions of the rosbags ROS 2 Jazzy typestore (nested structs, fixed arrays,
-  bounded/unbounded sequences and strings, ``builtin_interfaces/Time``), keyless, final, encoded
-  as XCDR1 (= classic CDR, what rmw_cyclonedds sends), plus conversion both ways between
-  rosbags message objects and the generated IDL objects — so the transport-independent core,
-  which builds rosbags messages, is used unchanged. Byte identity with
-  ``typestore.serialize_cdr`` is tested in ``test/test_dds.py``.
-* **QoS** (:func:`dds_qos`): ``sensor_data`` (best effort, keep last 5, volatile) for the
-  inputs, ``default`` (reliable, keep last 10, volatile) for the outputs, as the rclpy node; every
-  endpoint forces data representation XCDR1 and carries rmw's ``typehash=RIHS01_…;`` user data.
-* **Graph** (:class:`DdsNode`): one DomainParticipant per node (``ROS_DOMAIN_ID``; participant
-  user data ``enclave=/;``), publishers and subscriptions on ROS names, and the
+* **Naming** (:mod:`gyro_platform.ros.dds_names`): rcl's name expansion and validation, DDS
+  topic and type names, the domain id; **discovery** without multicast
+  (:mod:`gyro_platform.ros.dds_discovery`).
+* **Types and QoS** (:mod:`gyro_platform.ros.dds_types`): IDL classes generated from the rosbags
+  typestore (XCDR1, byte-identical to rmw_cyclonedds), conversions both ways, the rclpy QoS
+  profiles in DDS terms with rmw's type-hash user data.
+* **Graph** (:class:`DdsNode`, this module): one DomainParticipant per node (``ROS_DOMAIN_ID``;
+  participant user data ``enclave=/;``), publishers and subscriptions on ROS names, and the
   ``ros_discovery_info`` announcement (``rmw_dds_common/ParticipantEntitiesInfo``) that lets
   ``ros2 node list`` show the node.
 * **The platform node** (:class:`PlatformDdsNode`): the thin adapter around
@@ -39,426 +31,17 @@ the node sleeps in a WaitSet.
 """
 from __future__ import annotations
 
-import os
-import re
 import threading
 import time
-from dataclasses import dataclass
 from typing import Any, Callable, Iterable
 
 import numpy as np
 
-NS = 1_000_000_000
-
-# =========================================================================================
-# naming (rcl_expand_topic_name / rcl_validate_topic_name / rmw_cyclonedds_cpp conventions)
-# =========================================================================================
-#: rmw_cyclonedds topic prefixes: topics, service requests, service replies
-ROS_TOPIC_PREFIX = "rt"
-ROS_SERVICE_REQUEST_PREFIX = "rq"
-ROS_SERVICE_REPLY_PREFIX = "rr"
-DISCOVERY_TOPIC = "ros_discovery_info"
-DISCOVERY_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
-#: ROS_DOMAIN_ID range Cyclone DDS accepts (ROS recommends 0–101 and 215–232 on Linux)
-MAX_DOMAIN_ID = 232
-
-_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
-_NODE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_FULL_NAME_RE = re.compile(rf"^(/{_TOKEN})+$|^/$")
-
-
-class NameError_(ValueError):
-    """An invalid node name, namespace or topic name (the message says why)."""
-
-
-def validate_node_name(name: str) -> str:
-    """rmw_validate_node_name: letters, digits, underscores, not starting with a digit."""
-    if not isinstance(name, str) or not _NODE_NAME_RE.match(name):
-        raise NameError_(f"invalid node name {name!r}: use letters, digits and '_', not starting with a digit")
-    return name
-
-
-def normalize_namespace(namespace: str | None) -> str:
-    """rcl normalisation of a node namespace: ``""``/``None`` → ``/``, a leading ``/`` is added,
-    a trailing one removed; then validated (tokens of letters, digits and ``_``, none starting
-    with a digit, no ``//``)."""
-    ns = (namespace or "").strip()
-    if not ns or ns == "/":
-        return "/"
-    if not ns.startswith("/"):
-        ns = "/" + ns
-    ns = ns.rstrip("/")
-    if not _FULL_NAME_RE.match(ns):
-        raise NameError_(f"invalid namespace {namespace!r}: tokens of letters, digits and '_' separated "
-                         "by single '/', none starting with a digit")
-    return ns
-
-
-def expand_topic_name(name: str, node_name: str, namespace: str = "/") -> str:
-    """Fully qualified ROS name of ``name`` for a node ``node_name`` in ``namespace``, as
-    rclpy/rcl expand it: absolute names stay, relative names get the namespace, ``~`` is the
-    node's own name space (``/ns/node``), ``{node}`` and ``{ns}``/``{namespace}`` are
-    substituted. Raises :class:`NameError_` for names rcl rejects."""
-    validate_node_name(node_name)
-    ns = normalize_namespace(namespace)
-    if not isinstance(name, str) or not name:
-        raise NameError_("topic name must not be empty")
-    node_fq = f"{ns.rstrip('/')}/{node_name}"
-    if name.startswith("~"):
-        if name != "~" and not name.startswith("~/"):
-            raise NameError_(f"invalid topic name {name!r}: '~' must be followed by '/' or stand alone")
-        name = node_fq + name[1:]
-    for key, value in (("{node}", node_name), ("{ns}", ns), ("{namespace}", ns)):
-        name = name.replace(key, value)
-    if "{" in name or "}" in name:
-        raise NameError_(f"invalid topic name {name!r}: unknown substitution")
-    if not name.startswith("/"):
-        name = f"{ns.rstrip('/')}/{name}"
-    if name.startswith("//"):    # "{ns}/x" in the root namespace
-        name = name[1:]
-    if name.endswith("/") or "//" in name or not _FULL_NAME_RE.match(name) or name == "/":
-        raise NameError_(f"invalid topic name {name!r}: tokens of letters, digits and '_' separated by "
-                         "single '/', none starting with a digit, no trailing '/'")
-    return name
-
-
-def dds_topic_name(ros_name: str, prefix: str = ROS_TOPIC_PREFIX) -> str:
-    """DDS topic of a fully qualified ROS topic: ``/ns/imu`` → ``rt/ns/imu``."""
-    if not ros_name.startswith("/"):
-        raise NameError_(f"{ros_name!r} is not a fully qualified ROS name (expand it first)")
-    return prefix + ros_name
-
-
-def ros_topic_name(dds_name: str) -> str | None:
-    """Inverse of :func:`dds_topic_name` for ROS topics (``rt/...``); None for other DDS topics."""
-    return dds_name[len(ROS_TOPIC_PREFIX):] if dds_name.startswith(ROS_TOPIC_PREFIX + "/") else None
-
-
-def dds_type_name(ros_type: str) -> str:
-    """``sensor_msgs/msg/Imu`` → ``sensor_msgs::msg::dds_::Imu_`` (rosidl_typesupport DDS naming)."""
-    parts = ros_type.split("/")
-    if len(parts) != 3 or not all(parts):
-        raise ValueError(f"ROS type name {ros_type!r}: expected package/msg/Type")
-    pkg, sub, typ = parts
-    return f"{pkg}::{sub}::dds_::{typ}_"
-
-
-def ros_type_name(dds_type: str) -> str | None:
-    """Inverse of :func:`dds_type_name`; None when ``dds_type`` is not of that form."""
-    m = re.fullmatch(r"(\w+)::(\w+)::dds_::(\w+)_", dds_type)
-    return f"{m[1]}/{m[2]}/{m[3]}" if m else None
-
-
-def domain_id_from_env(value: int | str | None = None) -> int:
-    """The DDS domain: ``value`` if given, else ``ROS_DOMAIN_ID``, else 0 (as rmw). Validated."""
-    raw = value if value is not None else os.environ.get("ROS_DOMAIN_ID", "").strip() or 0
-    try:
-        dom = int(raw)
-    except (TypeError, ValueError):
-        raise ValueError(f"ROS_DOMAIN_ID = {raw!r} is not an integer") from None
-    if not 0 <= dom <= MAX_DOMAIN_ID:
-        raise ValueError(f"ROS_DOMAIN_ID = {dom} outside 0..{MAX_DOMAIN_ID}")
-    return dom
-
-
-# =========================================================================================
-# discovery without multicast
-# =========================================================================================
-IFF_UP, IFF_LOOPBACK, IFF_MULTICAST = 0x1, 0x8, 0x1000
-#: rmw_cyclonedds' configuration for ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, in Cyclone XML:
-#: loopback only, no multicast, unicast discovery to localhost on the ports of participant
-#: indices 0..32 — what both sides need on a host without a multicast-capable interface
-LOCALHOST_DISCOVERY_XML = (
-    '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General><Interfaces>'
-    '<NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast>'
-    '</General><Discovery><ParticipantIndex>auto</ParticipantIndex>'
-    '<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address="localhost"/></Peers>'
-    '</Discovery></Domain></CycloneDDS>')
-
-
-def interface_flags(sys_class_net: str = "/sys/class/net") -> dict[str, int]:
-    """Network interface name → kernel flags (IFF_*), read from sysfs (empty if unreadable)."""
-    flags: dict[str, int] = {}
-    try:
-        names = os.listdir(sys_class_net)
-    except OSError:
-        return flags
-    for name in names:
-        try:
-            with open(os.path.join(sys_class_net, name, "flags")) as f:
-                flags[name] = int(f.read().strip(), 16)
-        except (OSError, ValueError):
-            continue
-    return flags
-
-
-def multicast_discovery_possible(flags: dict[str, int]) -> bool:
-    """True when an up interface supports multicast (Cyclone's default SPDP then works)."""
-    return any(f & IFF_UP and f & IFF_MULTICAST for f in flags.values())
-
-
-def default_discovery(environ: dict[str, str], flags: dict[str, int]) -> tuple[str | None, str]:
-    """(CYCLONEDDS_URI to use or None to keep Cyclone's default, one-line hint) for a node
-    started without ``--cyclonedds-config``. An explicit ``CYCLONEDDS_URI`` is kept; on a host
-    where no up interface supports multicast (e.g. a loopback-only network namespace whose
-    ``lo`` lacks MULTICAST), Cyclone's default multicast discovery finds nobody, so the
-    localhost unicast configuration of rmw_cyclonedds' LOCALHOST discovery range is used and
-    the hint says what the ROS side must set to meet it."""
-    if environ.get("CYCLONEDDS_URI", "").strip():
-        return None, ""
-    if not flags or multicast_discovery_possible(flags):
-        return None, ""
-    return LOCALHOST_DISCOVERY_XML, (
-        "no network interface with multicast: using unicast discovery on 127.0.0.1 (participant indices "
-        "0-32); ROS 2 nodes beside this one need the same: export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST "
-        "(rmw_cyclonedds) or CYCLONEDDS_URI=file://<share>/gyro_platform/config/cyclonedds_loopback.xml")
-
-
-# =========================================================================================
-# types: rosbags field definitions → cyclonedds IdlStruct classes, conversion both ways
-# =========================================================================================
-def _cyclone():
-    """Lazy import of cyclonedds (an optional dependency: ``pip install .[dds]``)."""
-    try:
-        import cyclonedds.idl as idl
-        import cyclonedds.idl.types as idl_types
-    except ImportError as e:  # pragma: no cover - depends on the install
-        raise ImportError(f"the DDS transport needs the 'cyclonedds' package (pip install 'gyro_platform[dds]'): {e}") from e
-    return idl, idl_types
-
-
-#: ROS primitive → (IDL type attribute of cyclonedds.idl.types, numpy dtype rosbags uses)
-_PRIMITIVES: dict[str, tuple[str, str]] = {
-    "bool": ("bool", "bool_"),
-    "byte": ("byte", "int8"),      # IDL octet; rosbags keeps ROS byte as int8 (same bits)
-    "char": ("uint8", "uint8"),    # ROS char is uint8 in IDL
-    "int8": ("int8", "int8"),
-    "uint8": ("uint8", "uint8"),
-    "int16": ("int16", "int16"),
-    "uint16": ("uint16", "uint16"),
-    "int32": ("int32", "int32"),
-    "uint32": ("uint32", "uint32"),
-    "int64": ("int64", "int64"),
-    "uint64": ("uint64", "uint64"),
-    "float32": ("float32", "float32"),
-    "float64": ("float64", "float64"),
-}
-_ONE_BYTE_UNSIGNED_IDL = ("byte", "char", "uint8")   # cyclonedds packs these arrays as bytes
-
-
-class IdlTypes:
-    """IDL classes for ROS message types, generated from a rosbags typestore, and conversions.
-
-    ``idl_class(ros_type)`` → ``IdlStruct`` subclass named ``<pkg>::msg::dds_::<Type>_``;
-    ``to_idl(msg)`` / ``from_idl(obj, ros_type)`` convert rosbags messages ↔ IDL objects;
-    ``serialize(msg)`` / ``deserialize(data, ros_type)`` go through the IDL classes (XCDR1,
-    little endian, 4-byte encapsulation header — the bytes rmw_cyclonedds sends).
-    """
-
-    def __init__(self, typestore: Any = None):
-        if typestore is None:
-            from ..io.messages import jazzy_typestore
-
-            typestore = jazzy_typestore()
-        self.typestore = typestore
-        self._classes: dict[str, type] = {}
-        self._to: dict[str, Callable[[Any], Any]] = {}
-        self._from: dict[str, Callable[[Any], Any]] = {}
-        self._lock = threading.RLock()
-
-    # ---- classes ---------------------------------------------------------------------
-    def fields(self, ros_type: str) -> list[tuple[str, Any]]:
-        """rosbags field definitions ``[(name, (Nodetype, args)), …]`` of ``ros_type``."""
-        try:
-            return list(self.typestore.fielddefs[ros_type][1])
-        except KeyError:
-            raise KeyError(f"message type {ros_type!r} is not in the typestore") from None
-
-    def idl_class(self, ros_type: str) -> type:
-        """The generated ``IdlStruct`` class of ``ros_type`` (cached)."""
-        with self._lock:
-            cls = self._classes.get(ros_type)
-            if cls is None:
-                idl, _ = _cyclone()
-                members = {name: self._idl_field_type(desc) for name, desc in self.fields(ros_type)}
-                cls = idl.make_idl_struct(ros_type.split("/")[-1] + "_", dds_type_name(ros_type), members)
-                # final extensibility, no key, no optional: XCDR1 is allowed and the default
-                self._classes[ros_type] = cls
-            return cls
-
-    def _idl_field_type(self, desc: Any) -> Any:
-        from rosbags.typesys.base import Nodetype
-
-        _, T = _cyclone()
-        kind, args = desc
-        if kind == Nodetype.BASE:
-            name, bound = args
-            if name == "string":
-                return T.bounded_str[bound] if bound else str
-            if name not in _PRIMITIVES:
-                raise TypeError(f"ROS primitive {name!r} has no IDL mapping")
-            return bool if name == "bool" else getattr(T, _PRIMITIVES[name][0])
-        if kind == Nodetype.NAME:
-            return self.idl_class(args)
-        if kind == Nodetype.ARRAY:
-            sub, length = args
-            return T.array[self._idl_field_type(sub), int(length)]
-        if kind == Nodetype.SEQUENCE:
-            sub, bound = args
-            return T.sequence[self._idl_field_type(sub), int(bound)] if bound else T.sequence[self._idl_field_type(sub)]
-        raise TypeError(f"field descriptor {desc!r} has no IDL mapping")
-
-    # ---- rosbags → IDL ---------------------------------------------------------------
-    def to_idl(self, msg: Any, ros_type: str | None = None) -> Any:
-        """IDL object of a rosbags message (``ros_type`` defaults to ``msg.__msgtype__``)."""
-        return self._to_fn(ros_type or msg.__msgtype__)(msg)
-
-    def _to_fn(self, ros_type: str) -> Callable[[Any], Any]:
-        with self._lock:
-            fn = self._to.get(ros_type)
-            if fn is None:
-                cls = self.idl_class(ros_type)
-                convs = [(name, self._to_field(desc)) for name, desc in self.fields(ros_type)]
-
-                def fn(msg: Any, cls: type = cls, convs: list = convs) -> Any:
-                    return cls(**{name: conv(getattr(msg, name)) for name, conv in convs})
-
-                self._to[ros_type] = fn
-            return fn
-
-    def _to_field(self, desc: Any) -> Callable[[Any], Any]:
-        from rosbags.typesys.base import Nodetype
-
-        kind, args = desc
-        if kind == Nodetype.BASE:
-            name, _ = args
-            if name == "string":
-                return str
-            if name in ("float32", "float64"):
-                return float
-            if name == "bool":
-                return bool
-            if name == "byte":
-                return lambda v: int(v) & 0xFF
-            return int
-        if kind == Nodetype.NAME:
-            return self._to_fn(args)
-        sub, n = args
-        skind, sargs = sub
-        if skind == Nodetype.BASE and sargs[0] != "string":
-            dtype = np.dtype(_PRIMITIVES[sargs[0]][1])
-            if sargs[0] in _ONE_BYTE_UNSIGNED_IDL:
-                if kind == Nodetype.ARRAY:   # cyclonedds: bytes for uint8/octet arrays
-                    return lambda v, d=dtype: np.ascontiguousarray(v, dtype=d).view(np.uint8).tobytes()
-                return lambda v, d=dtype: np.ascontiguousarray(v, dtype=d).view(np.uint8).tolist()
-            return lambda v, d=dtype: np.asarray(v, dtype=d).tolist()
-        conv = self._to_field(sub)
-        return lambda v, c=conv: [c(x) for x in v]
-
-    # ---- IDL → rosbags ---------------------------------------------------------------
-    def from_idl(self, obj: Any, ros_type: str) -> Any:
-        """rosbags message of an IDL object of ``ros_type``."""
-        return self._from_fn(ros_type)(obj)
-
-    def _from_fn(self, ros_type: str) -> Callable[[Any], Any]:
-        with self._lock:
-            fn = self._from.get(ros_type)
-            if fn is None:
-                cls = self.typestore.types[ros_type]
-                convs = [(name, self._from_field(desc)) for name, desc in self.fields(ros_type)]
-
-                def fn(obj: Any, cls: type = cls, convs: list = convs) -> Any:
-                    return cls(**{name: conv(getattr(obj, name)) for name, conv in convs})
-
-                self._from[ros_type] = fn
-            return fn
-
-    def _from_field(self, desc: Any) -> Callable[[Any], Any]:
-        from rosbags.typesys.base import Nodetype
-
-        kind, args = desc
-        if kind == Nodetype.BASE:
-            name, _ = args
-            if name == "string":
-                return str
-            if name in ("float32", "float64"):
-                return float
-            if name == "bool":
-                return bool
-            if name == "byte":
-                return lambda v: (int(v) + 128) % 256 - 128
-            return int
-        if kind == Nodetype.NAME:
-            return self._from_fn(args)
-        sub, _ = args
-        skind, sargs = sub
-        if skind == Nodetype.BASE and sargs[0] != "string":
-            dtype = np.dtype(_PRIMITIVES[sargs[0]][1])
-            if sargs[0] in _ONE_BYTE_UNSIGNED_IDL:
-                return lambda v, d=dtype: (np.frombuffer(bytes(v), dtype=np.uint8) if isinstance(v, (bytes, bytearray))
-                                           else np.asarray(v, dtype=np.uint8)).view(d).copy()
-            return lambda v, d=dtype: np.asarray(v, dtype=d)
-        conv = self._from_field(sub)
-        return lambda v, c=conv: [c(x) for x in v]
-
-    # ---- bytes -----------------------------------------------------------------------
-    def serialize(self, msg: Any, ros_type: str | None = None) -> bytes:
-        """CDR bytes (XCDR1, little endian, with the 4-byte encapsulation header) via IDL."""
-        return self.to_idl(msg, ros_type).serialize(use_version_2=False)
-
-    def deserialize(self, data: bytes, ros_type: str) -> Any:
-        """rosbags message from CDR bytes (header included), decoded by the IDL class."""
-        return self.from_idl(self.idl_class(ros_type).deserialize(data), ros_type)
-
-    def type_hash(self, ros_type: str) -> str | None:
-        """REP-2011 type hash ``RIHS01_<sha256>`` (what Jazzy's rmw puts in the user data)."""
-        try:
-            return self.typestore.hash_rihs01(ros_type)
-        except Exception:  # noqa: BLE001 - older rosbags or a type without a hashable definition
-            return None
-
-
-# =========================================================================================
-# QoS (the rclpy profiles the node uses, in DDS terms)
-# =========================================================================================
-@dataclass(frozen=True)
-class QosProfile:
-    """The ROS QoS of one endpoint: ``reliability`` best_effort|reliable, ``durability``
-    volatile|transient_local, ``depth`` (keep last)."""
-
-    reliability: str
-    durability: str
-    depth: int
-
-
-SENSOR_DATA = QosProfile("best_effort", "volatile", 5)     # rclpy qos_profile_sensor_data
-DEFAULT = QosProfile("reliable", "volatile", 10)           # rclpy default (depth 10)
-DISCOVERY_INFO = QosProfile("reliable", "transient_local", 1)
-TF = QosProfile("reliable", "volatile", 100)             # tf2_ros TransformBroadcaster / listener
-LATCHED = QosProfile("reliable", "transient_local", 1)     # /tf_static, /robot_description (as robot_state_publisher)
-PROFILES = {"sensor_data": SENSOR_DATA, "default": DEFAULT, "tf": TF, "latched": LATCHED}
-
-
-def dds_qos(profile: QosProfile, user_data: bytes | None = None) -> Any:
-    """cyclonedds ``Qos`` of a :class:`QosProfile`: reliability, durability, keep-last depth,
-    data representation XCDR1 only, and ``user_data`` (rmw's ``typehash=…;``) if given."""
-    from cyclonedds.core import Policy, Qos
-
-    policies = [
-        Policy.Reliability.Reliable(max_blocking_time=100_000_000) if profile.reliability == "reliable"
-        else Policy.Reliability.BestEffort,
-        Policy.Durability.TransientLocal if profile.durability == "transient_local" else Policy.Durability.Volatile,
-        Policy.History.KeepLast(int(profile.depth)),
-        Policy.DataRepresentation(use_cdrv0_representation=True),
-    ]
-    if user_data:
-        policies.append(Policy.Userdata(data=bytes(user_data)))
-    return Qos(*policies)
-
-
-def type_hash_user_data(type_hash: str | None) -> bytes | None:
-    """rmw_dds_common's endpoint user data: ``typehash=RIHS01_…;``."""
-    return f"typehash={type_hash};".encode() if type_hash else None
+from ..io.gate import NS
+from .dds_names import (DISCOVERY_TOPIC, DISCOVERY_TYPE, domain_id_from_env, dds_topic_name, expand_topic_name,
+                        normalize_namespace, validate_node_name)
+from .dds_types import DEFAULT, DISCOVERY_INFO, LATCHED, SENSOR_DATA, TF, IdlTypes, QosProfile, dds_qos, \
+    type_hash_user_data, zero_message
 
 
 # =========================================================================================
@@ -474,7 +57,7 @@ class DdsPublisher:
         self.dds_topic = node._topic(topic, ros_type)
         self.writer = DataWriter(node.participant, self.dds_topic,
                                  qos=dds_qos(profile, type_hash_user_data(node.types.type_hash(ros_type))))
-        self._to = node.types._to_fn(ros_type)
+        self._to = node.types.to_idl_fn(ros_type)
         self.published = 0
 
     def publish(self, msg: Any) -> None:
@@ -521,7 +104,7 @@ class DdsSubscription:
                   if k in qos),
                 Policy.History.KeepAll,
                 Policy.ResourceLimits(max_samples=1, max_instances=1, max_samples_per_instance=1)))
-        self._from = node.types._from_fn(ros_type)
+        self._from = node.types.from_idl_fn(ros_type)
         self.taken = 0
         self.lost = 0
         self.undecodable = 0
@@ -688,25 +271,6 @@ class DdsNode:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
-
-
-def zero_message(typestore: Any, ros_type: str) -> Any:
-    """A rosbags message of ``ros_type`` with every number 0, strings empty, sequences empty."""
-    from rosbags.typesys.base import Nodetype
-
-    def value(desc: Any) -> Any:
-        kind, args = desc
-        if kind == Nodetype.BASE:
-            name = args[0]
-            return "" if name == "string" else False if name == "bool" else 0.0 if name.startswith("float") else 0
-        if kind == Nodetype.NAME:
-            return zero_message(typestore, args)
-        sub, n = args
-        if sub[0] == Nodetype.BASE and sub[1][0] != "string":
-            return np.zeros(n if kind == Nodetype.ARRAY else 0, dtype=_PRIMITIVES[sub[1][0]][1])
-        return [value(sub) for _ in range(n)] if kind == Nodetype.ARRAY else []
-
-    return typestore.types[ros_type](**{name: value(d) for name, d in typestore.fielddefs[ros_type][1]})
 
 
 def wait_matched(endpoints: Iterable[Any], timeout: float, count: int = 1, poll: float = 0.02) -> bool:
@@ -961,3 +525,6 @@ class PlatformDdsNode:
 
     def close(self) -> None:
         self.node.close()
+
+
+__all__ = ["DdsNode", "DdsPublisher", "DdsSubscription", "PlatformDdsNode", "wait_matched", "NS"]

@@ -22,7 +22,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from .core import NODE_NAME, SPECS, ConfigError
+from ..io.urdf import config_urdf
+from .config import NodeConfig, load_params_file
+from .parameters import NODE_NAME, SPECS, ConfigError
 
 #: (name, default, description); the launch file declares exactly these
 ARGUMENTS: tuple[tuple[str, str, str], ...] = (
@@ -80,12 +82,22 @@ def frame_prefix_for(explicit: str, namespace: str) -> str:
     return f"{ns}/" if ns else ""
 
 
+def urdf_from_params_file(params_file: str | None, scene: str = "", node_name: str | None = None,
+                          overrides: Mapping[str, object] | None = None) -> str:
+    """URDF for a ROS params file (+ scene and other overrides), as the node would configure
+    itself from them — used by the launch file to hand ``robot_state_publisher`` the same
+    model. Raises ``ConfigError`` on a bad parameter."""
+    params = dict(load_params_file(params_file, node_name or NODE_NAME)) if params_file else {}
+    if scene:
+        params["scene"] = scene
+    params.update(overrides or {})
+    return config_urdf(NodeConfig.from_ros_params(params))
+
+
 def plan(values: Mapping[str, str], default_params_file: str) -> LaunchPlan:
     """The launch plan for argument ``values`` (name → string, as LaunchConfiguration gives
     them). Raises :class:`LaunchArgumentError` (one line naming the argument) on a bad value,
-    and ``core.ConfigError`` when the parameters do not give a valid model."""
-    from ..io.urdf import urdf_from_params_file
-
+    and ``ConfigError`` when the parameters do not give a valid model."""
     cfg = {name: str(values.get(name, default)) for name, default, _ in ARGUMENTS}
     params_file = cfg["params_file"] or default_params_file
     sim_time = _flag("use_sim_time", cfg["use_sim_time"])

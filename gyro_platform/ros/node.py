@@ -4,7 +4,7 @@ The only module of the package that imports rclpy. Everything the node does with
 mounting, time gate, integration, output grid, diagnostics content, parameter validation —
 is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wires it to rclpy:
 
-* parameters: every entry of ``core.PARAMETERS`` declared with a ``ParameterDescriptor``
+* parameters: every entry of ``parameters.PARAMETERS`` declared with a ``ParameterDescriptor``
   (description, ``FloatingPointRange`` for every double, ``read_only``); a ``scene`` supplies
   the defaults of the model parameters (declared after it); changes go through
   ``core.set_parameters``. An empty string array (``sensor_mountings``) is declared by type
@@ -16,7 +16,7 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
   ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps) is
-  counted by ``core.InputLoss`` and turns ``gyro_platform: node`` WARN;
+  counted by ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
   ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
   come from ``robot_state_publisher`` (started by the launch file with the URDF of
@@ -54,8 +54,9 @@ except ImportError as e:  # pragma: no cover - depends on the machine
         "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
         "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
-from . import core as core_mod
-from .core import PARAMETERS, SPECS, ConfigError, NodeConfig, NodeCore, ParamSpec
+from .config import NodeConfig, parameter_defaults
+from .core import DIAGNOSTICS_TOPIC, NodeCore
+from .parameters import NODE_NAME, PARAMETERS, SPECS, ConfigError, ParamSpec
 from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
 from .command import warm_up
 
@@ -67,7 +68,7 @@ CLOCK_JUMP_BACK = Duration(nanoseconds=-1_000_000)   # 1 ms
 
 
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """ROS parameter descriptor of one ``core.ParamSpec``."""
+    """ROS parameter descriptor of one ``parameters.ParamSpec``."""
     d = ParameterDescriptor(description=spec.description + (f" [{spec.unit}]" if spec.unit else ""),
                             additional_constraints=spec.constraints(), read_only=spec.read_only)
     if spec.type == "double" and spec.range is not None:
@@ -87,7 +88,7 @@ class PlatformNode(Node):
     parameters are invalid (the message names the parameter)."""
 
     def __init__(self, **kwargs: Any):
-        super().__init__(core_mod.NODE_NAME, **kwargs)
+        super().__init__(NODE_NAME, **kwargs)
         self._lock = threading.Lock()
         config = NodeConfig.from_ros_params(self._declare_parameters())
         self.core = NodeCore(config, MessageTypes.rclpy())
@@ -101,7 +102,7 @@ class PlatformNode(Node):
 
         self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
                       for topic, typ in self.core.output_topics().items()}
-        self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], core_mod.DIAGNOSTICS_TOPIC, OUTPUT_QOS)
+        self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], DIAGNOSTICS_TOPIC, OUTPUT_QOS)
         self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics)
         self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
         self._jump_handle = self.get_clock().create_jump_callback(
@@ -139,7 +140,7 @@ class PlatformNode(Node):
         """Declare every core parameter (``scene`` first: its model values are the defaults of
         the others); returns name → value as set (overrides from params file / -p applied)."""
         scene = self.declare_parameter("scene", SPECS["scene"].default, descriptor(SPECS["scene"])).value
-        defaults = core_mod.parameter_defaults(scene)
+        defaults = parameter_defaults(scene)
         values: dict[str, Any] = {"scene": scene}
         for spec in PARAMETERS:
             if spec.name == "scene":

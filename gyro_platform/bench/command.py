@@ -1,0 +1,43 @@
+"""``gyro-platform bench``: the benchmarks' command line (accuracy, hard, effects, hotpath).
+
+``accuracy`` (:mod:`.accuracy`): work-precision study; ``hard`` (:mod:`.hard`): the hard-case
+table, exit code 1 if any cell is WRONG; ``effects`` and ``hotpath`` (:mod:`.hotpath`): per-sample
+cost. Each writes its tables and plots under ``--out``.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .accuracy import accuracy
+from .hard import hard
+from .hotpath import effects_cost, hotpath
+
+__all__ = ["add_arguments", "run"]
+
+
+def add_arguments(p) -> None:
+    """The ``bench`` subcommand's arguments on the argparse parser ``p``."""
+    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard"], help="which benchmark")
+    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--quick", action="store_true",
+                   help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
+    p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
+    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
+
+
+def run(args) -> int:
+    """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0)."""
+    out = Path(args.out)
+    if args.what == "accuracy":
+        accuracy(out, quick=args.quick, repeats=args.repeats)
+    elif args.what == "hard":
+        rows = hard(out, quick=args.quick, cases=args.case)
+        return 1 if any(r["verdict"] == "WRONG" for r in rows) else 0
+    elif args.what == "effects":
+        effects_cost(out, repeats=args.repeats)
+    else:
+        res = hotpath(repeats=args.repeats)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "hotpath.json").write_text(json.dumps(res, indent=1))
+    return 0

@@ -1,0 +1,32 @@
+"""Time integrators for the simulator: one ``advance(system, t0, y0, t1)`` per input sample.
+
+One contract (:mod:`.base`: ``Integrator``, ``StepStats``, the weighted error norm, the
+step-size controller of the fixed-grid methods, ``OdeSystem``), one module per family, one front
+door (this package: ``INTEGRATORS``, ``make_integrator``). Every method is given ``rtol``/``atol``
+and ``max_step``, estimates its local error and refuses (``ToleranceError``) rather than return
+a state outside the tolerance; see :mod:`.base`.
+
+Methods (see ``INTEGRATORS``):
+
+- ``rk4`` (:mod:`.rk`): classic RK4 with an embedded third-order estimate.
+- ``etd2``, ``etd4``, ``exprb`` (:mod:`.exponential`): exponential integrators about the rest
+  state (ETD2RK, ETDRK4) or re-linearised at every step (exprb32); their φ-functions.
+- ``implicit_midpoint`` (:mod:`.implicit`): A-stable, symplectic, step doubling.
+- ``dop853``, ``rk45``, ``radau`` (:mod:`.scipy_methods`): scipy's ``OdeSolver`` step API.
+- ``auto`` (:mod:`.auto`): a primary method with the exprb fallback (built by the simulator).
+
+:mod:`.jacobian` holds the Jacobians (a system's own or forward differences) the linearising
+methods share. Imports only ``errors`` (and numpy, scipy, numba).
+"""
+from .auto import AUTO_STICKY, Auto
+from .base import COARSEN, MAX_JUMP, MAX_SUBSTEPS, Controlled, Integrator, OdeSystem, StepStats, error_norm
+from .exponential import ETD2, ETD4, ExpRosenbrock
+from .implicit import ImplicitMidpoint
+from .jacobian import fd_jacobian, jacobian_of
+from .registry import INTEGRATORS, make_integrator
+from .rk import RK4
+from .scipy_methods import DOP853, RK45, Radau
+
+__all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
+           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "Auto", "AUTO_STICKY", "RK4", "ETD2", "ETD4",
+           "ExpRosenbrock", "ImplicitMidpoint", "DOP853", "RK45", "Radau", "fd_jacobian", "jacobian_of"]

@@ -1,0 +1,243 @@
+"""The integrator contract: ``Integrator``, ``StepStats``, the error norm and the step controller.
+
+All methods integrate ``dy/dt = system.rhs(t, y)`` (``OdeSystem``) from ``t0`` to exactly
+``t1`` (s) and return the new state and a ``StepStats``. The simulator calls ``advance`` once
+per input-sample interval (1–10 ms).
+
+**Accuracy is an input.** Every method is given ``rtol``/``atol`` and estimates its local error
+at every (sub)step; the weighted norm ``‖err‖ = RMS(err_i / (atol + rtol·max(|y0_i|, |y1_i|)))``
+must be ≤ 1 for a step to be accepted (the scipy convention). ``max_step`` (s) is always an
+upper bound of the step. The budget is ``max_substeps``: no step shorter than
+``max_step / max_substeps``. A method that cannot meet the tolerance within the budget raises
+``ToleranceError`` (a ``SimulationError``) naming the time, the method, the estimate and the
+tolerance; ``y0`` is untouched (the caller keeps its state).
+
+The fixed-grid methods (rk4, etd*, exprb, implicit_midpoint) derive from :class:`Controlled`,
+one step-size controller: the interval is cut into ``nsub·2^level`` equal substeps; an interval
+with a rejected substep is redone at a finer level (``level += max(1, ceil(log2 ‖err‖ /
+(q+1)))``, q the estimator's order), and after an interval whose worst substep was
+≤ ``0.5·2^-(q+1)`` the next interval tries one level coarser. The compiled batch loop
+(:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
+
+Non-finite results are never returned: ``SimulationError``.
+"""
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, Callable, Hashable, Protocol
+
+import numpy as np
+
+from ...errors import SimulationError, ToleranceError
+
+__all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
+           "is_rejected", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP"]
+
+_CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
+#: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
+MAX_SUBSTEPS = 4096
+#: controller: after an interval whose worst normalised error is ≤ COARSEN·2^-(q+1), the next
+#: interval tries a level coarser (2× the step); a rejection jumps at most MAX_JUMP levels
+COARSEN = 0.5
+MAX_JUMP = 4
+
+
+def error_norm(err: np.ndarray, y0: np.ndarray, y1: np.ndarray, rtol: float, atol: float) -> float:
+    """Weighted RMS norm of a local error estimate (≤ 1: within tolerance; scipy's convention)."""
+    sc = atol + rtol * np.maximum(np.abs(y0), np.abs(y1))
+    return float(np.sqrt(np.mean((err / sc) ** 2)))
+
+
+def next_level(level: int, norm: float, q1: int) -> int:
+    """Level after a rejected interval with worst normalised error ``norm`` (q1 = q + 1)."""
+    if not norm < math.inf:                     # nan or inf: non-finite, Newton failure
+        return level + 1
+    return level + min(MAX_JUMP, max(1, math.ceil(math.log2(norm) / q1)))
+
+
+def coarser_level(level: int, norm: float, q1: int) -> int:
+    """Level for the next interval after an accepted one."""
+    return level - 1 if level > 0 and norm * 2.0 ** q1 <= COARSEN else level
+
+
+class OdeSystem(Protocol):
+    """What an integrator needs from the model.
+
+    Required: ``rhs(t, y) -> dy/dt`` (shape (n,); t in s). Optional, found with ``getattr``:
+
+    - ``linear_part() -> (A, key)``: ``f(t, y) = A y + g(t, y)`` with ``g`` slow/mild; ``key``
+      (hashable) identifies ``A`` so that expm/φ/LU results can be cached. Needed by etd2/etd4;
+      used as the Newton matrix by implicit_midpoint and as the Jacobian by radau.
+    - ``jacobian(t, y) -> ∂f/∂y`` (n×n): exact Jacobian, preferred over ``linear_part``.
+    """
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass
+class StepStats:
+    """Work and quality of one ``advance`` call.
+
+    ``n_steps``: accepted (sub)steps; ``n_rhs``: calls of ``system.rhs`` (including
+    finite-difference Jacobians); ``error_estimate``: largest local error estimate (max-norm,
+    state units: rad, rad/s, …) of the accepted steps; ``error_norm``: largest weighted norm of
+    those estimates (≤ 1 = within rtol/atol); ``n_rejected``: rejected (redone) steps or
+    intervals; ``level``: substep level used (substeps = ceil(dt/max_step)·2^level).
+    """
+
+    n_steps: int
+    n_rhs: int
+    error_estimate: float
+    error_norm: float = math.nan
+    n_rejected: int = 0
+    level: int = 0
+
+
+class Integrator(ABC):
+    """Base class. Subclasses set ``name``, ``order`` and ``adaptive`` and implement ``_advance``.
+
+    ``max_step`` (s): upper bound of every step; ``rtol``, ``atol``: tolerances (state units);
+    ``max_substeps``: budget, the shortest step allowed is ``max_step / max_substeps``."""
+
+    name: str = ""
+    #: the method consults ``system.linear_part()`` (so the system keeps it current per step)
+    uses_linear_part: bool = False
+    order: int = 0
+    #: every method adapts its step to the tolerance; kept for the scipy family's warm start
+    adaptive: bool = True
+
+    def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
+                 max_substeps: int = MAX_SUBSTEPS) -> None:
+        self.max_step = float(max_step)
+        self.rtol, self.atol = float(rtol), float(atol)
+        self.max_substeps = int(max_substeps)
+        self.max_level = max(0, int(math.floor(math.log2(self.max_substeps))))
+
+    def advance(self, system: OdeSystem, t0: float, y0: np.ndarray, t1: float
+                ) -> tuple[np.ndarray, StepStats]:
+        """Integrate from ``t0`` to exactly ``t1`` (s, ``t1 > t0``); ``y0`` is not modified.
+
+        Returns ``(y1, stats)``. Raises ``ValueError`` for a bad interval or state shape and
+        ``SimulationError`` if the state becomes non-finite or the tolerance cannot be met.
+        """
+        t0 = float(t0)
+        t1 = float(t1)
+        if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+            raise ValueError(f"{self.name}: need finite t1 > t0, got t0={t0!r}, t1={t1!r}")
+        y = np.array(y0, dtype=float)          # always a copy
+        if y.ndim != 1:
+            raise ValueError(f"{self.name}: y0 must be 1-D, got shape {y.shape}")
+        y, stats = self._advance(system, t0, y, t1)
+        if not np.isfinite(y).all():
+            raise SimulationError(f"non-finite state after {self.name} step at t={t1!r}")
+        return y, stats
+
+    @abstractmethod
+    def _advance(self, system: OdeSystem, t0: float, y: np.ndarray, t1: float
+                 ) -> tuple[np.ndarray, StepStats]:
+        """Integrate in place of the owned copy ``y``; interval already checked."""
+
+    def reset(self) -> None:
+        """Forget warm-start data and caches."""
+
+    def refuse(self, t: float, estimate: float, norm: float, h: float, why: str = "") -> ToleranceError:
+        """The error raised when the tolerance cannot be met within the budget (t: the
+        integration time of the failing step, s)."""
+        if not norm < math.inf:
+            why = why or " (non-finite state or failed stage)"
+        return ToleranceError(
+            f"{self.name} cannot meet the tolerance at t={t!r} s: error estimate {estimate:.3g} "
+            f"({norm:.3g}× the tolerance rtol={self.rtol:g}, atol={self.atol:g}) even with steps of "
+            f"{h:.3g} s (budget: max_step/{self.max_substeps}){why}; state kept at the interval start")
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} order={self.order}>"
+
+
+# --------------------------------------------------------------------------- controlled (fixed grid)
+
+
+class Controlled(Integrator):
+    """Methods on a grid of ``nsub·2^level`` equal substeps per interval (see module doc).
+
+    Subclasses implement ``_substeps(system, t0, y0, nsub, h)`` returning ``(y1, norm, est,
+    n_rhs, t_bad)``: the worst normalised error and max-norm estimate over the substeps, and
+    the start of the first rejected substep (the run stops there; ``norm`` > 1 or nan)."""
+
+    #: order + 1 of the local error the estimator measures (err ∝ h^q1)
+    q1: int = 2
+    #: the method substeps on a grid; the step level is carried between calls
+    level: int = 0
+
+    def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
+                 max_substeps: int = MAX_SUBSTEPS) -> None:
+        super().__init__(max_step, rtol, atol, max_substeps)
+        self._n = -1
+        self._cache: dict[tuple[Hashable, float], Any] = {}
+        self.level = 0
+
+    cache_size = _CACHE_SIZE
+
+    def _base(self, t0: float, t1: float) -> tuple[int, float]:
+        """(nsub, h): ``ceil((t1 − t0)/max_step)`` equal steps. A relative overshoot of 1e-9 is
+        tolerated, so that an interval of ``max_step`` plus round-off is one substep, not two."""
+        nsub = max(1, math.ceil((t1 - t0) / self.max_step - 1e-9))
+        return nsub, (t1 - t0) / nsub
+
+    def _cached(self, key: Hashable, h: float, make: Callable[[], Any]) -> Any:
+        """LRU cache of matrices by (key, h); ``h`` is compared exactly."""
+        k = (key, h)
+        val = self._cache.pop(k, None)
+        if val is None:
+            val = make()
+            if len(self._cache) >= self.cache_size:
+                del self._cache[next(iter(self._cache))]
+        self._cache[k] = val
+        return val
+
+    def reset(self) -> None:
+        self._cache.clear()
+        self._n = -1
+        self.level = 0
+
+    def _prepare(self, system, t0: float, y0: np.ndarray) -> int:
+        """Per-call setup (Jacobians, linear part); returns the rhs calls it made."""
+        return 0
+
+    def _norm(self, err, y0, y1) -> float:
+        return error_norm(err, y0, y1, self.rtol, self.atol)
+
+    def _advance(self, system, t0, y, t1):
+        nsub0, h0 = self._base(t0, t1)
+        nrhs = self._prepare(system, t0, y)
+        level, rejected = self.level, 0
+        while True:
+            nsub = nsub0 << level
+            h = h0 / (1 << level)
+            y1, norm, est, n, t_bad = self._substeps(system, t0, y, nsub, h)
+            nrhs += n
+            if norm <= 1.0:
+                break
+            rejected += 1
+            new = next_level(level, norm, self.q1)
+            if not norm < math.inf:
+                new = level + MAX_JUMP
+            if new > self.max_level:
+                if level < self.max_level:
+                    new = self.max_level               # try the budget's own limit once
+                else:
+                    raise self.refuse(t_bad, est, norm, h)
+            level = new
+        self.level = coarser_level(level, norm, self.q1)
+        return y1, StepStats(nsub, nrhs, est, norm, rejected, level)
+
+    @abstractmethod
+    def _substeps(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):
+        ...
+
+
+def is_rejected(norm: float) -> bool:
+    """True when a (sub)step with weighted error norm ``norm`` is rejected (> 1, or nan)."""
+    return not norm <= 1.0

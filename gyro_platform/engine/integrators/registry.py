@@ -1,0 +1,49 @@
+"""The integrators by name: ``INTEGRATORS`` (name → description) and :func:`make_integrator`."""
+from __future__ import annotations
+
+import math
+
+from .base import MAX_SUBSTEPS, Integrator
+from .exponential import ETD2, ETD4, ExpRosenbrock
+from .implicit import ImplicitMidpoint
+from .rk import RK4
+from .scipy_methods import DOP853, RK45, Radau
+
+__all__ = ["INTEGRATORS", "make_integrator"]
+
+INTEGRATORS: dict[str, str] = {
+    "rk4": "classic explicit Runge-Kutta 4 with embedded 3rd-order estimate, substeps to rtol/atol "
+           "(explicit: needs h*|lambda| < 2.8)",
+    "dop853": "Dormand-Prince 8(5,3), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
+    "rk45": "Dormand-Prince 5(4), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
+    "radau": "Radau IIA order 5, implicit adaptive (rtol/atol), for stiff damped systems",
+    "implicit_midpoint": "implicit midpoint, step doubling to rtol/atol, A-stable, symplectic, keeps quadratic invariants",
+    "etd2": "exponential ETD2RK (Cox-Matthews) about the rest state, embedded estimate, substeps to rtol/atol",
+    "etd4": "exponential ETDRK4 (Krogstad) about the rest state, embedded estimate, substeps to rtol/atol",
+    "exprb": "exponential Rosenbrock exprb32, re-linearised every step, embedded estimate; large angles, fast rotors",
+}
+
+_CLASSES: dict[str, type[Integrator]] = {
+    "rk4": RK4, "dop853": DOP853, "rk45": RK45, "radau": Radau,
+    "implicit_midpoint": ImplicitMidpoint, "etd2": ETD2, "etd4": ETD4, "exprb": ExpRosenbrock,
+}
+
+
+def make_integrator(name: str, *, max_step: float = 1e-3, rtol: float = 1e-8,
+                    atol: float = 1e-12, max_substeps: int = MAX_SUBSTEPS) -> Integrator:
+    """A new integrator by name (see ``INTEGRATORS``).
+
+    ``max_step`` (s): step bound; ``rtol``, ``atol`` (state units): local error tolerance;
+    ``max_substeps``: budget (shortest step ``max_step/max_substeps``). Raises ``ValueError``
+    for an unknown name or bad values.
+    """
+    cls = _CLASSES.get(name)
+    if cls is None:
+        raise ValueError(f"unknown integrator {name!r}; known: {', '.join(INTEGRATORS)}")
+    if not (0.0 < max_step < math.inf):
+        raise ValueError(f"{name}: max_step must be a positive finite time in s, got {max_step!r}")
+    if not (rtol > 0.0 and atol > 0.0):
+        raise ValueError(f"{name}: rtol and atol must be positive, got {rtol!r}, {atol!r}")
+    if not (int(max_substeps) >= 1):
+        raise ValueError(f"{name}: max_substeps must be ≥ 1, got {max_substeps!r}")
+    return cls(max_step, rtol, atol, int(max_substeps))

@@ -1,0 +1,46 @@
+"""Explicit Runge–Kutta methods on the controlled grid of :class:`~.base.Controlled`.
+
+``rk4``: classic RK4 with an embedded third-order estimate (the FSAL stage f(t+h, y1):
+``err = h/6 (k4 − k5)``). Explicit: at h·ω > 2.8 it must substep; it damps nutation by
+≈ (hω)⁶/72 per step, which the tolerance bounds. (DOP853 and RK45 are scipy's:
+:mod:`.scipy_methods`.)
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .base import Controlled, is_rejected
+
+__all__ = ["RK4"]
+
+
+class RK4(Controlled):
+    """Classic explicit RK4; embedded third-order estimate ``h/6 (k4 − k5)``, k5 = f(t+h, y1)
+    (first same as last: k5 is the next substep's k1)."""
+
+    name, order, q1 = "rk4", 4, 4
+
+    def _substeps(self, system, t0, y0, nsub, h):
+        rhs = system.rhs
+        hh, h6 = 0.5 * h, h / 6.0
+        y = y0.copy()
+        k1 = np.array(rhs(t0, y), dtype=float)
+        nrhs, worst, est = 1, 0.0, 0.0
+        for i in range(nsub):
+            t = t0 + i * h
+            k2 = rhs(t + hh, y + hh * k1)
+            k3 = rhs(t + hh, y + hh * k2)
+            k4 = rhs(t + h, y + h * k3)
+            y1 = y + h6 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            k5 = np.array(rhs(t + h, y1), dtype=float)
+            nrhs += 4
+            err = h6 * (k4 - k5)
+            nrm = self._norm(err, y, y1)
+            est = max(est, float(np.abs(err).max()))
+            worst = max(worst, nrm) if nrm == nrm else math.nan
+            if is_rejected(nrm):
+                return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y, k1 = y1, k5
+        return y, worst, est, nrhs, t0

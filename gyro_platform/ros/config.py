@@ -1,0 +1,267 @@
+"""Validated node configuration: :class:`NodeConfig`, params files and scene defaults.
+
+* :class:`NodeConfig` — validated values of every parameter of
+  :data:`~gyro_platform.ros.parameters.PARAMETERS`; :meth:`NodeConfig.from_ros_params` takes the
+  ``ros__parameters`` mapping of a params file, :meth:`NodeConfig.from_yaml` a whole params
+  file (:func:`load_params_file` selects its sections as rcl does). It builds the gate
+  configuration, sensor mountings, platform parameters and model options the core runs on.
+* ``scene`` — a scene file (``config/scenes/*.yaml``) supplies the *defaults* of the model
+  parameters (``mode``, ``fidelity``, ``effects``, ``integrator``, ``max_step``,
+  ``output_rate``, ``physics.*``); values set explicitly (params file, ``-p``) override them.
+  The scene's motion is not used: the vehicle motion is the input topic.
+"""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field, fields as dc_fields
+from pathlib import Path
+from typing import Any, Mapping
+
+from ..io.gate import GateConfig
+from ..io.messages import Mounting
+from ..physics.options import DEFAULT_EFFECTS, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
+from ..physics.params import ParameterError, PlatformParams
+from .parameters import INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS, ConfigError
+
+#: parameters every rclpy node (or a library it uses) declares itself; accepted and ignored here
+ROS_STANDARD_PARAMETERS = ("use_sim_time", "start_type_description_service", "diagnostic_updater.period")
+ROS_STANDARD_PREFIXES = ("qos_overrides.",)
+
+
+# =========================================================================================
+# scenes
+# =========================================================================================
+def scene_dirs() -> list[Path]:
+    """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
+    from ..scenes.runner import scene_dirs as dirs
+
+    return dirs()
+
+
+def resolve_scene(name: str) -> Path:
+    """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
+    from ..scenes.runner import ScenarioError, find_scene
+
+    try:
+        return find_scene(name)
+    except ScenarioError as e:
+        raise ConfigError("scene", str(e)) from None
+
+
+def load_node_scene(name: str):
+    """Load a scene for the node: as ``scene.load_scene`` but a ``bag`` motion (whose bag the
+    node does not need) is replaced by a zero rate, so a missing bag does not stop the node."""
+    import yaml
+
+    from ..scenes.runner import ScenarioError, scene_from_dict
+
+    path = resolve_scene(name)
+    try:
+        data = yaml.safe_load(path.read_text())
+        if isinstance(data, dict) and isinstance(data.get("motion"), dict) and data["motion"].get("type") == "bag":
+            data = {**data, "motion": {"type": "constant", "omega": [0.0, 0.0, 0.0]}}
+        return scene_from_dict(data, source=path.name, base_dir=path.resolve().parent, default_name=path.stem,
+                               path=path)
+    except (OSError, yaml.YAMLError, ScenarioError) as e:
+        raise ConfigError("scene", str(e)) from None
+
+
+def scene_defaults(scene: Any) -> dict[str, Any]:
+    """Parameter defaults a loaded scene supplies (``SCENE_KEYS``)."""
+    d: dict[str, Any] = {
+        "mode": scene.mode, "fidelity": scene.fidelity, "effects": tuple(scene.effects) or ("none",),
+        "integrator": scene.integrator, "max_step": float(scene.max_step), "output_rate": float(scene.output_rate),
+    }
+    for f in dc_fields(PlatformParams):
+        v = getattr(scene.params, f.name)
+        d[PHYSICS_PREFIX + f.name] = tuple(float(x) for x in v) if isinstance(v, tuple) else float(v)
+    return d
+
+
+def parameter_defaults(scene: str = "") -> dict[str, Any]:
+    """Default of every parameter, with the model defaults of ``scene`` when given."""
+    d = {p.name: p.default for p in PARAMETERS}
+    if scene:
+        d["scene"] = scene
+        d.update(scene_defaults(load_node_scene(scene)))
+    return d
+
+
+# =========================================================================================
+# configuration
+# =========================================================================================
+def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _is_ros_standard(name: str) -> bool:
+    return name in ROS_STANDARD_PARAMETERS or name.startswith(ROS_STANDARD_PREFIXES)
+
+
+def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
+    """Flattened ``ros__parameters`` of a params file for one node: the ``/**`` section first,
+    then the sections whose last name is ``node_name`` (``gyro_platform_node``,
+    ``/ns/gyro_platform_node``), later ones overriding — as rcl merges them."""
+    import yaml
+
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise ConfigError("params_file", f"{path}: {e}") from None
+    if not isinstance(doc, dict):
+        raise ConfigError("params_file", f"{path}: expected a mapping of node names")
+    keys = [k for k in doc if k == "/**"] + [k for k in doc if k != "/**" and
+                                             str(k).rstrip("/").split("/")[-1] == node_name]
+    if not keys:
+        raise ConfigError("params_file", f"{path}: no section '/**' or '{node_name}'")
+    merged: dict[str, Any] = {}
+    for k in keys:
+        sec = doc[k]
+        if not isinstance(sec, dict) or "ros__parameters" not in sec:
+            raise ConfigError("params_file", f"{path}: section {k!r} has no 'ros__parameters'")
+        merged.update(_flatten(sec["ros__parameters"] or {}))
+    return merged
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    """Validated values of every parameter of :data:`PARAMETERS` (``values[name]``), and the
+    scene they were built on (None without ``scene``). Build with :meth:`from_ros_params`."""
+
+    values: Mapping[str, Any]
+    scene: Any = None
+    _built: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __getitem__(self, name: str) -> Any:
+        return self.values[name]
+
+    # ---- construction ---------------------------------------------------------------
+    @staticmethod
+    def from_ros_params(d: Mapping[str, Any] | None = None) -> "NodeConfig":
+        """Config from a ``ros__parameters`` mapping (nested or dotted keys). Keys absent take
+        their default (the scene's for model keys); unknown or bad keys raise ConfigError
+        naming the key. ROS's own parameters (``use_sim_time`` …) are accepted and ignored."""
+        flat = _flatten(d or {})
+        for k in flat:
+            if k not in SPECS and not _is_ros_standard(k):
+                close = difflib.get_close_matches(k, SPECS, n=1)
+                raise ConfigError(k, "unknown parameter" + (f"; did you mean '{close[0]}'?" if close else ""))
+        scene_name = SPECS["scene"].coerce(flat.get("scene", ""))
+        values = {p.name: p.default for p in PARAMETERS}
+        scene = load_node_scene(scene_name) if scene_name else None
+        if scene is not None:
+            values.update(scene_defaults(scene))
+        for k, v in flat.items():
+            if k in SPECS:
+                values[k] = SPECS[k].coerce(v)
+        return NodeConfig._build(values, scene)
+
+    @staticmethod
+    def from_yaml(path: str | Path, node_name: str = NODE_NAME) -> "NodeConfig":
+        """Config from a params file (sections selected by ``load_params_file``)."""
+        return NodeConfig.from_ros_params(load_params_file(path, node_name))
+
+    @staticmethod
+    def _build(values: dict[str, Any], scene: Any) -> "NodeConfig":
+        cfg = NodeConfig(dict(values), scene)
+        cfg._built.update(gate=cfg._gate_config(), mounting=cfg._mounting(), params=cfg._platform_params())
+        cfg._built["options"] = cfg._model_options()
+        return cfg
+
+    def with_changes(self, changes: Mapping[str, Any]) -> "NodeConfig":
+        """Copy with ``changes`` (validated; ConfigError names the first bad parameter)."""
+        values = dict(self.values)
+        for k, v in changes.items():
+            if k not in SPECS:
+                raise ConfigError(k, "unknown parameter")
+            values[k] = SPECS[k].coerce(v)
+        return NodeConfig._build(values, self.scene)
+
+    def as_ros_params(self) -> dict[str, Any]:
+        """Plain ``name -> value`` (lists for arrays), as a params file would hold them."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
+
+    # ---- derived objects ------------------------------------------------------------
+    @property
+    def input_type_name(self) -> str:
+        """ROS type of the input (``sensor_msgs/msg/Imu`` …)."""
+        return INPUT_TYPES[self["input_type"]]
+
+    @property
+    def input_topic(self) -> str:
+        return self["imu_topic"] if self["input_type"] == "imu" else self["twist_topic"]
+
+    @property
+    def gate(self) -> GateConfig:
+        return self._built["gate"]
+
+    @property
+    def mounting(self) -> Mounting:
+        return self._built["mounting"]
+
+    @property
+    def params(self) -> PlatformParams:
+        return self._built["params"]
+
+    @property
+    def options(self) -> ModelOptions:
+        return self._built["options"]
+
+    def _gate_config(self) -> GateConfig:
+        kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate", "time_source")}
+        try:
+            return GateConfig(**kw)
+        except ValueError as e:
+            name = str(e).split(" ", 1)[0]
+            raise ConfigError(f"gate.{name}" if f"gate.{name}" in SPECS else "gate", str(e)) from None
+
+    def _mounting(self) -> Mounting:
+        try:
+            frames = dict(Mounting.parse_spec(s) for s in self["sensor_mountings"])
+            return Mounting(frames, vehicle_frame=self["vehicle_frame"], unknown_frame=self["unknown_frame"])
+        except ValueError as e:
+            raise ConfigError("sensor_mountings", str(e)) from None
+
+    def _platform_params(self) -> PlatformParams:
+        kw = {k[len(PHYSICS_PREFIX):]: v for k, v in self.values.items() if k.startswith(PHYSICS_PREFIX)}
+        try:
+            return PlatformParams.from_dict(kw)
+        except ParameterError as e:
+            name = str(e).split("'")[1].split("[")[0] if "'" in str(e) else ""
+            raise ConfigError(PHYSICS_PREFIX + name if PHYSICS_PREFIX + name in SPECS else "physics", str(e)) from None
+
+    def _model_options(self) -> ModelOptions:
+        mode = self["mode"]
+        eff: list[str] = []
+        names = self["effects"]
+        if "none" in names and len(names) > 1:
+            raise ConfigError("effects", "'none' must be the only entry")
+        for e in names:
+            for n in (sorted(DEFAULT_EFFECTS[mode]) if e == "defaults" else [] if e == "none" else [e]):
+                if n not in eff:
+                    eff.append(n)
+        kw: dict[str, Any] = {"integrator": self["integrator"], "max_step": self["max_step"]}
+        if self.scene is not None:
+            kw.update(rtol=self.scene.options.rtol, atol=self.scene.options.atol)
+        try:
+            opts = ModelOptions.make(mode, None if self["fidelity"] == "auto" else self["fidelity"], eff, **kw)
+        except OptionsError as e:
+            name = str(e).split("'")[1] if "'" in str(e) else "effects"
+            raise ConfigError(name if name in SPECS else "effects", str(e)) from None
+        need = sorted(opts.effects & NEEDS_SPECIFIC_FORCE)
+        if need and self["input_type"] != "imu":
+            raise ConfigError("effects", f"{need} need the specific force, which input_type "
+                                         f"'{self['input_type']}' does not carry (use input_type imu)")
+        return opts
+
+
+
+__all__ = ["NodeConfig", "load_params_file", "parameter_defaults", "resolve_scene", "load_node_scene",
+           "scene_defaults", "scene_dirs", "ROS_STANDARD_PARAMETERS", "ROS_STANDARD_PREFIXES"]
