@@ -38,7 +38,7 @@ from ..io import messages as msgs
 from ..io.messages import IMU, TWIST, TWIST_STAMPED, MessageTypes, Mounting
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
 from ..physics.params import NAV1, ParameterError, PlatformParams
-from ..replay import _grid_index, apply_decision
+from ..pipeline import apply_decision, grid_index
 from ..io.gate import NS, GateConfig, TimeGate
 
 NODE_NAME = "gyro_platform_node"
@@ -382,14 +382,14 @@ def params_yaml(node_key: str = "/**") -> str:
 # =========================================================================================
 def scene_dirs() -> list[Path]:
     """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
-    from ..scenes.runner import scene_dirs as dirs
+    from ..scenes.schema import scene_dirs as dirs
 
     return dirs()
 
 
 def resolve_scene(name: str) -> Path:
     """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
-    from ..scenes.runner import ScenarioError, find_scene
+    from ..scenes.schema import ScenarioError, find_scene
 
     try:
         return find_scene(name)
@@ -402,7 +402,7 @@ def load_node_scene(name: str):
     node does not need) is replaced by a zero rate, so a missing bag does not stop the node."""
     import yaml
 
-    from ..scenes.runner import ScenarioError, scene_from_dict
+    from ..scenes.schema import ScenarioError, scene_from_dict
 
     path = resolve_scene(name)
     try:
@@ -794,7 +794,7 @@ class NodeCore:
         return False
 
     def _grid(self, stamp_ns: int) -> int:
-        return _grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
+        return grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
 
     def _emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
         from ..errors import SimulationError

@@ -52,7 +52,7 @@ axes ENU; see ``motions`` for the exact kinematics)::
      initial_rpy_deg: [0, 0, 0]}            # rate is zero before the first step
     {type: random, seed: int, angle_rms_deg: number or [roll, pitch, yaw],
      band_hz: [lo, hi] ([0.05, 2]), components: int (16), accel_rms: m/s² (0), heading_deg: 0}
-    {type: bag, path: str, topic: str}      # rosbag2 input via gyro_platform.replay;
+    {type: bag, path: str, topic: str}      # rosbag2 input via gyro_platform.pipeline;
         # a relative path is tried against the scene file's folder, then the repository root
         # (the folder above the scene with setup.py / package.xml), then the working folder
 
@@ -75,15 +75,15 @@ Quantities (``QUANTITIES``; selector and unit):
     mean_vehicle_rate, max_abs_vehicle_rate       axis                                      rad/s
     duration                                      —                                         s
 
-``load_scene(path) -> Scene``; ``run_scene(scene, out_dir=None) -> (Recorder, summary,
-[(check, passed, detail), …])``.
+``load_scene(path) -> Scene`` (here: the schema, validation, loading and lookup by name);
+running is :func:`gyro_platform.scenes.runner.run_scene`, the command
+:mod:`gyro_platform.scenes.command`.
 """
 from __future__ import annotations
 
 import math
 import re
 import sys
-import time
 from dataclasses import dataclass, fields as dc_fields, replace
 from pathlib import Path
 from typing import Any, Iterable
@@ -95,8 +95,7 @@ from . import motions as mo
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..physics.params import ParameterError, PlatformParams
-from ..engine.inputs import RateSample
-from ..io.recording import ROTORS, Recorder, print_summary_table
+from ..io.recording import ROTORS
 
 AXIS_KEYS = ("x", "y", "z", "norm")
 #: quantity -> (selector key or None, allowed selector values, unit)
@@ -664,156 +663,6 @@ def _check(v: _V, raw: Any, path: str) -> Check:
                  atol=vals["atol"] or 0.0, min=vals["min"], max=vals["max"], why=why)
 
 
-# ---- running ------------------------------------------------------------------------------
-def _synthetic_stream(scene: Scene):
-    """(t, omega, f, quaternion) per sample of a synthetic motion."""
-    gen = scene.motion.generator
-    t, w, f = gen.arrays(scene.duration, scene.sample_rate)
-    quat = gen.quaternion(t)
-    for i in range(t.size):
-        yield RateSample(float(t[i]), w[i], f[i]), quat[i]
-
-
-def run_scene(scene: Scene, out_dir=None):
-    """Run ``scene`` with the real simulator.
-
-    Returns ``(recorder, summary, results)`` where ``results`` is a list of
-    ``(check, passed, detail)``. With ``out_dir`` it writes ``outputs.csv``, ``summary.json``
-    and ``plot.png`` there. A bag is replayed through ``replay.read_samples`` and its gate
-    decisions (drops, resets) are applied with ``replay.apply_decision``; their counts are in
-    ``summary['bag']``.
-    """
-    from ..engine.simulator import Simulator
-
-    sim = Simulator(params=scene.params, options=scene.options)
-    rec = Recorder()
-    dt_out = 1.0 / scene.output_rate
-    t_first: float | None = None
-    next_out = 0.0
-    n_in = 0
-    bag_counts: dict[str, int] = {}
-    pending = None          # extras of the last pushed sample if it was not recorded
-    wall0 = time.perf_counter()
-
-    error = None            # a bag damaged after some readable samples
-    if scene.motion.is_bag:
-        from ..replay import BagReadError, apply_decision, read_samples
-        from ..io.gate import TimeGate
-
-        kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
-        gate = TimeGate()
-        source = read_samples(scene.motion.path, gate=gate, **kw)
-    else:
-        BagReadError = ()  # noqa: N806 - nothing to catch for a synthetic motion
-        source = _synthetic_stream(scene)
-    try:
-        for item in _until_damage(source, BagReadError, lambda: n_in):
-            if scene.motion.is_bag:
-                d = item.decision
-                if d.sample is not None and t_first is not None and d.sample.t > t_first + scene.duration + 1e-9:
-                    break
-                status = apply_decision(sim, d)
-                bag_counts[status] = bag_counts.get(status, 0) + 1
-                if status not in ("pushed", "reset", "restarted"):
-                    continue
-                sample, quat = d.sample, None
-            else:
-                sample, quat = item
-                sim.push(sample)
-            if t_first is None:
-                t_first, next_out = sample.t, sample.t
-            n_in += 1
-            extra = {"vehicle_omega": sample.omega}
-            if quat is not None:
-                extra["vehicle_attitude"] = quat
-            if sample.t >= next_out - 1e-9 * dt_out:
-                rec.append(sim.outputs(), **extra)
-                pending = None
-                next_out = t_first + (math.floor((sample.t - t_first) / dt_out + 1e-9) + 1) * dt_out
-            else:
-                pending = extra
-    except _Damaged as e:
-        error = e.message
-    finally:
-        close = getattr(source, "close", None)
-        if close is not None:
-            close()
-    if n_in == 0:
-        hint = ""
-        if scene.motion.is_bag:
-            from ..replay import no_sample_hint
-
-            snap = gate.snapshot()
-            hint = ": " + no_sample_hint(snap["dropped_by_reason"], snap["received"])
-        raise ScenarioError(f"scene '{scene.name}': the motion gave no usable samples{hint}")
-    if pending is not None:  # always record the last instant
-        rec.append(sim.outputs(), **pending)
-    wall = time.perf_counter() - wall0
-
-    summary = rec.summary(fit_start=scene.fit_start, mounting=scene.params.mounting)
-    summary = {"scene": scene.name, **summary, "n_samples": n_in,
-               "sample_rate": scene.sample_rate, "output_rate": scene.output_rate, "wall_time": wall}
-    summary["units"] = {**summary.get("units", {}), "sample_rate": "Hz", "output_rate": "Hz", "wall_time": "s"}
-    warnings = list(summary.pop("notes", []))
-    if scene.motion.is_bag:
-        summary["bag"] = bag_counts
-        covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
-        if error is None and covered < scene.duration:
-            warnings.append(f"the bag ends {summary.get('duration', 0.0):.6g} s after its first usable sample, "
-                            f"before the scene's duration ({scene.duration:g} s)")
-    if error is not None:
-        warnings.append(f"bag damaged, results cover its readable part: {error}")
-        summary["error"] = error
-    summary["warnings"] = warnings
-    results = evaluate(scene, summary)
-    if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        rec.write_csv(out / "outputs.csv")
-        rec.write_json(out / "summary.json", extra={
-            "summary": summary,
-            "scene": scene_info(scene),
-            "expectations": [{"check": c.label, "why": c.why, "passed": p, "detail": det}
-                             for c, p, det in results],
-            "simulator": sim.stats,
-        })
-        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
-    return rec, summary, results
-
-
-class _Damaged(Exception):
-    def __init__(self, message: str):
-        self.message = message
-
-
-def _until_damage(source, errors, n_done):
-    """Iterate ``source``; a read error (``errors``) after ``n_done() > 0`` usable samples ends
-    the iteration as ``_Damaged`` (the readable part is kept); before any, it propagates."""
-    it = iter(source)
-    while True:
-        try:
-            item = next(it)
-        except StopIteration:
-            return
-        except errors as e:
-            if n_done() == 0:
-                raise
-            raise _Damaged(str(e)) from None
-        yield item
-
-
-def evaluate(scene: Scene, summary: dict) -> list[tuple[Check, bool | None, str]]:
-    """``(check, passed, detail)`` per expectation; ``passed`` is None (not evaluable) when
-    the run covers less than :attr:`Scene.expect_duration` (a short ``--duration``, a bag
-    that ends early or is damaged): expectations are never judged on too little data."""
-    covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
-    if covered < scene.expect_duration or summary.get("error"):
-        why = (f"the run covers {summary.get('duration', 0.0):.6g} s, the expectations need "
-               f"{scene.expect_duration:g} s" if covered < scene.expect_duration else "the input is damaged")
-        return [(c, None, f"{c.label}: not evaluable: {why}") for c in scene.expect]
-    return [(c, *c.evaluate(summary)) for c in scene.expect]
-
-
 def scene_info(scene: Scene) -> dict:
     """The scene's settings as plain data (for JSON)."""
     return {
@@ -828,83 +677,5 @@ def scene_info(scene: Scene) -> dict:
     }
 
 
-def print_results(results, file=None) -> None:
-    """One line per expectation: PASS/FAIL, measured value, criterion, and why."""
-    out = file if file is not None else sys.stdout
-    for c, passed, detail in results:
-        tag = "N/A " if passed is None else "PASS" if passed else "FAIL"
-        print(f"{tag}  {detail}" + (f"   [{c.why}]" if c.why else ""), file=out)
-
-
-# ---- CLI ----------------------------------------------------------------------------------
-def add_arguments(parser) -> None:
-    parser.add_argument("scene", help="scene: a YAML file, or the name of a shipped scene (e.g. default, "
-                                      "coning; the installed config/scenes folder)")
-    parser.add_argument("--out", metavar="DIR", help="output folder (default results/<scene name>/)")
-    parser.add_argument("--duration", type=float, metavar="S",
-                        help="override the simulated duration (s); shorter than the scene's test_duration "
-                             "(else duration) leaves the expectations not evaluable (exit 1)")
-    parser.add_argument("--integrator", metavar="NAME", help="override the scene's integrator")
-    parser.add_argument("--max-step", type=float, metavar="S", help="override the scene's max_step (s)")
-    parser.add_argument("--no-files", action="store_true", help="write no CSV/JSON/PNG")
-
-
-def _error(message: str) -> None:
-    print(f"gyro-platform run: error: {message}", file=sys.stderr)
-
-
-def run(args) -> int:
-    """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable,
-    2 bad scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
-    from ..cli import EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE
-    from ..errors import SimulationError
-    from ..replay import BagPathError, BagReadError, ReplayError
-
-    try:
-        scene = load_scene(args.scene)
-        if args.duration is not None:
-            scene = scene.with_duration(args.duration)
-        if args.integrator is not None or args.max_step is not None:
-            scene = scene.with_integrator(args.integrator, args.max_step)
-    except ScenarioError as e:
-        _error(str(e))
-        return EXIT_USAGE
-    out = None if args.no_files else Path(args.out) if args.out else Path("results") / scene.name
-    print(f"scene {scene.name}: {scene.description}".rstrip(": "))
-    try:
-        _, summary, results = run_scene(scene, out_dir=out)
-    except (BagPathError, ReplayError, ScenarioError) as e:
-        _error(f"scene '{scene.name}': {e}")
-        return EXIT_USAGE
-    except BagReadError as e:
-        _error(f"scene '{scene.name}': {e}")
-        return EXIT_DATA
-    except SimulationError as e:
-        _error(f"scene '{scene.name}': simulation failed: {e}")
-        return EXIT_FAILED
-    except OSError as e:
-        _error(f"cannot write the results to {out}: {e.strerror or e}")
-        return EXIT_USAGE
-    print_summary_table(summary)
-    for w in summary.get("warnings", []):
-        print(f"warning: {w}")
-    if results:
-        print("expectations:")
-        print_results(results)
-    if out is not None:
-        print(f"wrote {out / 'outputs.csv'}, {out / 'summary.json'}, {out / 'plot.png'}")
-    if summary.get("error"):
-        _error(f"scene '{scene.name}': {summary['error']}")
-        return EXIT_DATA
-    n_na = sum(1 for _, p, _ in results if p is None)
-    n_fail = sum(1 for _, p, _ in results if p is False)
-    if n_na:
-        print(f"{n_na} of {len(results)} expectation(s) NOT EVALUABLE")
-    if n_fail:
-        print(f"{n_fail} of {len(results)} expectation(s) FAILED")
-    return EXIT_FAILED if n_fail or n_na else EXIT_OK
-
-
 __all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene", "find_scene",
-           "scene_dirs", "evaluate",
-           "scene_from_dict", "run_scene", "print_results", "add_arguments", "run"]
+           "scene_dirs", "scene_names", "scene_from_dict", "scene_info"]
