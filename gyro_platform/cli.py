@@ -20,8 +20,10 @@ import os
 import sys
 
 from . import __version__
-from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK,  # noqa: F401 (re-exported)
-                     EXIT_USAGE)
+from .errors import EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
+
+__all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
+           "EXIT_DATA", "EXIT_INTERRUPTED"]   # the exit codes are re-exported from errors
 
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
 
