@@ -265,7 +265,7 @@ class _Run:
         if not self.series.items:
             return None, None
         try:
-            from .io.recording import Recorder
+            from ..io.recording import Recorder
         except ImportError as e:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
             return None, {"unavailable": str(e)}
