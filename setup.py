@@ -24,6 +24,8 @@ setup(
         "matplotlib>=3.6",
         "pyyaml>=6",
         "rosbags>=0.10",
+        "mcap>=1.1",        # damaged-bag salvage: io/bag_salvage.py reads MCAP records in file order
+        "tqdm>=4.60",       # replay progress bar
     ],
     extras_require={
         "dds": ["cyclonedds>=11.0.1"],

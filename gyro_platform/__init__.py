@@ -17,7 +17,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Simulator": ".engine.simulator", "ModelOptions": ".physics.options", "RateSample": ".engine.inputs",
     "NAV1": ".physics.params", "PlatformParams": ".physics.params", "SimulationError": ".errors",
-    "InputError": ".errors", "INTEGRATORS": ".engine.integrators", "load_scene": ".scenes.runner",
+    "InputError": ".errors", "INTEGRATORS": ".engine.integrators", "load_scene": ".scenes.schema",
     "run_scene": ".scenes.runner", "replay": ".replay",
 }
 __all__ = [*_EXPORTS, "__version__"]

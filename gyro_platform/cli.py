@@ -4,7 +4,8 @@ Each subcommand lives in the module that owns it; that module provides
 ``add_arguments(parser)`` and ``run(args) -> int``. Imports are lazy so that a missing optional
 dependency only affects its own subcommand.
 
-Exit status, the same for every subcommand (``EXIT_CODES``; also in every ``--help``):
+Exit status, the same for every subcommand (``EXIT_CODES``, defined in ``gyro_platform.errors``;
+also in every ``--help``):
 0 success; 1 the command ran but failed (an expectation failed or could not be evaluated, the
 transport could not start); 2 bad argument or input path (argparse's convention: unknown flag,
 missing file, a file that is not a bag or scene, an invalid scene); 3 corrupt input data (a
@@ -19,20 +20,17 @@ import os
 import sys
 
 from . import __version__
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
-EXIT_CODES: dict[int, str] = {
-    EXIT_OK: "success",
-    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, or the transport could not start",
-    EXIT_USAGE: "bad argument or input path (unknown flag, missing file, not a bag/scene, invalid scene)",
-    EXIT_DATA: "corrupt input data (damaged bag; the readable part is processed and written)",
-    EXIT_INTERRUPTED: "interrupted (Ctrl-C); files written so far are closed and readable",
-}
+from .errors import EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
+
+__all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
+           "EXIT_DATA", "EXIT_INTERRUPTED"]   # the exit codes are re-exported from errors
+
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
 
 SUBCOMMANDS = {
-    "run": ("gyro_platform.scenes.runner", "run a scene (file or name): summary table, CSV/JSON, plot"),
-    "replay": ("gyro_platform.replay", "replay a rosbag2 bag through the simulator into an output bag"),
-    "bench": ("gyro_platform.bench.command", "benchmarks: accuracy versus time, hot path, effects cost"),
+    "run": ("gyro_platform.scenes.command", "run a scene (file or name): summary table, CSV/JSON, plot"),
+    "replay": ("gyro_platform.replay.command", "replay a rosbag2 bag through the simulator into an output bag"),
+    "bench": ("gyro_platform.bench.command", "benchmarks: accuracy versus time, hard cases, hot path, effects cost"),
     "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
     "sweep": ("gyro_platform.sweep.command", "Monte Carlo drift budgets and fleet replays on Dask"),
 }

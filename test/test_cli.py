@@ -22,6 +22,7 @@ from gyro_platform import __version__
 
 from gyro_platform import cli
 from gyro_platform import replay as rp
+from gyro_platform.io.bag_paths import ROS1_MAGIC
 from gyro_platform.io.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
 from test_replay import CABRILLO, HUSKY, S, imu_msg, need, write_bag
 
@@ -72,13 +73,13 @@ def run_and_replay(tmp_path: Path, bag: Path, capsys, topic: str | None = None, 
 # ---- bad input paths: exit 2, one line, for run (bag scene) and replay alike -----------------
 def _ros1(tmp_path):
     p = tmp_path / "old.bag"
-    p.write_bytes(rp.ROS1_MAGIC + b"\n" + b"\0" * 64)
+    p.write_bytes(ROS1_MAGIC + b"\n" + b"\0" * 64)
     return p, "ROS 1 bag"
 
 
 def _ros1_renamed(tmp_path):          # a ROS 1 bag is known by its magic, whatever its name
     p = tmp_path / "old.db3"
-    p.write_bytes(rp.ROS1_MAGIC + b"\n" + b"\0" * 64)
+    p.write_bytes(ROS1_MAGIC + b"\n" + b"\0" * 64)
     return p, "ROS 1 bag"
 
 
@@ -271,7 +272,7 @@ def test_default_fidelity_is_one_per_mode_everywhere(tmp_path, capsys):
     """Replay without a scene, a scene without ``fidelity`` and the library all take the
     mode's default from ``options.DEFAULT_FIDELITY``."""
     from gyro_platform.physics.options import DEFAULT_FIDELITY, ModelOptions
-    from gyro_platform.scenes.runner import scene_from_dict
+    from gyro_platform.scenes.schema import scene_from_dict
     from gyro_platform.engine.simulator import Simulator
 
     bag = small_bag(tmp_path / "b")
@@ -321,7 +322,8 @@ def test_every_csv_column_has_a_unit_and_is_documented_once(tmp_path, capsys):
 def test_csv_round_trips_the_outputs_exactly(tmp_path):
     """Values in outputs.csv equal the simulator's outputs bit for bit (repr of floats)."""
     from gyro_platform.io.recording import csv_row
-    from gyro_platform.scenes.runner import load_scene, run_scene
+    from gyro_platform.scenes.runner import run_scene
+    from gyro_platform.scenes.schema import load_scene
 
     rec, _, _ = run_scene(load_scene("default").with_duration(0.3), out_dir=tmp_path)
     rows = list(csv.DictReader((tmp_path / "outputs.csv").open()))
@@ -382,9 +384,49 @@ def test_replay_results_on_stdout_progress_on_stderr(tmp_path):
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith("/logic_tube/imu: 1041 in, 1041 accepted")
     assert "drift rate (least-squares slope" in p.stdout and "wrote o" in p.stdout
-    assert "replay [" in p.stderr or "msgs" in p.stderr                # progress
+    assert "msg/s" not in p.stderr and "it/s" not in p.stderr        # no progress bar into a pipe
     info = [ln for ln in p.stderr.splitlines() if "logic_tube_bno085" in ln]
     assert len(info) == 1 and "info:" in info[0] and "warning" not in p.stderr
+
+
+def _replay_on_a_terminal(bag: Path, cwd: Path, *extra: str) -> tuple[int, str, str]:
+    """Replay ``bag`` with stderr on a 100-column pseudo-terminal (stdout a pipe): (exit status,
+    stdout, what the terminal showed)."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    proc = subprocess.Popen([PY, "-m", "gyro_platform.cli", "replay", str(bag), "--out", "o", "--no-plot",
+                             *extra], cwd=cwd, stdout=subprocess.PIPE, stderr=slave, text=True,
+                            env={**os.environ, "PYTHONPATH": str(REPO)})
+    os.close(slave)
+    shown = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:          # the child closed the terminal (EIO)
+            break
+        if not chunk:
+            break
+        shown += chunk
+    out = proc.stdout.read()
+    code = proc.wait(timeout=600)
+    os.close(master)
+    return code, out, shown.decode(errors="replace")
+
+
+def test_replay_progress_bar_on_a_terminal_only_and_not_with_quiet(tmp_path):
+    bag = small_bag(tmp_path / "in", seconds=2.0)           # 101 messages
+    code, out, shown = _replay_on_a_terminal(bag, tmp_path)
+    assert code == 0 and out.startswith("/imu: 101 in"), shown
+    assert "101/101" in shown and "100%" in shown and "msg/s" in shown, shown   # the bar reached the total
+    shutil.rmtree(tmp_path / "o")
+    (tmp_path / "o.summary.json").unlink()
+    code, out, shown = _replay_on_a_terminal(bag, tmp_path, "--quiet")
+    assert code == 0 and "msg/s" not in shown and "%" not in shown, shown
 
 
 # ---- a regular (non-editable) install finds its scenes --------------------------------------
@@ -433,7 +475,8 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
 def test_every_plot_panel_has_title_units_and_legend_and_the_title_fits(scene):
     import matplotlib.pyplot as plt
 
-    from gyro_platform.scenes.runner import load_scene, run_scene
+    from gyro_platform.scenes.runner import run_scene
+    from gyro_platform.scenes.schema import load_scene
 
     sc = load_scene(scene)
     rec, summary, _ = run_scene(sc.with_duration(0.5))

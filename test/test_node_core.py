@@ -424,7 +424,7 @@ def test_params_file_sections_merge_wildcard_then_node(tmp_path):
 
 @pytest.mark.parametrize("scene_file", SCENES, ids=[p.stem for p in SCENES])
 def test_every_scene_file_configures_the_node(scene_file):
-    from gyro_platform.scenes.runner import load_scene
+    from gyro_platform.scenes.schema import load_scene
 
     scene = load_scene(scene_file)
     for name in (str(scene_file), scene_file.stem):               # by path and by name

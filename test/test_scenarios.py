@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from gyro_platform.scenes.runner import load_scene, run_scene
+from gyro_platform.scenes.runner import run_scene
+from gyro_platform.scenes.schema import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "config" / "scenes").glob("*.yaml"))

@@ -14,7 +14,7 @@ from gyro_platform.physics.options import DEFAULT_EFFECTS, ModelOptions
 from gyro_platform.engine.outputs import BEARING_NAMES, GIMBAL_NAMES, Outputs
 from gyro_platform.physics.params import PlatformParams
 from gyro_platform.io.recording import RAD_S_TO_DEG_H, Recorder, fit_slope, print_summary_table
-from gyro_platform.scenes.runner import Check, ScenarioError, Scene, load_scene, scene_from_dict
+from gyro_platform.scenes.schema import Check, ScenarioError, Scene, load_scene, scene_from_dict
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "config" / "scenes").glob("*.yaml"))

@@ -1,8 +1,9 @@
-"""``gyro-platform bench``: the benchmarks' command line (accuracy, hard, effects, hotpath).
+"""``gyro-platform bench``: the benchmarks' command line (accuracy, hard, effects, hotpath, sweep).
 
 ``accuracy`` (:mod:`.accuracy`): work-precision study; ``hard`` (:mod:`.hard`): the hard-case
 table, exit code 1 if any cell is WRONG; ``effects`` and ``hotpath`` (:mod:`.hotpath`): per-sample
-cost. Each writes its tables and plots under ``--out``.
+cost; ``sweep`` (:mod:`gyro_platform.sweep.scaling`): runs per minute of the 60 s default
+scene on 1 and 2 Dask workers, results identical. Each writes its tables and plots under ``--out``.
 """
 from __future__ import annotations
 
@@ -18,12 +19,13 @@ __all__ = ["add_arguments", "run"]
 
 def add_arguments(p) -> None:
     """The ``bench`` subcommand's arguments on the argparse parser ``p``."""
-    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard"], help="which benchmark")
+    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard", "sweep"], help="which benchmark")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
                    help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
+    p.add_argument("--runs", type=int, default=8, help="sweep: Monte Carlo runs per worker count (default 8)")
 
 
 def run(args) -> int:
@@ -34,6 +36,15 @@ def run(args) -> int:
     elif args.what == "hard":
         rows = hard(out, quick=args.quick, cases=args.case)
         return 1 if any(r["verdict"] == "WRONG" for r in rows) else 0
+    elif args.what == "sweep":
+        from ..sweep.scaling import scaling, table
+
+        if not 1 <= args.runs <= 10_000:
+            print(f"gyro-platform bench: error: --runs must be between 1 and 10000, got {args.runs}")
+            return 2
+        rows = scaling(out, runs=args.runs)
+        print(table(rows), end="")
+        return 0 if all(r["identical_to_1_worker"] for r in rows) else 1
     elif args.what == "effects":
         effects_cost(out, repeats=args.repeats)
     else:

@@ -33,14 +33,14 @@ ROS_STANDARD_PREFIXES = ("qos_overrides.",)
 # =========================================================================================
 def scene_dirs() -> list[Path]:
     """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
-    from ..scenes.runner import scene_dirs as dirs
+    from ..scenes.schema import scene_dirs as dirs
 
     return dirs()
 
 
 def resolve_scene(name: str) -> Path:
     """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
-    from ..scenes.runner import ScenarioError, find_scene
+    from ..scenes.schema import ScenarioError, find_scene
 
     try:
         return find_scene(name)
@@ -53,7 +53,7 @@ def load_node_scene(name: str):
     node does not need) is replaced by a zero rate, so a missing bag does not stop the node."""
     import yaml
 
-    from ..scenes.runner import ScenarioError, scene_from_dict
+    from ..scenes.schema import ScenarioError, scene_from_dict
 
     path = resolve_scene(name)
     try:

@@ -29,7 +29,7 @@ from ..io.messages import MessageTypes
 from .config import NodeConfig
 from .overload import InputLoss
 from .parameters import SPECS, ConfigError
-from ..replay import _grid_index, apply_decision
+from ..pipeline import apply_decision, grid_index
 from ..io.gate import NS, TimeGate
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -176,7 +176,7 @@ class NodeCore:
         return False
 
     def _grid(self, stamp_ns: int) -> int:
-        return _grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
+        return grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
 
     def _emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
         from ..errors import SimulationError

@@ -1,6 +1,7 @@
 """scenes — scene files and the vehicle motions that drive them (ROS-free).
 
-Holds the vehicle motion generators (``motions``: exact body rates, specific force, attitude)
-and the scene schema, loader, runner and ``gyro-platform run`` command (``runner``). May import
-``pipeline``, ``engine``, ``io``, ``physics`` and ``errors``.
+Holds the vehicle motion generators (``motions``: exact body rates, specific force, attitude),
+the scene schema, validation, loading and lookup by name (``schema``), running a scene through
+the pipeline and evaluating its expectations (``runner``) and the ``gyro-platform run`` command
+(``command``). May import ``pipeline``, ``engine``, ``io``, ``physics`` and ``errors``.
 """

@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
-from ..errors import SimulationError
-from ..replay import BagReadError, ReplayError
-from ..scenes.runner import ScenarioError, run_scene, scene_from_dict
+from ..errors import BagReadError, ReplayError, SimulationError
+from ..scenes.runner import run_scene
+from ..scenes.schema import ScenarioError, scene_from_dict
 
 AXES = ("x", "y", "z")
 FINISHED = ("ok", "refused", "failed_input")  # a re-run skips these; 'failed'/'lost' run again

@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from ..physics.params import PlatformParams
-from ..scenes.runner import ScenarioError, find_scene, scene_from_dict
+from ..scenes.schema import ScenarioError, find_scene, scene_from_dict
 from .runs import RunTask
 
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {

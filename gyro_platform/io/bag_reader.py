@@ -1,0 +1,162 @@
+"""Reading an intact rosbag2 bag (sqlite3 or mcap; a folder, a lone storage file, a folder
+without ``metadata.yaml``) with rosbags: connections, the input topic, messages as a stream,
+CDR decoding through the bag's own definitions or the Jazzy typestore.
+
+A bag that rosbags cannot open is handed to :mod:`.bag_salvage`. Errors: ``BagPathError``
+(not a bag), ``BagReadError`` (damaged), ``ReplayError`` (no usable input topic).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterator
+
+from ..errors import BagReadError, ReplayError
+from . import messages as msgs
+from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_of
+from .bag_salvage import Salvage
+from .messages import INPUT_TYPES
+
+
+class InputBag:
+    """Streaming reader of one rosbag2 bag: connections up front, messages as a generator.
+
+    ``connections``: rosbags ``Connection`` tuples of every topic; ``topic``: the input topic;
+    ``salvaged``: True when rosbags could not open the bag and its readable part is scanned
+    instead (``damage`` says why). Use as a context manager.
+    """
+
+    def __init__(self, path: str | Path, topic: str | None = None):
+        self.path = Path(path)
+        self.requested_topic = topic
+        self.topic: str | None = None
+        self.msgtype: str | None = None
+        self.connections: list[Any] = []
+        self.message_count: int | None = None
+        self.storage: str = ""
+        self.salvaged = False
+        self.damage: str | None = None
+        self._reader: Any = None
+        self._salvage: Salvage | None = None
+        self._stores: dict[int, Any] = {}
+        self.messages_read = 0
+
+    # ---- open / close --------------------------------------------------------------------
+    def __enter__(self) -> "InputBag":
+        self.open()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Open the bag and pick the input topic; raises BagReadError or ReplayError."""
+        rb = rosbags_api()
+        path = self.path = resolve_bag_path(self.path)
+        self.storage = storage_of(path)
+        try:
+            reader = rb["Reader"](reader_path(path))
+            reader.open()
+        except (rb["ReaderError"], OSError, KeyError, ValueError) as e:
+            self.damage = f"rosbags cannot open it: {e}"
+            self._salvage = Salvage.open(path, self.storage, self.damage)
+            self.salvaged = True
+            self.connections = list(self._salvage.connections)
+        else:
+            self._reader = reader
+            self.connections = list(reader.connections)
+            self.message_count = reader.message_count
+        self._choose_topic()
+
+    def close(self) -> None:
+        if self._reader is not None:
+            try:
+                self._reader.close()
+            finally:
+                self._reader = None
+        if self._salvage is not None:
+            self._salvage.close()
+            self._salvage = None
+
+    def _choose_topic(self) -> None:
+        if self.requested_topic is not None:
+            conns = [c for c in self.connections if c.topic == self.requested_topic]
+            if not conns:
+                raise ReplayError(f"{self.path}: no topic {self.requested_topic!r}; topics: "
+                                  + ", ".join(f"{c.topic} ({c.msgtype})" for c in self.connections))
+            if conns[0].msgtype not in INPUT_TYPES:
+                raise ReplayError(f"{self.path}: topic {self.requested_topic!r} has type {conns[0].msgtype}; "
+                                  f"the input must be one of {', '.join(INPUT_TYPES)}")
+            self.topic = self.requested_topic
+        else:
+            first = next((c for c in self.connections if c.msgtype in INPUT_TYPES), None)
+            if first is None:
+                raise ReplayError(f"{self.path}: no Imu, Twist or TwistStamped topic; topics: "
+                                  + (", ".join(f"{c.topic} ({c.msgtype})" for c in self.connections) or "none"))
+            self.topic = first.topic
+        self.msgtype = next(c.msgtype for c in self.connections if c.topic == self.topic)
+
+    # ---- messages ------------------------------------------------------------------------
+    def is_input(self, conn: Any) -> bool:
+        return conn.topic == self.topic and conn.msgtype in INPUT_TYPES
+
+    def messages(self, input_only: bool = False) -> Iterator[tuple[Any, int, bytes]]:
+        """(connection, receive time ns, CDR bytes) in bag order; BagReadError on damage,
+        including fewer (or more) messages than the bag's index lists."""
+        conns = [c for c in self.connections if self.is_input(c)] if input_only else self.connections
+        if self._salvage is not None:
+            src = self._salvage.messages({c.id for c in conns})
+        else:
+            src = self._reader.messages(connections=conns)
+        expected = sum(c.msgcount for c in conns) if self._reader is not None else None
+        n = 0
+        while True:
+            try:
+                item = next(src)
+            except StopIteration:
+                if expected is not None and n != expected:   # e.g. garbage inside an unchecked chunk
+                    raise BagReadError(f"{self.path}: damaged: {n} messages readable, its index lists "
+                                       f"{expected}") from None
+                return
+            except BagReadError:
+                raise
+            except Exception as e:  # rosbags ReaderError, apsw/sqlite errors, zstd/lz4 errors …
+                raise BagReadError(f"{self.path}: damaged: reading failed after {n} messages: "
+                                   f"{type(e).__name__}: {e}") from e
+            n += 1
+            self.messages_read = n
+            yield item
+
+    def store_for(self, conn: Any) -> Any:
+        """Typestore to decode ``conn``: the bag's own definition if it has one, else Jazzy."""
+        store = self._stores.get(conn.id)
+        if store is None:
+            store = self._stores[conn.id] = typestore_for(conn)
+        return store
+
+    def deserialize(self, conn: Any, raw: bytes) -> Any:
+        """CDR bytes → rosbags message object (raises on a corrupt payload)."""
+        return self.store_for(conn).deserialize_cdr(raw, conn.msgtype)
+
+
+def typestore_for(conn: Any) -> Any:
+    """Typestore that decodes ``conn``: one built from the bag's own message definition (MSG
+    or IDL) when it has a usable one, else the Jazzy typestore."""
+    rb = rosbags_api()
+    fmt = rb["MsgDefFormat"]
+    if conn.msgdef.format != fmt.NONE and conn.msgdef.data:
+        try:
+            store = rb["get_typestore"](rb["Stores"].EMPTY)
+            if conn.msgdef.format == fmt.MSG:
+                store.register(rb["from_msg"](conn.msgdef.data, conn.msgtype))
+            else:
+                sep = "=" * 80 + "\n"
+                data = conn.msgdef.data
+                parts = [p.split("\n", 1)[1] for p in data.split(sep)[1:]] if data.startswith(sep + "IDL: ") else [data]
+                for idl in parts:
+                    store.register(rb["from_idl"](idl))
+            store.get_msgdef(conn.msgtype)
+            return store
+        except Exception:
+            pass
+    return msgs.jazzy_typestore()
+

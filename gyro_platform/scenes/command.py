@@ -1,0 +1,87 @@
+"""``gyro-platform run SCENE [--out DIR] [--duration S] [--integrator NAME] [--max-step S]
+[--no-files]``: run a scene (a YAML file or a shipped scene's name), print the summary table and
+the expectation results. Exit status: 0 every expectation passes; 1 one fails or is not
+evaluable, or the simulation failed; 2 bad scene, argument or bag path; 3 damaged bag (the
+readable part is run and written)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import (EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, BagPathError, BagReadError, ReplayError,
+                      SimulationError)
+from ..io.recording import print_summary_table
+from .runner import run_scene
+from .schema import ScenarioError, load_scene
+
+
+def print_results(results, file=None) -> None:
+    """One line per expectation: PASS/FAIL, measured value, criterion, and why."""
+    out = file if file is not None else sys.stdout
+    for c, passed, detail in results:
+        tag = "N/A " if passed is None else "PASS" if passed else "FAIL"
+        print(f"{tag}  {detail}" + (f"   [{c.why}]" if c.why else ""), file=out)
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("scene", help="scene: a YAML file, or the name of a shipped scene (e.g. default, "
+                                      "coning; the installed config/scenes folder)")
+    parser.add_argument("--out", metavar="DIR", help="output folder (default results/<scene name>/)")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="override the simulated duration (s); shorter than the scene's test_duration "
+                             "(else duration) leaves the expectations not evaluable (exit 1)")
+    parser.add_argument("--integrator", metavar="NAME", help="override the scene's integrator")
+    parser.add_argument("--max-step", type=float, metavar="S", help="override the scene's max_step (s)")
+    parser.add_argument("--no-files", action="store_true", help="write no CSV/JSON/PNG")
+
+
+def _error(message: str) -> None:
+    print(f"gyro-platform run: error: {message}", file=sys.stderr)
+
+
+def run(args) -> int:
+    """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable,
+    2 bad scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
+    try:
+        scene = load_scene(args.scene)
+        if args.duration is not None:
+            scene = scene.with_duration(args.duration)
+        if args.integrator is not None or args.max_step is not None:
+            scene = scene.with_integrator(args.integrator, args.max_step)
+    except ScenarioError as e:
+        _error(str(e))
+        return EXIT_USAGE
+    out = None if args.no_files else Path(args.out) if args.out else Path("results") / scene.name
+    print(f"scene {scene.name}: {scene.description}".rstrip(": "))
+    try:
+        _, summary, results = run_scene(scene, out_dir=out)
+    except (BagPathError, ReplayError, ScenarioError) as e:
+        _error(f"scene '{scene.name}': {e}")
+        return EXIT_USAGE
+    except BagReadError as e:
+        _error(f"scene '{scene.name}': {e}")
+        return EXIT_DATA
+    except SimulationError as e:
+        _error(f"scene '{scene.name}': simulation failed: {e}")
+        return EXIT_FAILED
+    except OSError as e:
+        _error(f"cannot write the results to {out}: {e.strerror or e}")
+        return EXIT_USAGE
+    print_summary_table(summary)
+    for w in summary.get("warnings", []):
+        print(f"warning: {w}")
+    if results:
+        print("expectations:")
+        print_results(results)
+    if out is not None:
+        print(f"wrote {out / 'outputs.csv'}, {out / 'summary.json'}, {out / 'plot.png'}")
+    if summary.get("error"):
+        _error(f"scene '{scene.name}': {summary['error']}")
+        return EXIT_DATA
+    n_na = sum(1 for _, p, _ in results if p is None)
+    n_fail = sum(1 for _, p, _ in results if p is False)
+    if n_na:
+        print(f"{n_na} of {len(results)} expectation(s) NOT EVALUABLE")
+    if n_fail:
+        print(f"{n_fail} of {len(results)} expectation(s) FAILED")
+    return EXIT_FAILED if n_fail or n_na else EXIT_OK
