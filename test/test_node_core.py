@@ -256,7 +256,7 @@ def test_diagnostics_content_levels_and_cdr_round_trip():
     # real-time margin = 1 − callback time / input period; the fake clock makes it 1 − 25 µs / 1 ms
     assert float(v["real_time_margin"]) == pytest.approx(0.975)
     # auto rule: NAV-1 nutation 808.6 rad/s × 1 ms = 0.81 < 1.5 (RK4 stable with margin) → rk4
-    assert int(v["integrator_steps"]) == 199 and v["integrator"] == "rk4"
+    assert int(v["integrator_steps"]) == 199 and v["integrator"] == "auto:rk4+exprb"   # auto: primary rk4, exprb fallback
     assert float(st["gyro_platform: platform"][2]["gimbal_lock_margin"]) > 0.99
     # nothing for longer than max_gap: STALE
     assert statuses(core.diagnostics(BASE + 5 * 10**9))["gyro_platform: node"][0] == 3
