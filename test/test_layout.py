@@ -23,7 +23,7 @@ ALLOWED: dict[str, set[str]] = {
     "scenes": {"pipeline", "engine", "io", "physics", "errors"},
     "replay": {"pipeline", "scenes", "engine", "io", "physics", "errors"},
     "sweep": {"replay", "pipeline", "scenes", "engine", "io", "physics", "errors"},
-    "bench": {"replay", "pipeline", "scenes", "engine", "io", "physics", "errors", "ros.core"},
+    "bench": {"sweep", "replay", "pipeline", "scenes", "engine", "io", "physics", "errors", "ros.core"},
     "ros": {"replay", "pipeline", "scenes", "engine", "io", "physics", "errors"},
     "cli": {"sweep", "bench", "ros", "replay", "pipeline", "scenes", "engine", "io", "physics", "errors"},
     "__init__": {"engine", "physics", "errors", "scenes", "replay", "io", "pipeline"},
