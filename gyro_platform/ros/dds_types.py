@@ -127,16 +127,21 @@ class IdlTypes:
 
     def to_idl_fn(self, ros_type: str) -> Callable[[Any], Any]:
         """The converter rosbags message → IDL object of ``ros_type`` (built once, cached)."""
+        return self._converter(self._to, ros_type, self.idl_class, self._to_field)
+
+    def _converter(self, cache: dict, ros_type: str, target: Callable[[str], type],
+                   field_conv: Callable[[Any], Callable[[Any], Any]]) -> Callable[[Any], Any]:
+        """Cached field-by-field converter of ``ros_type`` into ``target(ros_type)`` objects."""
         with self._lock:
-            fn = self._to.get(ros_type)
+            fn = cache.get(ros_type)
             if fn is None:
-                cls = self.idl_class(ros_type)
-                convs = [(name, self._to_field(desc)) for name, desc in self.fields(ros_type)]
+                cls = target(ros_type)
+                convs = [(name, field_conv(desc)) for name, desc in self.fields(ros_type)]
 
-                def fn(msg: Any, cls: type = cls, convs: list = convs) -> Any:
-                    return cls(**{name: conv(getattr(msg, name)) for name, conv in convs})
+                def fn(obj: Any, cls: type = cls, convs: list = convs) -> Any:
+                    return cls(**{name: conv(getattr(obj, name)) for name, conv in convs})
 
-                self._to[ros_type] = fn
+                cache[ros_type] = fn
             return fn
 
     def _to_field(self, desc: Any) -> Callable[[Any], Any]:
@@ -175,17 +180,7 @@ class IdlTypes:
 
     def from_idl_fn(self, ros_type: str) -> Callable[[Any], Any]:
         """The converter IDL object → rosbags message of ``ros_type`` (built once, cached)."""
-        with self._lock:
-            fn = self._from.get(ros_type)
-            if fn is None:
-                cls = self.typestore.types[ros_type]
-                convs = [(name, self._from_field(desc)) for name, desc in self.fields(ros_type)]
-
-                def fn(obj: Any, cls: type = cls, convs: list = convs) -> Any:
-                    return cls(**{name: conv(getattr(obj, name)) for name, conv in convs})
-
-                self._from[ros_type] = fn
-            return fn
+        return self._converter(self._from, ros_type, self.typestore.types.__getitem__, self._from_field)
 
     def _from_field(self, desc: Any) -> Callable[[Any], Any]:
         from rosbags.typesys.base import Nodetype
