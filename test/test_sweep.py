@@ -114,6 +114,7 @@ def test_monte_carlo_drift_follows_the_bias_torque(bias_sweep):
         assert r["drift_rate_z_deg_per_h"] == pytest.approx(O9B_DEG_H_PER_NM * q10, rel=0.05)
         assert abs(r["drift_rate_x_deg_per_h"]) < 0.01 and abs(r["drift_rate_y_deg_per_h"]) < 0.01
         assert r["peak_gimbal_angle_rad"] < 1e-4 and r["cpu_s"] > 0
+        assert 0 < r["error_estimate"] < 1e-6          # achieved local error, within atol + rtol·|y|
     summary = json.loads((tmp / "w1" / "summary.json").read_text())
     z = next(b for b in summary["drift_budget"] if b["axis"] == "z")
     rates = [r["drift_rate_z_deg_per_h"] for r in rows]

@@ -68,6 +68,10 @@ def run(args) -> int:
         _error(f"cannot write the results to {out}: {e.strerror or e}")
         return EXIT_USAGE
     print_summary_table(summary)
+    if summary.get("max_error_norm") is not None:
+        print(f"integrator {summary['integrator']}: largest local error estimate "
+              f"{summary['max_error_estimate']:.3g} (state units), {summary['max_error_norm']:.3g} × the asked "
+              f"tolerance (rtol {scene.options.rtol:g}, atol {scene.options.atol:g})")
     for w in summary.get("warnings", []):
         print(f"warning: {w}")
     if results:

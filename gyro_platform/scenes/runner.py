@@ -101,7 +101,12 @@ def run_scene(scene: Scene, out_dir=None):
     summary = rec.summary(fit_start=scene.fit_start, mounting=scene.params.mounting)
     summary = {"scene": scene.name, **summary, "n_samples": n_in,
                "sample_rate": scene.sample_rate, "output_rate": scene.output_rate, "wall_time": wall}
-    summary["units"] = {**summary.get("units", {}), "sample_rate": "Hz", "output_rate": "Hz", "wall_time": "s"}
+    stats = sim.stats      # what the integrator achieved against the asked rtol/atol
+    summary.update(integrator=stats["integrator"], max_error_estimate=stats["max_error_estimate"],
+                   max_error_norm=stats.get("max_error_norm"))
+    summary["units"] = {**summary.get("units", {}), "sample_rate": "Hz", "output_rate": "Hz", "wall_time": "s",
+                        "max_error_estimate": "state units (rad, rad/s)",
+                        "max_error_norm": "1 = the asked tolerance"}
     warnings = list(summary.pop("notes", []))
     if scene.motion.is_bag:
         summary["bag"] = bag_counts
