@@ -10,10 +10,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterator
 
+import numpy as np
+
 from ..errors import BagReadError, ReplayError
 from . import messages as msgs
 from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_of
+from .bag_fast import Batch, row_batches
 from .bag_salvage import Salvage
+from .blocks import RowChunk
 from .messages import INPUT_TYPES
 
 
@@ -99,16 +103,20 @@ class InputBag:
     def is_input(self, conn: Any) -> bool:
         return conn.topic == self.topic and conn.msgtype in INPUT_TYPES
 
-    def messages(self, input_only: bool = False) -> Iterator[tuple[Any, int, bytes]]:
-        """(connection, receive time ns, CDR bytes) in bag order; BagReadError on damage,
-        including fewer (or more) messages than the bag's index lists."""
-        conns = [c for c in self.connections if self.is_input(c)] if input_only else self.connections
+    def _selected(self, input_only: bool) -> list[Any]:
+        return [c for c in self.connections if self.is_input(c)] if input_only else list(self.connections)
+
+    def _source(self, conns: list[Any]) -> Iterator[tuple[Any, int, bytes]]:
         if self._salvage is not None:
-            src = self._salvage.messages({c.id for c in conns})
-        else:
-            src = self._reader.messages(connections=conns)
+            return self._salvage.messages({c.id for c in conns})
+        return self._reader.messages(connections=conns)
+
+    def _guarded(self, src: Iterator[Any], conns: list[Any], size: Any) -> Iterator[Any]:
+        """Items of ``src`` with rosbags/sqlite/decompression errors turned into BagReadError
+        and the row count checked against the bag's index at the end (``size(item)`` rows each)."""
         expected = sum(c.msgcount for c in conns) if self._reader is not None else None
         n = 0
+        self.messages_read = 0
         while True:
             try:
                 item = next(src)
@@ -122,9 +130,29 @@ class InputBag:
             except Exception as e:  # rosbags ReaderError, apsw/sqlite errors, zstd/lz4 errors …
                 raise BagReadError(f"{self.path}: damaged: reading failed after {n} messages: "
                                    f"{type(e).__name__}: {e}") from e
-            n += 1
+            n += size(item)
             self.messages_read = n
             yield item
+
+    def messages(self, input_only: bool = False) -> Iterator[tuple[Any, int, bytes]]:
+        """(connection, receive time ns, CDR bytes) in bag order; BagReadError on damage,
+        including fewer (or more) messages than the bag's index lists."""
+        conns = self._selected(input_only)
+        return self._guarded(self._source(conns), conns, lambda _: 1)
+
+    def chunks(self, max_rows: int = 4096, input_only: bool = False) -> Iterator[RowChunk]:
+        """The rows of :meth:`messages` in blocks of at most ``max_rows`` (:class:`RowChunk`:
+        connection ids, receive times ns, CDR bytes): same rows, same order, same errors (every
+        row before a damage is yielded, then BagReadError). Intact sqlite3 and indexed MCAP bags
+        are read by :mod:`.bag_fast` (no Python object per row); the rest through rosbags or
+        the salvage reader."""
+        if max_rows < 1:
+            raise ValueError(f"max_rows = {max_rows}; must be >= 1")
+        conns = self._selected(input_only)
+        batches = row_batches(self._reader, conns, max_rows) if self._reader is not None and conns else None
+        if batches is None:
+            batches = _batches(self._source(conns), max_rows)
+        return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])), max_rows)
 
     def store_for(self, conn: Any) -> Any:
         """Typestore to decode ``conn``: the bag's own definition if it has one, else Jazzy."""
@@ -160,3 +188,72 @@ def typestore_for(conn: Any) -> Any:
             pass
     return msgs.jazzy_typestore()
 
+
+
+def _batches(src: Iterator[tuple[Any, int, bytes]], max_rows: int) -> Iterator[Batch]:
+    """Rows of a (connection, time, raw) stream grouped ``max_rows`` at a time; a failure is
+    raised after the batch of rows read before it."""
+    cid: list[int] = []
+    ts: list[int] = []
+    raws: list[bytes] = []
+
+    def batch() -> Batch:
+        return np.array(cid, np.int64), np.array(ts, np.int64), raws
+
+    try:
+        for conn, t, raw in src:
+            cid.append(conn.id)
+            ts.append(t)
+            raws.append(raw)
+            if len(raws) >= max_rows:
+                yield batch()
+                cid, ts, raws = [], [], []
+    except Exception:
+        if raws:
+            yield batch()
+        raise
+    if raws:
+        yield batch()
+
+
+def _rechunk(batches: Iterator[Batch], max_rows: int) -> Iterator[RowChunk]:
+    """RowChunks of exactly ``max_rows`` rows (the last one shorter) from batches of any size;
+    rows collected before an error are yielded before it propagates."""
+    parts: list[Batch] = []
+    have = 0
+    try:
+        for b in batches:
+            parts.append(b)
+            have += len(b[1])
+            while have >= max_rows:
+                chunk, parts = _take(parts, max_rows)
+                have -= max_rows
+                yield chunk
+    except Exception:
+        if have:
+            yield _take(parts, have)[0]
+        raise
+    if have:
+        yield _take(parts, have)[0]
+
+
+def _take(parts: list[Batch], n: int) -> tuple[RowChunk, list[Batch]]:
+    """First ``n`` rows of ``parts`` as one RowChunk, and the rest."""
+    cids, tss, raws = [], [], []
+    got = 0
+    rest: list[Batch] = []
+    for i, (c, t, r) in enumerate(parts):
+        k = min(len(t), n - got)
+        cids.append(c[:k])
+        tss.append(t[:k])
+        raws.extend(r[:k] if k < len(r) else r)
+        got += k
+        if k < len(t):
+            rest = [(c[k:], t[k:], r[k:])] + parts[i + 1:]
+            break
+        if got == n:
+            rest = parts[i + 1:]
+            break
+    if len(cids) == 1:
+        return RowChunk(cids[0], tss[0], raws), rest
+    return RowChunk(np.concatenate(cids), np.concatenate(tss), raws), rest
