@@ -226,3 +226,107 @@ def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
                 n += 1
         pos = nxt
     return 0, pos, n, ts, cid, beg, fin
+
+
+# ---- MCAP files rosbags refuses ---------------------------------------------------------------
+#: schema encodings whose text rosbags can parse as a message definition
+_MSGDEF_FORMATS = {"ros2msg": "MSG", "ros2idl": "IDL", "omgidl": "IDL"}
+
+
+class McapFile:
+    """A structurally valid, indexed MCAP file that rosbags' reader refuses (profile other than
+    ``ros2``, a jsonschema/protobuf schema it cannot map …), read from its summary with the
+    ``mcap`` package: ``chunks`` (rosbags ``ChunkInfo``), ``channels`` (id → rosbags
+    ``Connection`` with the channel's message encoding as serialization format, message
+    count from the statistics). Rows come from :func:`mcap_batches` like an intact bag's."""
+
+    def __init__(self, path: Path):
+        from mcap.exceptions import McapError
+        from mcap.reader import make_reader
+        from rosbags.rosbag2.storage_mcap import ChunkInfo
+
+        self.path = path
+        try:
+            with path.open("rb") as f:
+                reader = make_reader(f)
+                profile = reader.get_header().profile
+                summary = reader.get_summary()
+        except (McapError, OSError, ValueError, EOFError, KeyError) as e:
+            raise ValueError(f"{path}: not a readable MCAP file: {type(e).__name__}: {e}") from None
+        if summary is None or summary.statistics is None or not summary.chunk_indexes:
+            raise ValueError(f"{path}: MCAP file without summary statistics and chunk index")
+        every = dict.fromkeys(summary.channels, 1)
+        self.chunks = [ChunkInfo(c.message_start_time, c.message_end_time, c.chunk_start_offset, c.chunk_length,
+                                 dict(c.message_index_offsets), c.message_index_length, c.compression,
+                                 c.compressed_size, c.uncompressed_size,
+                                 dict.fromkeys(c.message_index_offsets, 1) or every)
+                       for c in summary.chunk_indexes]
+        counts = summary.statistics.channel_message_counts
+        self.reasons = [f"profile {profile!r}"] if profile != "ros2" else []
+        self.reasons += sorted({f"schema encoding {sc.encoding!r}" for sc in summary.schemas.values()
+                                if sc.encoding not in (*_MSGDEF_FORMATS, "")})
+        self.reasons += sorted({f"message encoding {ch.message_encoding!r}" for ch in summary.channels.values()
+                                if ch.message_encoding != "cdr"})
+        self.channels = {cid: _connection(ch, summary.schemas.get(ch.schema_id), counts.get(cid, 0))
+                         for cid, ch in sorted(summary.channels.items())}
+
+
+def _connection(ch: Any, schema: Any, count: int) -> Any:
+    from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
+    from rosbags.rosbag2.storage_mcap import get_qos
+
+    fmt = _MSGDEF_FORMATS.get(schema.encoding if schema is not None else "")
+    text = schema.data.decode(errors="replace") if schema is not None and fmt else ""
+    msgdef = MessageDefinition(getattr(MessageDefinitionFormat, fmt or "NONE"), text)
+    try:
+        qos = get_qos(_metadata_bytes(ch.metadata))
+    except Exception:
+        qos = []
+    return Connection(ch.id, ch.topic, schema.name if schema is not None else "", msgdef, "", count,
+                      ConnectionExtRosbag2(ch.message_encoding, qos), None)
+
+
+def _metadata_bytes(meta: dict[str, str]) -> bytes:
+    """A channel's metadata map in MCAP's wire form (what rosbags' ``get_qos`` parses)."""
+    out = bytearray()
+    for k, v in meta.items():
+        for s in (k.encode(), v.encode()):
+            out += _I.pack(len(s)) + s
+    return bytes(out)
+
+
+class McapBag:
+    """The MCAP files of a bag rosbags refuses, each a :class:`McapFile`, read in order;
+    ``connections`` unified across files by (topic, type, serialization format) and numbered
+    from 1 (as rosbags numbers a bag folder's topics)."""
+
+    def __init__(self, files: list[Path]):
+        self.files = [McapFile(f) for f in files]
+        self.connections: list[Any] = []
+        self._maps: list[dict[int, int]] = []          # per file: channel id -> bag connection id
+        for mf in self.files:
+            cmap: dict[int, int] = {}
+            for cid, conn in mf.channels.items():
+                key = (conn.topic, conn.msgtype, conn.ext.serialization_format)
+                k = next((i for i, c in enumerate(self.connections)
+                          if (c.topic, c.msgtype, c.ext.serialization_format) == key), None)
+                if k is None:
+                    self.connections.append(conn._replace(id=len(self.connections) + 1))
+                    k = len(self.connections) - 1
+                else:
+                    c = self.connections[k]
+                    self.connections[k] = c._replace(msgcount=c.msgcount + conn.msgcount)
+                cmap[cid] = self.connections[k].id
+            self._maps.append(cmap)
+
+    def foreign_reasons(self) -> list[str]:
+        """What in these files rosbags does not read (profile, schema and message encodings)."""
+        return sorted({r for mf in self.files for r in mf.reasons})
+
+    def batches(self, conns: list[Any]) -> Iterator[Batch]:
+        """Rows of ``conns`` file after file, each file in rosbags' MCAP order."""
+        ids = {c.id for c in conns}
+        for mf, cmap in zip(self.files, self._maps):
+            sel = {cid: bid for cid, bid in cmap.items() if bid in ids}
+            if sel:
+                yield from mcap_batches(mf, sel)

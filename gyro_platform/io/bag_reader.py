@@ -14,19 +14,26 @@ import numpy as np
 
 from ..errors import BagReadError, ReplayError
 from . import messages as msgs
-from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_of
-from .bag_fast import Batch, row_batches
+from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
+from .bag_fast import Batch, McapBag, row_batches
 from .bag_salvage import Salvage
 from .blocks import RowChunk
 from .messages import INPUT_TYPES
 
 
 class InputBag:
-    """Streaming reader of one rosbag2 bag: connections up front, messages as a generator.
+    """Streaming reader of one rosbag2 bag: connections up front, messages as a generator
+    (:meth:`messages`) or in blocks (:meth:`chunks`).
 
-    ``connections``: rosbags ``Connection`` tuples of every topic; ``topic``: the input topic;
+    ``connections``: rosbags ``Connection`` tuples of every topic that is read; ``topic`` and
+    ``msgtype``: the input topic and its type (the type of the topic's first connection);
     ``salvaged``: True when rosbags could not open the bag and its readable part is scanned
-    instead (``damage`` says why). Use as a context manager.
+    instead (``damage`` says why); ``foreign``: why an intact MCAP bag that rosbags refuses
+    (non-ROS 2 profile, jsonschema/protobuf schemas) is read with the ``mcap`` package instead.
+    Never read: channels whose messages are not CDR (``skipped_channels``: topic → reason)
+    and connections of another type on the input topic (``skipped_input``: type → message
+    count; they are not merged into the input). ``warnings``: one line per such fact, for the
+    user. Use as a context manager.
     """
 
     def __init__(self, path: str | Path, topic: str | None = None):
@@ -39,8 +46,13 @@ class InputBag:
         self.storage: str = ""
         self.salvaged = False
         self.damage: str | None = None
+        self.foreign: str | None = None
+        self.skipped_channels: dict[str, str] = {}
+        self.skipped_input: dict[str, int] = {}
+        self.warnings: list[str] = []
         self._reader: Any = None
         self._salvage: Salvage | None = None
+        self._mcap: McapBag | None = None
         self._stores: dict[int, Any] = {}
         self.messages_read = 0
 
@@ -61,15 +73,53 @@ class InputBag:
             reader = rb["Reader"](reader_path(path))
             reader.open()
         except (rb["ReaderError"], OSError, KeyError, ValueError) as e:
-            self.damage = f"rosbags cannot open it: {e}"
-            self._salvage = Salvage.open(path, self.storage, self.damage)
-            self.salvaged = True
-            self.connections = list(self._salvage.connections)
+            why = f"rosbags cannot open it: {type(e).__name__ + ': ' if isinstance(e, KeyError) else ''}{e}"
+            self._mcap = self._foreign_mcap(path, why) if self.storage == "mcap" else None
+            if self._mcap is not None:
+                conns = list(self._mcap.connections)
+                self.message_count = sum(c.msgcount for c in conns)
+            else:
+                self.damage = why
+                self._salvage = Salvage.open(path, self.storage, self.damage)
+                self.salvaged = True
+                conns = list(self._salvage.connections)
         else:
             self._reader = reader
-            self.connections = list(reader.connections)
+            conns = list(reader.connections)
             self.message_count = reader.message_count
+        self.connections = self._readable(conns)
         self._choose_topic()
+
+    def _foreign_mcap(self, path: Path, why: str) -> McapBag | None:
+        """The bag read with the ``mcap`` package when every file is an intact, indexed MCAP file
+        that rosbags refuses for what it holds (not for damage); else None."""
+        try:
+            bag = McapBag(storage_files(path))
+        except ValueError:
+            return None
+        if not bag.foreign_reasons():
+            return None
+        self.foreign = f"{why}; read with the mcap package ({'; '.join(bag.foreign_reasons())})"
+        self.warnings.append(f"{path}: {self.foreign}")
+        return bag
+
+    def _readable(self, conns: list[Any]) -> list[Any]:
+        """``conns`` without the channels that are not CDR (recorded in ``skipped_channels``)."""
+        keep = []
+        for c in conns:
+            fmt = c.ext.serialization_format
+            if fmt == "cdr":
+                keep.append(c)
+            else:
+                self.skipped_channels[c.topic] = (f"message encoding {fmt!r}, type {c.msgtype or '?'!r}: "
+                                                  f"{c.msgcount} messages not read (only CDR is)")
+        if self.skipped_channels:
+            n = sum(c.msgcount for c in conns if c.ext.serialization_format != "cdr")
+            self.warnings.append(f"{self.path}: skipped {len(self.skipped_channels)} non-CDR channel(s) "
+                                 f"({n} messages): " + ", ".join(
+                                     f"{c.topic} ({c.ext.serialization_format})" for c in conns
+                                     if c.ext.serialization_format != "cdr"))
+        return keep
 
     def close(self) -> None:
         if self._reader is not None:
@@ -80,6 +130,7 @@ class InputBag:
         if self._salvage is not None:
             self._salvage.close()
             self._salvage = None
+        self._mcap = None
 
     def _choose_topic(self) -> None:
         if self.requested_topic is not None:
@@ -90,18 +141,25 @@ class InputBag:
             if conns[0].msgtype not in INPUT_TYPES:
                 raise ReplayError(f"{self.path}: topic {self.requested_topic!r} has type {conns[0].msgtype}; "
                                   f"the input must be one of {', '.join(INPUT_TYPES)}")
-            self.topic = self.requested_topic
+            self.topic, self.msgtype = self.requested_topic, conns[0].msgtype
         else:
             first = next((c for c in self.connections if c.msgtype in INPUT_TYPES), None)
             if first is None:
                 raise ReplayError(f"{self.path}: no Imu, Twist or TwistStamped topic; topics: "
                                   + (", ".join(f"{c.topic} ({c.msgtype})" for c in self.connections) or "none"))
-            self.topic = first.topic
-        self.msgtype = next(c.msgtype for c in self.connections if c.topic == self.topic)
+            self.topic, self.msgtype = first.topic, first.msgtype
+        for c in self.connections:
+            if c.topic == self.topic and c.msgtype != self.msgtype:
+                self.skipped_input[c.msgtype] = self.skipped_input.get(c.msgtype, 0) + c.msgcount
+        if self.skipped_input:
+            self.warnings.append(f"{self.path}: topic {self.topic} mixes types; the input is its first "
+                                 f"connection's type {self.msgtype}, not used as input: " + ", ".join(
+                                     f"{n} {t} messages" for t, n in self.skipped_input.items()))
 
     # ---- messages ------------------------------------------------------------------------
     def is_input(self, conn: Any) -> bool:
-        return conn.topic == self.topic and conn.msgtype in INPUT_TYPES
+        """True for the connections of the input topic with the input type."""
+        return conn.topic == self.topic and conn.msgtype == self.msgtype
 
     def _selected(self, input_only: bool) -> list[Any]:
         return [c for c in self.connections if self.is_input(c)] if input_only else list(self.connections)
@@ -109,12 +167,14 @@ class InputBag:
     def _source(self, conns: list[Any]) -> Iterator[tuple[Any, int, bytes]]:
         if self._salvage is not None:
             return self._salvage.messages({c.id for c in conns})
+        if self._mcap is not None:
+            return _rows(self._mcap.batches(conns), {c.id: c for c in conns})
         return self._reader.messages(connections=conns)
 
     def _guarded(self, src: Iterator[Any], conns: list[Any], size: Any) -> Iterator[Any]:
         """Items of ``src`` with rosbags/sqlite/decompression errors turned into BagReadError
         and the row count checked against the bag's index at the end (``size(item)`` rows each)."""
-        expected = sum(c.msgcount for c in conns) if self._reader is not None else None
+        expected = sum(c.msgcount for c in conns) if self._salvage is None else None
         n = 0
         self.messages_read = 0
         while True:
@@ -149,7 +209,11 @@ class InputBag:
         if max_rows < 1:
             raise ValueError(f"max_rows = {max_rows}; must be >= 1")
         conns = self._selected(input_only)
-        batches = row_batches(self._reader, conns, max_rows) if self._reader is not None and conns else None
+        batches = None
+        if self._mcap is not None:
+            batches = self._mcap.batches(conns)
+        elif self._reader is not None and conns:
+            batches = row_batches(self._reader, conns, max_rows)
         if batches is None:
             batches = _batches(self._source(conns), max_rows)
         return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])), max_rows)
@@ -188,6 +252,13 @@ def typestore_for(conn: Any) -> Any:
             pass
     return msgs.jazzy_typestore()
 
+
+
+def _rows(batches: Iterator[Batch], by_id: dict[int, Any]) -> Iterator[tuple[Any, int, bytes]]:
+    """(connection, time, raw) rows of batches."""
+    for cid, ts, raws in batches:
+        for c, t, r in zip(cid.tolist(), ts.tolist(), raws):
+            yield by_id[c], t, r
 
 
 def _batches(src: Iterator[tuple[Any, int, bytes]], max_rows: int) -> Iterator[Batch]:

@@ -22,6 +22,12 @@ REJECT_NO_RATE, REJECT_UNKNOWN_FRAME, REJECT_BAD_MESSAGE = 1, 2, 3
 Raw = Union[bytes, memoryview]
 
 
+def bad_stamp_detail(nanosec: int) -> str:
+    """Detail of a message rejected ``bad_message`` because its header stamp is not a valid
+    ``builtin_interfaces/Time`` (``nanosec`` must be below 1e9; issue 17)."""
+    return f"header.stamp.nanosec = {nanosec} is not below 1e9 (invalid stamp)"
+
+
 @dataclass(slots=True)
 class RowChunk:
     """``N`` bag rows in bag order (record-time order as rosbags reads them).
