@@ -50,6 +50,9 @@ class InputBag:
         self.skipped_channels: dict[str, str] = {}
         self.skipped_input: dict[str, int] = {}
         self.warnings: list[str] = []
+        #: reader of the last :meth:`chunks` call: "fast" (bag_fast on rosbags' index),
+        #: "mcap" (the mcap package, foreign MCAP), "rosbags" or "salvage" (row by row)
+        self.chunk_source = ""
         self._reader: Any = None
         self._salvage: Salvage | None = None
         self._mcap: McapBag | None = None
@@ -209,12 +212,14 @@ class InputBag:
         if max_rows < 1:
             raise ValueError(f"max_rows = {max_rows}; must be >= 1")
         conns = self._selected(input_only)
-        batches = None
+        batches, self.chunk_source = None, "rosbags"
         if self._mcap is not None:
-            batches = self._mcap.batches(conns)
+            batches, self.chunk_source = self._mcap.batches(conns), "mcap"
         elif self._reader is not None and conns:
             batches = row_batches(self._reader, conns, max_rows)
+            self.chunk_source = "rosbags" if batches is None else "fast"
         if batches is None:
+            self.chunk_source = "salvage" if self._salvage is not None else "rosbags"
             batches = _batches(self._source(conns), max_rows)
         return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])), max_rows)
 

@@ -1,0 +1,301 @@
+"""InputBag.chunks: the rows of InputBag.messages (rosbags' Reader, or the salvage reader) in
+blocks — same rows, same order, same errors — on the shared recordings, on generated sqlite3
+and MCAP bags (several topics, equal and out-of-order timestamps, overlapping and compressed
+MCAP chunks, a bag of several files, per-message compression, an unindexed MCAP file) and on
+damaged bags. Issue 17: valid MCAP files with JSON/protobuf channels are read (those channels
+skipped with a count), and two types on one topic are not merged into the input."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+from rosbags.typesys import Stores, get_typestore
+
+from gyro_platform import cli
+from gyro_platform.errors import BagReadError
+from gyro_platform.io.bag_reader import InputBag
+from gyro_platform.io.blocks import RowChunk
+
+BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
+SHARED = sorted(p for p in BAGS.iterdir() if p.is_dir()) if BAGS.is_dir() else []
+J = get_typestore(Stores.ROS2_JAZZY)
+T = J.types
+S = 1_000_000_000
+T0 = 1_700_000_000 * S
+IMU, TWS, STR = "sensor_msgs/msg/Imu", "geometry_msgs/msg/TwistStamped", "std_msgs/msg/String"
+
+
+# ---- helpers -----------------------------------------------------------------------------
+def stamp(ns):
+    return T["builtin_interfaces/msg/Time"](sec=ns // S, nanosec=ns % S)
+
+
+def imu(ns, w=(0.01, 0.02, 0.03), frame="imu_link"):
+    v3 = T["geometry_msgs/msg/Vector3"]
+    return T[IMU](header=T["std_msgs/msg/Header"](stamp=stamp(ns), frame_id=frame),
+                  orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                  orientation_covariance=np.zeros(9), angular_velocity=v3(x=w[0], y=w[1], z=w[2]),
+                  angular_velocity_covariance=np.zeros(9), linear_acceleration=v3(x=0.0, y=0.0, z=9.81),
+                  linear_acceleration_covariance=np.zeros(9))
+
+
+def twist_stamped(ns, w=(0.1, 0.2, 0.3)):
+    v3 = T["geometry_msgs/msg/Vector3"]
+    return T[TWS](header=T["std_msgs/msg/Header"](stamp=stamp(ns), frame_id="base_link"),
+                  twist=T["geometry_msgs/msg/Twist"](linear=v3(x=0.0, y=0.0, z=0.0), angular=v3(x=w[0], y=w[1], z=w[2])))
+
+
+def cdr(msg, msgtype):
+    return bytes(J.serialize_cdr(msg, msgtype))
+
+
+def mixed_rows(n=600, seed=1):
+    """(topic, type, time ns, raw) of three topics: ties across topics, a burst written out of
+    time order, and a topic written late with early times."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        t = T0 + i * 1_000_000
+        rows.append(("/imu", IMU, t, cdr(imu(t, (i * 1e-3, 0.0, 0.0)), IMU)))
+        if i % 5 == 0:
+            rows.append(("/tw", TWS, t, cdr(twist_stamped(t), TWS)))                # tie with /imu
+        if i % 50 == 0:
+            rows.append(("/note", STR, int(t - rng.integers(0, 30_000_000)), cdr(T[STR](data=f"n{i}"), STR)))
+    late = [("/note", STR, T0 + k * 7_000_000, cdr(T[STR](data=f"late{k}"), STR)) for k in range(40)]
+    return rows + late
+
+
+def write_rosbags(path, rows, storage="sqlite3", compression=None):
+    plugin = StoragePlugin.SQLITE3 if storage == "sqlite3" else StoragePlugin.MCAP
+    w = Writer(path, version=9, storage_plugin=plugin)
+    if compression is not None:
+        w.set_compression(compression, CompressionFormat.ZSTD)
+    with w:
+        conns = {}
+        for topic, typ, t, raw in rows:
+            c = conns.get((topic, typ))
+            if c is None:
+                c = conns[(topic, typ)] = w.add_connection(topic, typ, typestore=J)
+            w.write(c, t, raw)
+    return path
+
+
+def write_mcap(path, rows, profile="ros2", chunk_size=4096, compression="zstd", extra_channels=(), index=True):
+    """MCAP file written with the mcap package (small chunks: many, overlapping in time when
+    rows are out of order). ``extra_channels``: (topic, message encoding, schema name, schema
+    encoding, [(time, bytes)]) of non-CDR channels."""
+    from mcap.writer import CompressionType, IndexType, Writer as McapWriter
+
+    comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}[compression]
+    with open(path, "wb") as f:
+        w = McapWriter(f, chunk_size=chunk_size, compression=comp,
+                       index_types=IndexType.ALL if index else IndexType.NONE, use_summary_offsets=index)
+        w.start(profile=profile, library="test")
+        chans = {}
+        for topic, typ, *_ in rows:
+            if (topic, typ) not in chans:
+                sid = w.register_schema(name=typ, encoding="ros2msg", data=J.generate_msgdef(typ)[0].encode())
+                chans[(topic, typ)] = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
+        extra = []
+        for topic, menc, sname, senc, recs in extra_channels:
+            sid = w.register_schema(name=sname, encoding=senc, data=b"{}")
+            cid = w.register_channel(topic=topic, message_encoding=menc, schema_id=sid)
+            extra += [(t, cid, data) for t, data in recs]
+        for topic, typ, t, raw in rows:
+            w.add_message(chans[(topic, typ)], log_time=t, publish_time=t, data=raw)
+        for t, cid, data in extra:
+            w.add_message(cid, log_time=t, publish_time=t, data=data)
+        w.finish()
+    return path
+
+
+def read_messages(path, input_only=False, topic=None):
+    """(rows as (conn id, time, bytes), the BagReadError or None) through messages()."""
+    rows, err = [], None
+    with InputBag(path, topic) as b:
+        try:
+            for c, t, raw in b.messages(input_only=input_only):
+                rows.append((c.id, t, bytes(raw)))
+        except BagReadError as e:
+            err = e
+    return rows, err
+
+
+def read_chunks(path, max_rows, input_only=False, topic=None):
+    rows, err, sizes = [], None, []
+    with InputBag(path, topic) as b:
+        try:
+            for ch in b.chunks(max_rows, input_only=input_only):
+                assert isinstance(ch, RowChunk) and ch.conn_id.dtype == np.int64 and ch.ts.dtype == np.int64
+                assert len(ch.conn_id) == len(ch.ts) == len(ch.raws)
+                sizes.append(len(ch))
+                rows += [(c, t, bytes(r)) for c, t, r in zip(ch.conn_id.tolist(), ch.ts.tolist(), ch.raws)]
+        except BagReadError as e:
+            err = e
+        source = b.chunk_source
+    return rows, err, sizes, source
+
+
+def assert_same_rows(path, expect_source=None, max_rows=(1, 7, 4096), topic=None):
+    """chunks() gives messages()' rows and error for every block size, both selections;
+    returns messages()' rows and error of the whole bag."""
+    for input_only in (True, False):
+        ref, ref_err = read_messages(path, input_only, topic)
+        for m in max_rows:
+            rows, err, sizes, source = read_chunks(path, m, input_only, topic)
+            assert rows == ref, (path, input_only, m)
+            assert type(err) is type(ref_err), (err, ref_err)
+            if err is None:      # blocks are full except the last
+                assert all(s == m for s in sizes[:-1]) and (not sizes or 0 < sizes[-1] <= m)
+            if expect_source is not None:
+                assert source == expect_source
+    return ref, ref_err
+
+
+# ---- intact bags ---------------------------------------------------------------------------
+@pytest.mark.parametrize("bag", SHARED, ids=[p.name for p in SHARED])
+def test_shared_recordings_same_rows(bag):
+    ref, err = assert_same_rows(bag, expect_source="fast")
+    assert err is None and len(ref) > 1000
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_generated_bags_same_rows_and_order(tmp_path, storage):
+    rows = mixed_rows()
+    bag = write_rosbags(tmp_path / "b", rows, storage)
+    ref, err = assert_same_rows(bag, expect_source="fast")
+    assert err is None and len(ref) == len(rows)
+    times = [t for _, t, _ in ref]
+    assert times == sorted(times)                                      # rosbags' time order
+    assert sorted(r for _, _, r in ref) == sorted(r for *_, r in rows)  # every row once
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_mcap_overlapping_small_chunks_same_order(tmp_path, compression):
+    """Out-of-order rows spread over many small chunks whose time ranges overlap: the merge
+    order (time, chunk offset, record order) and rosbags' chunk selection are reproduced."""
+    rows = mixed_rows(400, seed=2)
+    f = write_mcap(tmp_path / "x.mcap", rows, chunk_size=2048, compression=compression)
+    ref, err = assert_same_rows(f, expect_source="fast")
+    assert err is None and len(ref) == len(rows)
+
+
+def test_multi_file_bags(tmp_path):
+    """A bag folder of two storage files (connections registered in another order in the
+    second file): storage ids are mapped to the bag's connection ids as rosbags maps them."""
+    for storage, ext in (("sqlite3", "db3"), ("mcap", "mcap")):
+        rows = mixed_rows(300)
+        a = write_rosbags(tmp_path / f"a_{storage}", rows[: len(rows) // 2], storage)
+        second = sorted(rows[len(rows) // 2:], key=lambda r: r[0] != "/note")   # /note registered first
+        b = write_rosbags(tmp_path / f"b_{storage}", second, storage)
+        bag = tmp_path / f"multi_{storage}"
+        bag.mkdir()
+        shutil.copy(next(a.glob(f"*.{ext}")), bag / f"part0.{ext}")
+        shutil.copy(next(b.glob(f"*.{ext}")), bag / f"part1.{ext}")
+        meta = yaml.safe_load((a / "metadata.yaml").read_text())
+        info = meta["rosbag2_bagfile_information"]
+        mb = yaml.safe_load((b / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        counts = {t["topic_metadata"]["name"]: t["message_count"] for t in mb["topics_with_message_count"]}
+        for t in info["topics_with_message_count"]:
+            t["message_count"] += counts[t["topic_metadata"]["name"]]
+        info["message_count"] += mb["message_count"]
+        info["relative_file_paths"] = [f"part0.{ext}", f"part1.{ext}"]
+        info["files"] = []
+        info["duration"]["nanoseconds"] = 10**12
+        (bag / "metadata.yaml").write_text(yaml.safe_dump(meta))
+        ref, err = assert_same_rows(bag, expect_source="fast")
+        assert err is None and len(ref) == len(rows)
+
+
+def test_rosbags_fallback_for_compressed_messages_and_unindexed_mcap(tmp_path):
+    rows = mixed_rows(200)
+    bag = write_rosbags(tmp_path / "zmsg", rows, "sqlite3", compression=CompressionMode.MESSAGE)
+    assert assert_same_rows(bag, expect_source="rosbags")[1] is None
+    bag = write_rosbags(tmp_path / "zfile", rows, "mcap", compression=CompressionMode.FILE)
+    assert assert_same_rows(bag, expect_source="fast")[1] is None      # decompressed by rosbags first
+    f = write_mcap(tmp_path / "noindex.mcap", sorted(rows, key=lambda r: r[2]), index=False)
+    ref, err = assert_same_rows(f, expect_source="rosbags")
+    assert err is None and len(ref) == len(rows)
+
+
+# ---- damaged bags ----------------------------------------------------------------------------
+def test_damaged_bags_same_rows_then_same_error(tmp_path):
+    rows = mixed_rows(3000)
+    # MCAP: garbage inside one chunk; rosbags opens the file, reading fails at that chunk
+    f = write_mcap(tmp_path / "bad.mcap", rows, chunk_size=16384)
+    from mcap.reader import make_reader
+
+    with f.open("rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    data = bytearray(f.read_bytes())
+    mid = chunks[len(chunks) // 2].chunk_start_offset + 80                 # inside a chunk's data
+    data[mid:mid + 512] = b"\xa5" * 512
+    f.write_bytes(bytes(data))
+    ref, err = assert_same_rows(f, expect_source="fast", max_rows=(5, 4096))
+    assert isinstance(err, BagReadError) and 0 < len(ref) < len(rows)
+    # sqlite3 cut short: rosbags refuses, the salvage reader reads up to the damage
+    bag = write_rosbags(tmp_path / "cut", rows, "sqlite3")
+    db = next(bag.glob("*.db3"))
+    db.write_bytes(db.read_bytes()[: db.stat().st_size * 2 // 3])
+    ref, err = assert_same_rows(bag, expect_source="salvage", max_rows=(5, 4096))
+    assert isinstance(err, BagReadError) and 0 < len(ref) < len(rows)
+    # index lists more messages than the bag holds: BagReadError after every row, from both
+    bag = write_rosbags(tmp_path / "count", rows, "mcap")
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())
+    meta["rosbag2_bagfile_information"]["topics_with_message_count"][0]["message_count"] += 1
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    ref, err = assert_same_rows(bag, expect_source="fast", max_rows=(7,))
+    assert isinstance(err, BagReadError) and "index lists" in str(err) and len(ref) == len(rows)
+
+
+def test_max_rows_must_be_positive(tmp_path):
+    bag = write_rosbags(tmp_path / "b", mixed_rows(10), "sqlite3")
+    with InputBag(bag) as b, pytest.raises(ValueError, match="max_rows"):
+        next(b.chunks(0))
+
+
+# ---- issue 17: foreign MCAP channels, two types on one topic ------------------------------------
+@pytest.mark.parametrize("profile", ["ros2", ""])
+def test_mcap_with_json_and_protobuf_channels_is_read_not_damaged(tmp_path, profile):
+    imu_rows = [("/imu", IMU, T0 + i * 10_000_000, cdr(imu(T0 + i * 10_000_000), IMU)) for i in range(300)]
+    extra = [("/pose_json", "json", "Pose", "jsonschema",
+              [(T0 + i * 50_000_000 + 1, json.dumps({"x": i}).encode()) for i in range(60)]),
+             ("/log_pb", "protobuf", "foxglove.Log", "protobuf", [(T0 + i * 100_000_000 + 2, b"\x08\x01") for i in range(30)])]
+    f = write_mcap(tmp_path / "foreign.mcap", imu_rows, profile=profile, extra_channels=extra)
+    with InputBag(f) as b:
+        assert not b.salvaged and b.damage is None and b.foreign
+        assert set(b.skipped_channels) == {"/pose_json", "/log_pb"}
+        assert "60 messages" in b.skipped_channels["/pose_json"] and "30 messages" in b.skipped_channels["/log_pb"]
+        assert any("skipped 2 non-CDR channel(s) (90 messages)" in w for w in b.warnings)
+        assert all("\n" not in w for w in b.warnings)
+        assert [c.topic for c in b.connections] == ["/imu"] and b.topic == "/imu"
+    ref, err = assert_same_rows(f, expect_source="mcap")
+    assert err is None and [(t, r) for _, t, r in ref] == [(t, r) for *_, t, r in imu_rows]
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(f), "--out", str(out), "--quiet", "--no-plot", "--output-rate", "10"])
+    assert code == cli.EXIT_OK
+
+
+def test_imu_and_twist_stamped_on_one_topic_are_not_merged(tmp_path):
+    rows = []
+    for i in range(200):
+        t = T0 + i * 10_000_000
+        rows.append(("/rate", IMU, t, cdr(imu(t), IMU)))
+        if i % 4 == 0:
+            rows.append(("/rate", TWS, t + 1, cdr(twist_stamped(t + 1, (5.0, 5.0, 5.0)), TWS)))
+    for storage in ("sqlite3", "mcap"):
+        bag = write_rosbags(tmp_path / storage, rows, storage)
+        with InputBag(bag) as b:
+            assert b.topic == "/rate" and b.msgtype == IMU
+            assert b.skipped_input == {TWS: 50}
+            assert any("mixes types" in w and "50 geometry_msgs/msg/TwistStamped" in w for w in b.warnings)
+            imu_ids = {c.id for c in b.connections if c.msgtype == IMU}
+        ref, _ = assert_same_rows(bag, expect_source="fast")
+        only, _ = read_messages(bag, input_only=True)
+        assert len(only) == 200 and {c for c, _, _ in only} == imu_ids
