@@ -34,7 +34,8 @@ NO_RATE_DETAIL = "angular_velocity_covariance[0] = -1 (rate not reported)"
 _IMU = dict(omega=104, force=200, cov_w=128, cov_f=224, size=296)
 _TWIST = dict(omega=24, size=48)
 
-#: a mounting that never rotates: reading_from_msg then gives the values in the sensor frame
+#: a mounting that never rotates a header frame (its vehicle frame is no frame_id a bag holds):
+#: reading_from_msg then gives Imu/TwistStamped values in the sensor frame
 _SENSOR_FRAME = Mounting(vehicle_frame="\0sensor frame")
 
 _LAYOUT_OK: dict[tuple[int, str], tuple[Any, bool]] = {}   # (id(store), type) -> (store, same layout)
@@ -176,6 +177,12 @@ def _decode_one(msgtype: str, raw: Raw, store: Any, rb: RateBlock, i: int) -> No
         msg = store.deserialize_cdr(raw, msgtype)
     except Exception as e:
         rb.set_reject(i, "bad_message", f"cannot decode {msgtype}: {e}")
+        return
+    if msgtype == TWIST:       # no header, no frame: the values as they are (reading_from_msg
+        try:                   # would multiply them by base_link's identity: inf → nan)
+            rb.omega[i] = (float(msg.angular.x), float(msg.angular.y), float(msg.angular.z))
+        except (AttributeError, TypeError, ValueError) as e:
+            rb.set_reject(i, "bad_message", f"malformed message: {e}")
         return
     r = reading_from_msg(msg, _SENSOR_FRAME)
     header = getattr(msg, "header", None)
