@@ -125,7 +125,7 @@ def _frame_ids(buf: np.ndarray, at: np.ndarray, slen: np.ndarray, good: np.ndarr
     index: dict[bytes, int] = {}
     for L in np.unique(slen[good]).tolist():
         sel = np.flatnonzero(good & (slen == L))
-        mat = buf[at[sel, None] + np.arange(L - 1)]
+        mat = _gather(buf, at[sel], L - 1)
         todo = np.ones(len(sel), bool)
         while todo.any():
             k = int(np.argmax(todo))
@@ -152,6 +152,13 @@ def _name_code(raw: bytes, names: list[str], index: dict[bytes, int]) -> int:
 
 
 def _gather(buf: np.ndarray, at: np.ndarray, nbytes: int) -> np.ndarray:
+    """(len(at), nbytes) bytes of ``buf`` from each offset in ``at``: a strided view when the
+    offsets are equally spaced (rows of one length, the usual topic), else a fancy-index gather."""
+    m = len(at)
+    if m > 1:
+        step = int(at[1] - at[0])
+        if step >= nbytes and int(at[-1]) + nbytes <= len(buf) and (np.diff(at) == step).all():
+            return np.lib.stride_tricks.as_strided(buf[int(at[0]):], shape=(m, nbytes), strides=(step, 1))
     return buf[at[:, None] + np.arange(nbytes)]
 
 
