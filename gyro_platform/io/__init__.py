@@ -4,7 +4,8 @@ Holds the ROS message mapping (``messages``: inputs → readings, outputs → me
 diagnostics, TF), the input time gate (``gate``: stamps, gaps, rates, resets), the recorder
 (``recording``: CSV, JSON summaries, plots) and the URDF generated from the parameters
 (``urdf``), and rosbag2 bags: where their files are (``bag_paths``), reading an intact bag
-(``bag_reader``), salvaging a damaged one (``bag_salvage``), writing the output bag
-(``bag_writer``). May import ``physics`` (parameters, geometry), the engine's public records
+(``bag_reader``; fast block readers ``bag_fast``), salvaging a damaged one (``bag_salvage``),
+writing the output bag (``bag_writer``); the fast path's array blocks (``blocks``: RowChunk,
+RateBlock) and the vectorised input decoder (``decode``). May import ``physics`` (parameters, geometry), the engine's public records
 (``engine.inputs``, ``engine.outputs``) and ``errors`` — never integrators or the simulator.
 """
