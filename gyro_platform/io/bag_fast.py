@@ -176,8 +176,8 @@ def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple
     crc = _I.unpack(read_exact(bio, 4))[0]
     bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
     buf = decompress(read_exact(bio, chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc)
-    err, at, n, ts, cid, beg, end = _walk_records(np.frombuffer(buf, np.uint8), chunk.message_start_time,
-                                                  chunk.message_end_time, sel)
+    lo, hi = np.uint64(chunk.message_start_time), np.uint64(chunk.message_end_time)
+    err, at, n, ts, cid, beg, end = _walk_records(np.frombuffer(buf, np.uint8), lo, hi, sel)
     if err:
         raise ValueError(f"{_WALK_ERRORS[err]} at chunk offset {at} of the chunk at file offset "
                          f"{chunk.chunk_start_offset}")
@@ -218,7 +218,7 @@ def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
             t = np.uint64(0)
             for k in range(8):
                 t |= np.uint64(buf[body + 6 + k]) << np.uint64(8 * k)
-            if sel[ch] and np.uint64(lo) <= t and t <= np.uint64(hi):
+            if sel[ch] and lo <= t and t <= hi:
                 ts[n] = np.int64(t)
                 cid[n] = ch
                 beg[n] = body + 22
