@@ -215,8 +215,6 @@ CHILD = textwrap.dedent("""
             n += batch
             print(n, flush=True)
         print("closing", flush=True)
-        if mode == "slowclose":
-            time.sleep(1.0)
         bag.close()
         print("closed", flush=True)
     except OutputWriteError as e:
@@ -224,6 +222,13 @@ CHILD = textwrap.dedent("""
         sys.exit(1)
     except KeyboardInterrupt:
         print("interrupted", flush=True)
+        if mode == "slowclose":      # announce close() and take long enough for a signal to land in it
+            inner = bag.writer.close
+            def slow():
+                print("in-close", flush=True)
+                time.sleep(1.0)
+                inner()
+            bag.writer.close = slow
         bag.close()
         print("closed", flush=True)
         sys.exit(130)
@@ -279,15 +284,18 @@ def test_killed_writer_loses_at_most_the_last_chunk(tmp_path, storage, sig):
 
 
 @pytest.mark.parametrize("storage", STORAGES)
-def test_second_ctrl_c_during_close_keeps_metadata(tmp_path, storage):
-    """Ctrl-C, then a second Ctrl-C while close() runs: metadata still written, every message kept."""
-    proc = child(tmp_path, storage, commit_rows=10**9)      # everything pending: close() has work
+@pytest.mark.parametrize("where", ["in-close", "interrupted"])
+def test_second_ctrl_c_keeps_metadata(tmp_path, storage, where):
+    """Ctrl-C, then a second Ctrl-C inside close() ("in-close") or before the caller reaches
+    close() ("interrupted": the exit hook closes the bag): metadata written, every message kept."""
+    proc = child(tmp_path, storage, mode="slowclose", commit_rows=10**9)   # pending rows: close() has work
     wait_for(proc, 20_000)
     proc.send_signal(signal.SIGINT)
-    while proc.stdout.readline().strip() != "interrupted":
+    while proc.stdout.readline().strip() != where:
         pass
-    proc.send_signal(signal.SIGINT)                          # lands in close() (or just after it)
+    proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
+    assert proc.returncode != 0 and "KeyboardInterrupt" in err     # the second Ctrl-C is not lost
     assert (tmp_path / "out" / "metadata.yaml").is_file(), err
     rows, counts = read_all(tmp_path / "out")
     assert counts["/imu"] == len(rows) >= 20_000

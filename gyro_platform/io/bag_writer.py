@@ -10,8 +10,8 @@ those rosbags writes (tested field by field; MCAP byte for byte).
 
 What survives a fault (issue 17):
 
-* the output is committed in bounded chunks: sqlite3 commits (write-ahead log, checkpointed
-  into the ``.db3`` after each commit) and MCAP chunks are flushed to the file at least every
+* the output is committed in bounded chunks: sqlite3 transactions (rollback journal) and MCAP
+  chunks are written to the file at least every
   ``COMMIT_ROWS`` messages or ``COMMIT_SECONDS`` of wall time (MCAP also every 1 MiB chunk), so
   a SIGKILL or power cut loses at most the last chunk; the readable part has no
   ``metadata.yaml`` and is read by ``InputBag``'s salvage;
@@ -24,10 +24,12 @@ What survives a fault (issue 17):
 """
 from __future__ import annotations
 
+import atexit
 import os
 import signal
 import sqlite3
 import tempfile
+import sys
 import threading
 import time
 from contextlib import contextmanager
@@ -138,20 +140,21 @@ def _storage_classes():
 
     class FastSqlite3(Sqlite3Writer):
         """rosbags' sqlite3 storage; messages batched with ``executemany`` in transactions
-        committed every ``COMMIT_ROWS`` rows / ``COMMIT_SECONDS`` s (WAL, checkpointed after
-        each commit so the ``.db3`` alone holds every committed row)."""
+        committed every ``COMMIT_ROWS`` rows / ``COMMIT_SECONDS`` s."""
 
         def __init__(self, path: Path, compression: Any) -> None:
             super().__init__(path, compression)
             self.conn.commit()
             self.conn.isolation_level = None          # explicit transactions only
-            self.conn.execute("PRAGMA journal_mode=WAL")
+            # rollback journal (a failed or killed transaction is undone; the .db3 alone holds
+            # every committed row); no cache spill: nothing of an open transaction reaches the
+            # .db3 before its commit
+            self.conn.execute("PRAGMA cache_spill=OFF")
             self.conn.execute("PRAGMA synchronous=NORMAL")
             self.cursor = self.conn.cursor()
             self.pending: list[tuple[np.ndarray, np.ndarray, Sequence[Any]]] = []
             self.n_pending = 0
             self.last_commit = time.monotonic()
-            self.committed: dict[int, list[int]] = {}   # cid -> [count, min ts, max ts]
 
         def write(self, connection: Any, timestamp: int, data: Any) -> None:
             self.write_rows(np.array([connection.id]), np.array([timestamp], np.int64), [data])
@@ -163,8 +166,7 @@ def _storage_classes():
                 self.commit()
 
         def commit(self) -> None:
-            """Write the pending rows in one transaction (rolled back on failure), then
-            checkpoint the write-ahead log into the .db3."""
+            """Write the pending rows in one transaction (rolled back on failure)."""
             parts, self.pending, self.n_pending = self.pending, [], 0
             self.last_commit = time.monotonic()
             if not parts:
@@ -178,14 +180,20 @@ def _storage_classes():
                                         zip(cids.tolist(), ts.tolist(), raws))
                 self.cursor.execute("COMMIT")
             except BaseException:
-                _rollback(self.conn)
+                if self.conn.in_transaction:
+                    _rollback(self.conn)
                 raise
-            for cid in np.unique(cids).tolist():
-                sel = ts[cids == cid]
-                cur = self.committed.setdefault(cid, [0, 2 ** 63 - 1, 0])
-                cur[0] += len(sel)
-                cur[1], cur[2] = min(cur[1], int(sel.min())), max(cur[2], int(sel.max()))
-            self.conn.execute("PRAGMA wal_checkpoint(PASSIVE)")
+
+        def settle(self) -> None:
+            """Commit what is pending (before the counts are taken for the metadata)."""
+            self.commit()
+
+        def stored(self) -> tuple[dict[int, int], int, int]:
+            """(count by connection id, first, last record time ns) of the rows the file holds."""
+            rows = self.conn.execute("SELECT topic_id, count(*), min(timestamp), max(timestamp) FROM messages "
+                                     "GROUP BY topic_id").fetchall()
+            return ({r[0]: r[1] for r in rows}, min((r[2] for r in rows), default=2 ** 63 - 1),
+                    max((r[3] for r in rows), default=0))
 
         def close(self, version: int, metadata: str) -> None:
             self.commit()
@@ -195,8 +203,9 @@ def _storage_classes():
             except sqlite3.Error:       # disk full: the metadata row is optional (metadata.yaml is not)
                 pass
             try:
-                self.conn.execute("PRAGMA journal_mode=DELETE")   # one self-contained .db3, as rosbags'
                 self.conn.execute("PRAGMA optimize")
+            except sqlite3.Error:
+                pass
             finally:
                 self.conn.close()
 
@@ -261,24 +270,37 @@ def _storage_classes():
             parts[0::2] = [hb[i:i + 31] for i in range(0, 31 * k, 31)]
             parts[1::2] = raws
             offsets = base + np.concatenate(([0], np.cumsum(lens[:-1])))
-            self.chunk.bio.write(b"".join(parts))
-            # per channel (in order of first appearance in the chunk, as rosbags): (ts, offset)
+            joined = b"".join(parts)
             if np.all(cids == cids[0]):
-                self._index.setdefault(int(cids[0]), []).append((ts, offsets))
-            else:
+                groups = [(int(cids[0]), ts, offsets)]
+            else:                # per channel, in order of first appearance (as rosbags' dict)
                 _, first = np.unique(cids, return_index=True)
-                for cid in cids[np.sort(first)].tolist():
-                    sel = cids == cid
-                    self._index.setdefault(int(cid), []).append((ts[sel], offsets[sel]))
-            cstats = self.channel_stats
-            for cid, cnt in zip(*np.unique(cids, return_counts=True)):
-                cstats[int(cid)] += int(cnt)
+                groups = [(c, ts[cids == c], offsets[cids == c]) for c in cids[np.sort(first)].tolist()]
+            ucid, cnt = np.unique(cids, return_counts=True)
             lo, hi = int(ts.min()), int(ts.max())
-            self.message_start_time = min(lo, self.message_start_time)
-            self.message_end_time = max(hi, self.message_end_time)
-            self.chunk.message_start_time = min(lo, self.chunk.message_start_time)
-            self.chunk.message_end_time = max(hi, self.chunk.message_end_time)
-            self._rows += k
+            saved = (dict(self.channel_stats), {c: len(v) for c, v in self._index.items()},
+                     self.message_start_time, self.message_end_time, self.chunk.message_start_time,
+                     self.chunk.message_end_time, self._rows)
+            try:                 # all or nothing, even when a Ctrl-C lands in between
+                self.chunk.bio.write(joined)
+                for c, t, o in groups:
+                    self._index.setdefault(c, []).append((t, o))
+                for c, n in zip(ucid.tolist(), cnt.tolist()):
+                    self.channel_stats[c] += n
+                self.message_start_time = min(lo, self.message_start_time)
+                self.message_end_time = max(hi, self.message_end_time)
+                self.chunk.message_start_time = min(lo, self.chunk.message_start_time)
+                self.chunk.message_end_time = max(hi, self.chunk.message_end_time)
+                self._rows += k
+            except BaseException:
+                stats, lens_, *times, self._rows = saved
+                self.channel_stats = stats
+                (self.message_start_time, self.message_end_time, self.chunk.message_start_time,
+                 self.chunk.message_end_time) = times
+                self._index = {c: v[:lens_[c]] for c, v in self._index.items() if c in lens_}
+                self.chunk.bio.seek(base)
+                self.chunk.bio.truncate()
+                raise
 
         def close_chunk(self) -> None:
             """rosbags' chunk, message index and chunk index records (vectorised), then flushed."""
@@ -321,11 +343,24 @@ def _storage_classes():
             write_string(idx, self.compression)
             write_uint64(idx, len(compressed))
             write_uint64(idx, len(data))
-            self.bio.write(out.getbuffer())
-            self.bio.flush()
-            self.chunks.append(idx)
-            self._new_chunk()
-            self._snaps.append(self._snapshot())
+            saved = (self.chunk, self._index, self._rows, self._opened, len(self.chunks), len(self._snaps))
+            try:                 # all or nothing, even when a Ctrl-C lands in between
+                self.bio.write(out.getbuffer())
+                self.chunks.append(idx)
+                self._new_chunk()
+                self._snaps.append(self._snapshot())
+            except BaseException:
+                self.chunk, self._index, self._rows, self._opened, nc, ns = saved
+                del self.chunks[nc:], self._snaps[ns:]
+                self.bio.seek(chunk_start)
+                self.bio.truncate()
+                raise
+
+        def settle(self) -> None:
+            pass
+
+        def stored(self) -> tuple[dict[int, int], int, int]:
+            return dict(self.channel_stats), self.message_start_time, self.message_end_time
 
         def close(self, version: int, metadata: str) -> None:
             super().close(version, metadata)     # its bio.close() only flushes: kept open on failure
@@ -437,17 +472,9 @@ def _writer_class():
                 self.max_timestamp = max(int(ts.max()), self.max_timestamp)
 
             def counts_from_storage(self) -> None:
-                """After a failed write: counts and times of what the file holds."""
-                st = self.storage
-                if hasattr(st, "committed"):
-                    got = {c: v for c, v in st.committed.items()}
-                    self.counts = {c.id: got.get(c.id, [0])[0] for c in self.connections}
-                    live = [v for v in got.values() if v[0]]
-                    self.min_timestamp = min((v[1] for v in live), default=2 ** 63 - 1)
-                    self.max_timestamp = max((v[2] for v in live), default=0)
-                else:
-                    self.counts = {c.id: st.channel_stats.get(c.id, 0) for c in self.connections}
-                    self.min_timestamp, self.max_timestamp = st.message_start_time, st.message_end_time
+                """Counts and first/last record times of what the file holds (the metadata's)."""
+                counts, self.min_timestamp, self.max_timestamp = self.storage.stored()
+                self.counts = {c.id: counts.get(c.id, 0) for c in self.connections}
 
         _WRITER_CLS = FastWriter
     return _WRITER_CLS
@@ -478,6 +505,7 @@ class OutputBag:
         self.skipped: dict[str, str] = {}     # input topics that could not be copied -> why
         self.closed = False
         self.error: str | None = None
+        atexit.register(self._close_at_exit)
 
     @property
     def counts(self) -> dict[str, int]:
@@ -632,6 +660,7 @@ class OutputBag:
         if self.closed:
             return
         self.closed = True
+        atexit.unregister(self._close_at_exit)
         w = self.writer
         st = w.storage
         if st is None:       # the storage was closed; only metadata.yaml failed
@@ -650,16 +679,27 @@ class OutputBag:
                     w.counts_from_storage()
 
     def close(self) -> None:
-        """Commit, write index and metadata (the bag is then readable). SIGINT/SIGTERM wait
-        until it is done. A write error: the bag is cut back to what it held and closed, then
-        :class:`OutputWriteError`."""
+        """Commit, write index and metadata (the bag is then readable; the counts are those of
+        what the file holds). SIGINT/SIGTERM wait until it is done. A write error: the bag is
+        cut back to what it held and closed, then :class:`OutputWriteError`."""
         if self.closed:
             return
+        atexit.unregister(self._close_at_exit)
         with signals_deferred():
             try:
+                self.writer.storage.settle()
+                self.writer.counts_from_storage()
                 self.writer.close()
                 self.closed = True
                 return
             except WRITE_ERRORS as e:
                 err = e
         self._fail(err)
+
+    def _close_at_exit(self) -> None:
+        """Safety net: an interpreter leaving without close() (an uncaught second Ctrl-C
+        between a loop and its close) still writes index and metadata."""
+        try:
+            self.close()
+        except Exception as e:   # noqa: BLE001 - at exit only a line can be said
+            print(f"gyro-platform: {e}", file=sys.stderr)
