@@ -444,6 +444,33 @@ def _rollback(conn: sqlite3.Connection) -> None:
         pass
 
 
+class _LibYaml:
+    """Stand-in for ruamel's ``YAML(typ='safe')`` inside rosbags' writer: the same text
+    (sorted keys, block style; tested equal) from libyaml, ~50x faster (ruamel takes ~0.3 s to
+    dump the metadata of a bag with 16 topics)."""
+
+    def __init__(self, typ: str = "safe"):
+        self.default_flow_style = False
+
+    def dump(self, data: Any, stream: Any) -> None:
+        import yaml
+
+        dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+        stream.write(yaml.dump(data, Dumper=dumper, default_flow_style=self.default_flow_style, sort_keys=True))
+
+
+@contextmanager
+def _fast_yaml() -> Iterator[None]:
+    """rosbags' writer module dumping YAML with :class:`_LibYaml` for the block's duration."""
+    import rosbags.rosbag2.writer as mod
+
+    old, mod.YAML = mod.YAML, _LibYaml
+    try:
+        yield
+    finally:
+        mod.YAML = old
+
+
 _WRITER_CLS = None
 
 
@@ -460,6 +487,14 @@ def _writer_class():
 
             def write(self, connection: Any, timestamp: int, data: Any) -> None:
                 self.write_rows(np.array([connection.id]), np.array([timestamp], np.int64), [data])
+
+            def add_connection(self, *args: Any, **kw: Any) -> Any:
+                with _fast_yaml():
+                    return super().add_connection(*args, **kw)
+
+            def close(self) -> None:
+                with _fast_yaml():
+                    super().close()
 
             def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
                 """Rows on connection ids ``cids`` (int64) at record times ``ts`` (int64 ns)."""

@@ -125,8 +125,7 @@ def fill(layout: Layout, sec: np.ndarray, nsec: np.ndarray, values: list[np.ndar
         n = v.shape[1]
         if n:
             rows[:, off:off + 8 * n].view("<f8")[:] = v
-    raw = rows.tobytes()
-    return [raw[i:i + size] for i in range(0, k * size, size)]
+    return rows.view(f"V{size}").ravel().tolist()     # one bytes object per row (NULs kept)
 
 
 def _prefixed(prefix: str, frame_id: str) -> str:
