@@ -312,8 +312,9 @@ def test_second_ctrl_c_keeps_metadata(tmp_path, storage, where):
     proc = child(tmp_path, storage, mode="slowclose", commit_rows=10**9)   # pending rows: close() has work
     wait_for(proc, 20_000)
     proc.send_signal(signal.SIGINT)
-    while proc.stdout.readline().strip() != where:
+    while (line := proc.stdout.readline()) and line.strip() != where:
         pass
+    assert line, proc.stderr.read()
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode != 0 and "KeyboardInterrupt" in err     # the second Ctrl-C is not lost

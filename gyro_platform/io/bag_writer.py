@@ -28,8 +28,9 @@ import atexit
 import os
 import signal
 import sqlite3
-import tempfile
+import struct
 import sys
+import tempfile
 import threading
 import time
 from contextlib import contextmanager
@@ -155,6 +156,8 @@ def _storage_classes():
             self.pending: list[tuple[np.ndarray, np.ndarray, Sequence[Any]]] = []
             self.n_pending = 0
             self.last_commit = time.monotonic()
+            self.committed: dict[int, list[int]] = {}   # cid -> [count, first ts, last ts]
+            self.dirty = False
 
         def write(self, connection: Any, timestamp: int, data: Any) -> None:
             self.write_rows(np.array([connection.id]), np.array([timestamp], np.int64), [data])
@@ -174,6 +177,7 @@ def _storage_classes():
             cids = np.concatenate([p[0] for p in parts])
             ts = np.concatenate([p[1] for p in parts])
             raws = [r for p in parts for r in p[2]] if len(parts) > 1 else parts[0][2]
+            self.dirty = True        # stays set if anything below is cut short (error, Ctrl-C)
             try:
                 self.cursor.execute("BEGIN")
                 self.cursor.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)",
@@ -183,17 +187,28 @@ def _storage_classes():
                 if self.conn.in_transaction:
                     _rollback(self.conn)
                 raise
+            for cid in np.unique(cids).tolist():
+                sel = ts[cids == cid]
+                cur = self.committed.setdefault(cid, [0, 2 ** 63 - 1, 0])
+                cur[0] += len(sel)
+                cur[1], cur[2] = min(cur[1], int(sel.min())), max(cur[2], int(sel.max()))
+            self.dirty = False
 
         def settle(self) -> None:
             """Commit what is pending (before the counts are taken for the metadata)."""
             self.commit()
 
         def stored(self) -> tuple[dict[int, int], int, int]:
-            """(count by connection id, first, last record time ns) of the rows the file holds."""
-            rows = self.conn.execute("SELECT topic_id, count(*), min(timestamp), max(timestamp) FROM messages "
-                                     "GROUP BY topic_id").fetchall()
-            return ({r[0]: r[1] for r in rows}, min((r[2] for r in rows), default=2 ** 63 - 1),
-                    max((r[3] for r in rows), default=0))
+            """(count by connection id, first, last record time ns) of the rows the file holds:
+            counted as committed, or asked from the file after a commit was cut short."""
+            if self.dirty:
+                rows = self.conn.execute("SELECT topic_id, count(*), min(timestamp), max(timestamp) "
+                                         "FROM messages GROUP BY topic_id").fetchall()
+                self.committed = {r[0]: list(r[1:]) for r in rows}
+                self.dirty = False
+            live = [v for v in self.committed.values() if v[0]]
+            return ({c: v[0] for c, v in self.committed.items()}, min((v[1] for v in live), default=2 ** 63 - 1),
+                    max((v[2] for v in live), default=0))
 
         def close(self, version: int, metadata: str) -> None:
             self.commit()
@@ -202,12 +217,7 @@ def _storage_classes():
                                     (version, metadata))
             except sqlite3.Error:       # disk full: the metadata row is optional (metadata.yaml is not)
                 pass
-            try:
-                self.conn.execute("PRAGMA optimize")
-            except sqlite3.Error:
-                pass
-            finally:
-                self.conn.close()
+            self.conn.close()      # (no PRAGMA optimize: its ANALYZE costs ~1 µs per row, readers need none)
 
         def drop_pending(self) -> None:
             self.pending, self.n_pending = [], 0
@@ -227,6 +237,7 @@ def _storage_classes():
             super().__init__(path, compression)
             self.bio.flush()
             self.bio = _WholeWrites(self.bio.detach())   # unbuffered: a failed write is seen at once
+            self.chunk.bio = _Pieces()
             self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
             self._rows = 0
             self._opened = time.monotonic()
@@ -265,12 +276,10 @@ def _storage_classes():
             hdr["cid"] = cids
             hdr["log"] = ts
             hdr["pub"] = ts
-            hb = hdr.tobytes()
             parts: list[Any] = [None] * (2 * k)
-            parts[0::2] = [hb[i:i + 31] for i in range(0, 31 * k, 31)]
+            parts[0::2] = hdr.view("V31").tolist()
             parts[1::2] = raws
             offsets = base + np.concatenate(([0], np.cumsum(lens[:-1])))
-            joined = b"".join(parts)
             if np.all(cids == cids[0]):
                 groups = [(int(cids[0]), ts, offsets)]
             else:                # per channel, in order of first appearance (as rosbags' dict)
@@ -278,11 +287,12 @@ def _storage_classes():
                 groups = [(c, ts[cids == c], offsets[cids == c]) for c in cids[np.sort(first)].tolist()]
             ucid, cnt = np.unique(cids, return_counts=True)
             lo, hi = int(ts.min()), int(ts.max())
+            buf = self.chunk.bio
             saved = (dict(self.channel_stats), {c: len(v) for c, v in self._index.items()},
                      self.message_start_time, self.message_end_time, self.chunk.message_start_time,
-                     self.chunk.message_end_time, self._rows)
+                     self.chunk.message_end_time, self._rows, buf.mark())
             try:                 # all or nothing, even when a Ctrl-C lands in between
-                self.chunk.bio.write(joined)
+                buf.extend(parts, int(lens.sum()))
                 for c, t, o in groups:
                     self._index.setdefault(c, []).append((t, o))
                 for c, n in zip(ucid.tolist(), cnt.tolist()):
@@ -293,44 +303,41 @@ def _storage_classes():
                 self.chunk.message_end_time = max(hi, self.chunk.message_end_time)
                 self._rows += k
             except BaseException:
-                stats, lens_, *times, self._rows = saved
+                stats, lens_, *times, self._rows, mark = saved
                 self.channel_stats = stats
                 (self.message_start_time, self.message_end_time, self.chunk.message_start_time,
                  self.chunk.message_end_time) = times
                 self._index = {c: v[:lens_[c]] for c, v in self._index.items() if c in lens_}
-                self.chunk.bio.seek(base)
-                self.chunk.bio.truncate()
+                buf.reset(mark)
                 raise
 
         def close_chunk(self) -> None:
-            """rosbags' chunk, message index and chunk index records (vectorised), then flushed."""
-            from rosbags.rosbag2.storage_mcap import write_record, write_string, write_uint32, write_uint64
+            """rosbags' chunk, message index and chunk index records (vectorised), written to
+            the file in one go (chunk CRC 0 and no compression, as rosbags and rosbag2 write)."""
+            from rosbags.rosbag2.storage_mcap import write_string, write_uint32, write_uint64
 
             if not self.chunk.bio.tell():
                 return
             data = self.chunk.bio.getvalue()
-            rec = BytesIO()
-            write_uint64(rec, self.chunk.message_start_time)
-            write_uint64(rec, self.chunk.message_end_time)
-            write_uint64(rec, len(data))
-            write_uint32(rec, 0)
             compressed = self.compressor(data)
-            write_string(rec, self.compression)
-            write_uint64(rec, len(compressed))
-            rec.write(compressed)
-            out = BytesIO()
+            comp = self.compression.encode()
+            head = struct.pack("<BQQQQI", 0x06, 8 + 8 + 8 + 4 + 4 + len(comp) + 8 + len(compressed),
+                               self.chunk.message_start_time, self.chunk.message_end_time, len(data), 0)
+            head += struct.pack("<I", len(comp)) + comp + struct.pack("<Q", len(compressed))
             chunk_start = self.bio.tell()
-            write_record(out, 0x06, rec)
-            chunk_end = chunk_start + out.tell()
+            chunk_end = chunk_start + len(head) + len(compressed)
+            out = []
             offsets: list[tuple[int, int]] = []
+            pos = chunk_end
             for cid, parts in self._index.items():
-                offsets.append((cid, chunk_start + out.tell()))
+                offsets.append((cid, pos))
                 ts = np.concatenate([p[0] for p in parts])
                 off = np.concatenate([p[1] for p in parts])
                 pairs = np.empty((len(ts), 2), "<u8")
                 pairs[:, 0], pairs[:, 1] = ts, off
-                out.write(b"\x07" + (6 + 16 * len(ts)).to_bytes(8, "little") + cid.to_bytes(2, "little")
-                          + (16 * len(ts)).to_bytes(4, "little") + pairs.tobytes())
+                rec = struct.pack("<BQHI", 0x07, 6 + 16 * len(ts), cid, 16 * len(ts)) + pairs.tobytes()
+                out.append(rec)
+                pos += len(rec)
             idx = BytesIO()
             write_uint64(idx, self.chunk.message_start_time)
             write_uint64(idx, self.chunk.message_end_time)
@@ -338,14 +345,16 @@ def _storage_classes():
             write_uint64(idx, chunk_end - chunk_start)
             write_uint32(idx, len(offsets) * 10)
             for cid, o in offsets:
-                idx.write(cid.to_bytes(2, "little") + o.to_bytes(8, "little"))
-            write_uint64(idx, chunk_start + out.tell() - chunk_end)
+                idx.write(struct.pack("<HQ", cid, o))
+            write_uint64(idx, pos - chunk_end)
             write_string(idx, self.compression)
             write_uint64(idx, len(compressed))
             write_uint64(idx, len(data))
             saved = (self.chunk, self._index, self._rows, self._opened, len(self.chunks), len(self._snaps))
             try:                 # all or nothing, even when a Ctrl-C lands in between
-                self.bio.write(out.getbuffer())
+                self.bio.write(head)
+                self.bio.write(compressed)
+                self.bio.write(b"".join(out))
                 self.chunks.append(idx)
                 self._new_chunk()
                 self._snaps.append(self._snapshot())
@@ -372,7 +381,7 @@ def _storage_classes():
         def _new_chunk(self) -> None:
             from rosbags.rosbag2.storage_mcap import PendingChunk
 
-            self.chunk = PendingChunk(2 ** 63 - 1, 0, BytesIO(), {})
+            self.chunk = PendingChunk(2 ** 63 - 1, 0, _Pieces(), {})
             self._index = {}
             self._rows = 0
             self._opened = time.monotonic()
@@ -397,6 +406,38 @@ def _storage_classes():
             return True
 
     return FastSqlite3, FastMcap
+
+
+class _Pieces:
+    """The open MCAP chunk as a list of byte strings (joined once when the chunk is written):
+    ``write``/``tell`` for rosbags' record writers, ``extend`` for batches."""
+
+    def __init__(self) -> None:
+        self.parts: list[Any] = []
+        self.size = 0
+
+    def write(self, data: Any) -> int:
+        data = bytes(data)
+        self.parts.append(data)
+        self.size += len(data)
+        return len(data)
+
+    def extend(self, parts: list[Any], size: int) -> None:
+        self.parts += parts
+        self.size += size
+
+    def tell(self) -> int:
+        return self.size
+
+    def getvalue(self) -> bytes:
+        return b"".join(self.parts)
+
+    def mark(self) -> tuple[int, int]:
+        return len(self.parts), self.size
+
+    def reset(self, mark: tuple[int, int]) -> None:
+        del self.parts[mark[0]:]
+        self.size = mark[1]
 
 
 class _WholeWrites:
@@ -683,6 +724,7 @@ class OutputBag:
 
     def _fail(self, e: BaseException) -> None:
         self.error = _err(e)
+        atexit.unregister(self._close_at_exit)
         kept = "closed"
         try:
             self._close_after_failure()
@@ -695,7 +737,6 @@ class OutputBag:
         if self.closed:
             return
         self.closed = True
-        atexit.unregister(self._close_at_exit)
         w = self.writer
         st = w.storage
         if st is None:       # the storage was closed; only metadata.yaml failed
@@ -719,13 +760,13 @@ class OutputBag:
         cut back to what it held and closed, then :class:`OutputWriteError`."""
         if self.closed:
             return
-        atexit.unregister(self._close_at_exit)
         with signals_deferred():
             try:
                 self.writer.storage.settle()
                 self.writer.counts_from_storage()
                 self.writer.close()
                 self.closed = True
+                atexit.unregister(self._close_at_exit)
                 return
             except WRITE_ERRORS as e:
                 err = e
