@@ -384,3 +384,35 @@ def test_writes_after_failure_or_close_are_refused(tmp_path):
     with pytest.raises(OutputWriteError, match="exists"):
         check_writable(new_dirs=[tmp_path / "o"])
     shutil.rmtree(tmp_path / "o")
+
+
+def test_mcap_full_disk_cuts_chunks_until_the_summary_fits(tmp_path, monkeypatch):
+    """The disk fills up right after the second chunk: the third chunk fails, and the summary
+    does not fit either, so the second chunk is cut too; the bag is closed with the first."""
+    monkeypatch.setattr(bw, "COMMIT_SECONDS", 1e9)
+    limit = {"size": None}
+    write = bw._WholeWrites.write
+
+    def full_disk(self, data):
+        n = len(memoryview(data).cast("B"))
+        if limit["size"] is not None and self.raw.tell() + n > limit["size"]:
+            room = max(limit["size"] - self.raw.tell(), 0)
+            write(self, memoryview(data).cast("B")[:room])
+            raise OSError(28, "No space left on device")
+        return write(self, data)
+
+    monkeypatch.setattr(bw._WholeWrites, "write", full_disk)
+    bag = OutputBag(tmp_path / "o", "mcap")
+    bag.add_output("/imu", m.IMU)
+    raws = imu_raws(20_000)
+    per_chunk = None
+    with pytest.raises(OutputWriteError, match=r"o: cannot write the output bag: \[Errno 28\].*closed with the"):
+        for a in range(0, 20_000, 500):
+            bag.write_many("/imu", np.arange(a, a + 500, dtype=np.int64), raws[a:a + 500])
+            st = bag.writer.storage
+            if limit["size"] is None and len(st.chunks) == 2:
+                limit["size"] = st.bio.tell() + 10          # 10 bytes left after chunk 2
+                per_chunk = st.channel_stats[1] // 2 + 1
+    rows, counts = read_all(tmp_path / "o")
+    assert 0 < counts["/imu"] == len(rows) < per_chunk + 1
+    assert [stamp_of(r) for _, _, r in rows] == list(range(len(rows)))
