@@ -21,7 +21,7 @@ import pytest
 import yaml
 
 from gyro_platform.errors import OutputWriteError
-from gyro_platform.io import bag_writer as bw
+from gyro_platform.io import bag_storage as bs
 from gyro_platform.io import messages as m
 from gyro_platform.io.bag_writer import OutputBag, check_writable, default_qos, signals_deferred
 from gyro_platform.io.blocks import RowChunk
@@ -169,7 +169,7 @@ def mcap_parts(f: Path) -> dict:
 @pytest.mark.parametrize("storage", STORAGES)
 @pytest.mark.parametrize("by_chunk", [True, False])
 def test_same_files_as_rosbags_writer(tmp_path, storage, by_chunk, monkeypatch):
-    monkeypatch.setattr(bw, "COMMIT_SECONDS", 1e9)      # chunking by size only, as rosbags
+    monkeypatch.setattr(bs, "COMMIT_SECONDS", 1e9)      # chunking by size only, as rosbags
     plan, groups, enc, stamps = make_plan(400)          # > 1 MiB: several MCAP chunks
     ref_dir, fast_dir = tmp_path / "ref" / "bag", tmp_path / "fast" / "bag"   # same names: same metadata
     write_reference(ref_dir, storage, plan)
@@ -222,7 +222,8 @@ CHILD = textwrap.dedent("""
     sys.path.insert(0, {test!r})
     from test_bag_writer import imu_raws
     from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
-    bw.COMMIT_ROWS = {commit_rows}
+    from gyro_platform.io import bag_storage as bs
+    bs.COMMIT_ROWS = {commit_rows}
     storage, path, mode = sys.argv[1], sys.argv[2], sys.argv[3]
     bag = bw.OutputBag(bw.Path(path), storage)
     bag.add_output("/imu", "sensor_msgs/msg/Imu")
@@ -389,9 +390,9 @@ def test_writes_after_failure_or_close_are_refused(tmp_path):
 def test_mcap_full_disk_cuts_chunks_until_the_summary_fits(tmp_path, monkeypatch):
     """The disk fills up right after the second chunk: the third chunk fails, and the summary
     does not fit either, so the second chunk is cut too; the bag is closed with the first."""
-    monkeypatch.setattr(bw, "COMMIT_SECONDS", 1e9)
+    monkeypatch.setattr(bs, "COMMIT_SECONDS", 1e9)
     limit = {"size": None}
-    write = bw._WholeWrites.write
+    write = bs._WholeWrites.write
 
     def full_disk(self, data):
         n = len(memoryview(data).cast("B"))
@@ -401,7 +402,7 @@ def test_mcap_full_disk_cuts_chunks_until_the_summary_fits(tmp_path, monkeypatch
             raise OSError(28, "No space left on device")
         return write(self, data)
 
-    monkeypatch.setattr(bw._WholeWrites, "write", full_disk)
+    monkeypatch.setattr(bs._WholeWrites, "write", full_disk)
     bag = OutputBag(tmp_path / "o", "mcap")
     bag.add_output("/imu", m.IMU)
     raws = imu_raws(20_000)
