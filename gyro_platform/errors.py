@@ -1,7 +1,8 @@
 """Exceptions and exit codes shared by every room (the leaf: imports nothing).
 
 Simulation errors derive from ``SimulationError`` (a ``ValueError``); bag errors from
-``BagReadError``; ``ReplayError`` is a replay that cannot start. ``EXIT_*``/``EXIT_CODES``: the
+``BagReadError``; outputs that cannot be written raise ``OutputWriteError``; ``ReplayError``
+is a replay that cannot start. ``EXIT_*``/``EXIT_CODES``: the
 exit status of every ``gyro-platform`` command.
 """
 
@@ -35,6 +36,12 @@ class BagReadError(Exception):
 class BagPathError(BagReadError):
     """The input path is not a rosbag2 bag at all (missing, a ROS 1 bag, a YAML or other file,
     a folder without storage file): a bad input path, not damaged data."""
+
+
+class OutputWriteError(Exception):
+    """An output cannot be written: a read-only or full file system (ENOSPC, EFBIG), a path
+    under a file, a directory where a file must go. The message names the file and the error;
+    a bag is left closed and readable with what it held before the failure."""
 
 
 class ReplayError(Exception):

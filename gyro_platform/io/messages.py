@@ -34,7 +34,6 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..physics.rotations import euler_xyz_axes
 from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 # ---- names -------------------------------------------------------------------------------
@@ -339,50 +338,87 @@ def wrap_angle(x: float) -> float:
     return (float(x) + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def joint_positions(out: Outputs) -> dict[str, float]:
-    """Joint name → position (rad) of every moving joint of the URDF (:mod:`gyro_platform.io.urdf`):
-    the gimbals, the mount joints (stabilised mode) and the rotors (spin angle ``ω_r t`` of
-    the ideal speed control, wrapped to [-π, π)). Every value is finite for finite outputs."""
-    pos = dict(zip(GIMBAL_NAMES, (float(x) for x in out.gimbal_angles)))
-    if out.mount_angles is not None:
-        pos.update(zip(MOUNT_NAMES, (float(x) for x in out.mount_angles)))
-    if out.rotor_rates is not None:
-        pos.update(zip(ROTOR_JOINT_NAMES, (wrap_angle(w * out.t) for w in out.rotor_rates)))
-    return pos
+@dataclass(frozen=True, slots=True)
+class JointColumns:
+    """The numbers of ``sensor_msgs/JointState`` at K output instants: ``names`` (P), and
+    ``position`` (K, P) rad, ``velocity`` and ``effort`` (K, V) rad/s and N m with V = P, or
+    V = 0 when the outputs lack the mount rates (outputs built by an older producer)."""
+
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
 
 
-def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
-    """``sensor_msgs/JointState`` of every moving joint of the URDF, no NaN anywhere:
+def mount_joint_efforts(mount_angles: np.ndarray, servo_torque: np.ndarray) -> np.ndarray:
+    """Servo torque about each mount joint axis, ``Aᵀ τ`` with ``A`` =
+    :func:`gyro_platform.physics.rotations.euler_xyz_axes` (intrinsic X-Y-Z chain), for
+    (K, 3) angles rad and (K, 3) torques N m in platform axes → (K, 3) N m."""
+    b, c = mount_angles[:, 1], mount_angles[:, 2]
+    cb, sb, cc, sc = np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    s0, s1, s2 = servo_torque[:, 0], servo_torque[:, 1], servo_torque[:, 2]
+    return np.stack([cb * cc * s0 - cb * sc * s1 + sb * s2, sc * s0 + cc * s1, s2.copy()], axis=1)
+
+
+def rows_of(x: Any, k: int) -> np.ndarray:
+    """``x`` as float64 (K, n) (a per-instant field of Outputs or OutputBlock)."""
+    return np.asarray(x, dtype=np.float64).reshape(k, -1)
+
+
+def joint_columns(src: Any) -> JointColumns:
+    """:class:`JointColumns` of every moving joint of the URDF (:mod:`gyro_platform.io.urdf`)
+    from an ``Outputs`` (K = 1) or an ``OutputBlock`` (K instants; same field names, arrays
+    with a leading K axis; ``rotor_rates`` (3,) in both): the one place these numbers are made.
 
     * gimbals ``alpha4 … beta10``: position rad, velocity rad/s, effort = applied axial torque N m;
     * mount joints ``mount_roll, mount_pitch, mount_yaw`` (stabilised mode; intrinsic X-Y-Z
       from ``base_link`` to ``platform``): position rad, velocity = angle rates rad/s, effort =
       servo torque about each joint axis N m (0 with the servo effect off);
-    * rotors ``rotor6, rotor8, rotor11``: spin angle rad (wrapped), spin rate rad/s, motor
-      torque N m.
+    * rotors ``rotor6, rotor8, rotor11``: spin angle ``ω_r t`` of the ideal speed control,
+      wrapped to [-π, π) (rad), spin rate rad/s, motor torque N m.
 
-    Velocity and effort are left empty (as the message definition allows) only when the outputs
-    lack the mount rates (outputs built by an older producer); positions are always complete."""
-    pos = joint_positions(out)
-    vel = [float(x) for x in out.gimbal_rates]
-    eff = [float(x) for x in out.gimbal_axial_torques]
+    Every value is finite for finite outputs."""
+    t = np.asarray(src.t, dtype=np.float64).reshape(-1)
+    k = t.shape[0]
+    names = list(GIMBAL_NAMES)
+    pos, vel, eff = [rows_of(src.gimbal_angles, k)], [rows_of(src.gimbal_rates, k)], [rows_of(src.gimbal_axial_torques, k)]
     complete = True
-    if out.mount_angles is not None:
-        if out.mount_rates is None:
+    if src.mount_angles is not None:
+        names += MOUNT_NAMES
+        angles = rows_of(src.mount_angles, k)
+        pos.append(angles)
+        if src.mount_rates is None:
             complete = False
         else:
-            vel += [float(x) for x in out.mount_rates]
-            axes = euler_xyz_axes(out.mount_angles)
-            servo = np.zeros(3) if out.servo_torque is None else np.asarray(out.servo_torque, float)
-            eff += [float(x) for x in axes.T @ servo]
-    if out.rotor_rates is not None:
-        vel += [float(x) for x in out.rotor_rates]
-        eff += [float(x) for x in out.motor_torques]
-    fa = types.float_array
+            vel.append(rows_of(src.mount_rates, k))
+            servo = np.zeros((k, 3)) if src.servo_torque is None else rows_of(src.servo_torque, k)
+            eff.append(mount_joint_efforts(angles, servo))
+    if src.rotor_rates is not None:
+        names += ROTOR_JOINT_NAMES
+        w = np.asarray(src.rotor_rates, dtype=np.float64).reshape(1, 3)
+        pos.append(np.mod(w * t[:, None] + math.pi, 2.0 * math.pi) - math.pi)   # = wrap_angle
+        vel.append(np.broadcast_to(w, (k, 3)))
+        eff.append(rows_of(src.motor_torques, k))
     if not complete:
-        vel, eff = [], []
-    return types[JOINT_STATE](header=header(types, t_ns), name=list(pos), position=fa(list(pos.values())),
-                              velocity=fa(vel), effort=fa(eff))
+        vel, eff = [np.zeros((k, 0))], [np.zeros((k, 0))]
+    return JointColumns(tuple(names), np.concatenate(pos, axis=1), np.concatenate(vel, axis=1),
+                        np.concatenate(eff, axis=1))
+
+
+def joint_positions(out: Outputs) -> dict[str, float]:
+    """Joint name → position (rad) of every moving joint of the URDF (see :func:`joint_columns`)."""
+    cols = joint_columns(out)
+    return dict(zip(cols.names, (float(x) for x in cols.position[0])))
+
+
+def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
+    """``sensor_msgs/JointState`` of every moving joint of the URDF, no NaN anywhere; the
+    numbers of :func:`joint_columns` (velocity and effort empty, as the message definition
+    allows, only when the outputs lack the mount rates; positions are always complete)."""
+    cols = joint_columns(out)
+    fa = types.float_array
+    return types[JOINT_STATE](header=header(types, t_ns), name=list(cols.names), position=fa(cols.position[0]),
+                              velocity=fa(cols.velocity[0]), effort=fa(cols.effort[0]))
 
 
 def _vector3(types: MessageTypes, v: Sequence[float]) -> Any:
