@@ -473,6 +473,17 @@ class PlatformSystem:
         self._lin: dict[int, tuple] = {}      # linear part per friction regime
         self._A_rest: np.ndarray | None = None
 
+    def rebind(self, I: np.ndarray) -> None:
+        """Use ``I`` (same values) as the int table and re-derive the named views of ``I`` and
+        ``P`` (after ``P`` was replaced by an equal array elsewhere, e.g. a packed buffer)."""
+        self.I = I
+        self.lay = I[0]
+        self.on = I[1]
+        self.k = self.P[0:P_L]
+        self.L = self.P[P_L:P_L + 3]
+        self.lc = self.P[P_LC:P_LC + 13]
+        self.w_IN = self.P[P_WIN:P_WIN + 3]
+
     # ---- input -------------------------------------------------------------------------
     def set_input(self, t0: float, t1: float, w0, w1, f0=None, f1=None) -> None:
         """Input over [t0, t1]: vehicle rate (rad/s) and specific force (m/s²), vehicle axes,
