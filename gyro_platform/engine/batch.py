@@ -43,8 +43,8 @@ GRID = ETD2.GRID
 # ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
 (F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
  F_F, F_A, F_Q, F_RR, F_V, F_W,
- F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE) = range(36)
-N_FSLOT = 36
+ F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC) = range(37)
+N_FSLOT = 37
 I_I, I_RHOST, I_HDR, I_TABLE = range(4)
 N_ISLOT = 4
 SLOT_W = 4                          # table entry: offset, d0, d1, d2
@@ -195,6 +195,7 @@ def _interval(fb, ib, mi, md):
     wr = _f2(fb, ib, F_WR)
     fr = _f2(fb, ib, F_FR)
     segsave = _f1(fb, ib, F_SEGSAVE)
+    yc = _f1(fb, ib, F_YC)
     table = _i1(ib, I_TABLE)
 
     method = ih[J_METHOD]
@@ -243,140 +244,165 @@ def _interval(fb, ib, mi, md):
         carry = dt - nsub0 * h0
         r = support_regime(y, I, P, seg, RR)
     level = ih[J_LEVEL]
-    level_start = level
     po = 0
     io = 0
     do = 0
-    while True:
-        if method != RK4:
-            key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
-            po = table[key]
-            if po < 0:
-                ih[J_NEED_R] = r
-                ih[J_NEED_L] = level
-                ih[J_NEED_H] = hq
-                for m in range(SEG_N):
-                    seg[m] = segsave[m]
-                return NEED_REGIME
-            do = table[key + 1]
-            io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
-        nsub = nsub0 << level
-        h = h0 / (1 << level)
+    nrhs = 0
+    nrej = 0
+    steps = 0
+    est_all = 0.0
+    worst_all = 0.0
+    for m in range(n):
+        yw[m] = y[m]
+    have_k1 = False
+    for chunk in range(nsub0):
+        tc = t0 + chunk * h0
         for m in range(n):
-            yw[m] = y[m]
-        worst = 0.0
-        est = 0.0
-        bad = False
-        status = 0
-        have_k1 = False
-        t_bad = t0
-        nrm = 0.0
-        for sub in range(nsub):
-            t = t0 + sub * h
-            # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
-            for j in range(s + 1):
-                if j == 0:
-                    if have_k1:
-                        continue
-                    for m in range(n):
-                        U[m] = yw[m]
-                elif j == s:
-                    if method == EXPRK:
-                        break
-                    if method == RK4:
+            yc[m] = yw[m]
+        while True:
+            if method != RK4:
+                key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
+                po = table[key]
+                if po < 0:
+                    ih[J_NEED_R] = r
+                    ih[J_NEED_L] = level
+                    ih[J_NEED_H] = hq
+                    for m in range(SEG_N):
+                        seg[m] = segsave[m]
+                    return NEED_REGIME
+                do = table[key + 1]
+                io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
+            nsub = 1 << level
+            h = h0 / nsub
+            est = 0.0
+            worst = 0.0
+            bad = False
+            status = 0
+            t_bad = tc
+            nrm = 0.0
+            for sub in range(nsub):
+                t = tc + sub * h
+                # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
+                for j in range(s + 1):
+                    if j == 0:
+                        if have_k1:
+                            continue
                         for m in range(n):
-                            y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
+                            U[m] = yw[m]
+                    elif j == s:
+                        if method == EXPRK:
+                            break
+                        if method == RK4:
+                            for m in range(n):
+                                y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
+                        else:
+                            _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                        for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
+                            Ul[m] = U[m]
+                            U[m] = y1[m]
+                    elif method == RK4:
+                        cj = c[j] * h
+                        for m in range(n):
+                            U[m] = yw[m] + cj * K[j - 1, m]
                     else:
-                        _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
-                    for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
-                        Ul[m] = U[m]
-                        U[m] = y1[m]
-                elif method == RK4:
-                    cj = c[j] * h
-                    for m in range(n):
-                        U[m] = yw[m] + cj * K[j - 1, m]
-                else:
-                    _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
-                if not (_quat_ok(U, qa) and _quat_ok(U, qp)):
-                    status |= ST_NONFINITE
+                        _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
+                    if not (_quat_ok(U, qa) and _quat_ok(U, qp)):
+                        status |= ST_NONFINITE
+                        break
+                    nrhs += 1
+                    status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I, P,
+                                           seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc,
+                                           tau_ext, fbb, chol, F, a, Q, RR, V, W)
+                if status & (ST_LOCK | ST_NOT_PD):
                     break
-                ih[J_NRHS] += 1
-                status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I, P,
-                                       seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc,
-                                       tau_ext, fbb, chol, F, a, Q, RR, V, W)
-            if status & (ST_LOCK | ST_NOT_PD):
-                break
-            if status & ST_NONFINITE:
-                nrm = math.inf
-                bad = True
-                t_bad = t
-                break
-            if method == EXPRK:
-                # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
-                _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
-            elif method == EXPRK_D:
-                # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
-                for m in range(n):
-                    U[m] = y1[m] - Ul[m]
-                _csr_mv(mi, po, s, io, md, do, U, AU)
-            # error estimate and its weighted RMS norm
-            acc = 0.0
-            emax = 0.0
-            for m in range(n):
-                if method == RK4:
-                    ee = h / 6.0 * (K[3, m] - k5[m])
-                elif method == EXPRK_D:
-                    ee = h / 3.0 * (k5[m] - K[s - 1, m] - AU[m])
-                else:
-                    ee = y1[m] - U[m]
-                sc = atol + rtol * max(abs(yw[m]), abs(y1[m]))
-                acc += (ee / sc) ** 2
-                if abs(ee) > emax:
-                    emax = abs(ee)
-                if not math.isfinite(ee):
-                    emax = math.inf
-            nrm = math.sqrt(acc / n)
-            if emax > est:
-                est = emax
-            if not nrm <= 1.0:
-                if not math.isfinite(nrm):
+                if status & ST_NONFINITE:
                     nrm = math.inf
-                bad = True
-                t_bad = t
-                break
-            if nrm > worst:
-                worst = nrm
-            for m in range(n):
-                yw[m] = y1[m]
-            if method != EXPRK:
+                    bad = True
+                    t_bad = t
+                    break
+                if method == EXPRK:
+                    # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
+                    _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                elif method == EXPRK_D:
+                    # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
+                    for m in range(n):
+                        U[m] = y1[m] - Ul[m]
+                    _csr_mv(mi, po, s, io, md, do, U, AU)
+                # error estimate and its weighted RMS norm
+                acc = 0.0
+                emax = 0.0
                 for m in range(n):
-                    K[0, m] = k5[m]
-                have_k1 = True
-        if status & (ST_LOCK | ST_NOT_PD):
-            for m in range(SEG_N):
-                seg[m] = segsave[m]
-            return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
-        if not bad:
-            break
-        ih[J_REJ] += 1
-        if nrm < math.inf:
-            jump = int(math.ceil(math.log2(nrm) / q1))
-            new = level + min(MAX_JUMP, max(1, jump))
-        else:
-            new = level + MAX_JUMP
-        if new > max_level:
-            if level < max_level:
-                new = max_level
-            else:
-                fh[H_T_BAD] = t_bad
-                fh[H_E_BAD] = est
-                fh[H_N_BAD] = nrm
-                fh[H_H_BAD] = h
+                    if method == RK4:
+                        ee = h / 6.0 * (K[3, m] - k5[m])
+                    elif method == EXPRK_D:
+                        ee = h / 3.0 * (k5[m] - K[s - 1, m] - AU[m])
+                    else:
+                        ee = y1[m] - U[m]
+                    sc = atol + rtol * max(abs(yw[m]), abs(y1[m]))
+                    acc += (ee / sc) ** 2
+                    if abs(ee) > emax:
+                        emax = abs(ee)
+                    if not math.isfinite(ee):
+                        emax = math.inf
+                nrm = math.sqrt(acc / n)
+                if emax > est:
+                    est = emax
+                if not nrm <= 1.0:
+                    if not math.isfinite(nrm):
+                        nrm = math.inf
+                    bad = True
+                    t_bad = t
+                    break
+                if nrm > worst:
+                    worst = nrm
+                for m in range(n):
+                    yw[m] = y1[m]
+                if method != EXPRK:
+                    for m in range(n):
+                        K[0, m] = k5[m]
+                    have_k1 = True
+            if status & (ST_LOCK | ST_NOT_PD):
                 for m in range(SEG_N):
                     seg[m] = segsave[m]
-                return ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
-        level = new
+                ih[J_NRHS] += nrhs
+                return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
+            if not bad:
+                break
+            # rejected: redo the chunk from its start at a finer level
+            nrej += 1
+            for m in range(n):
+                yw[m] = yc[m]
+            have_k1 = False
+            if nrm < math.inf:
+                jump = int(math.ceil(math.log2(nrm) / q1))
+                new = level + min(MAX_JUMP, max(1, jump))
+            else:
+                new = level + MAX_JUMP
+            if new > max_level:
+                if level < max_level:
+                    new = max_level
+                else:
+                    fh[H_T_BAD] = t_bad
+                    fh[H_E_BAD] = est
+                    fh[H_N_BAD] = nrm
+                    fh[H_H_BAD] = h
+                    for m in range(SEG_N):
+                        seg[m] = segsave[m]
+                    ih[J_NRHS] += nrhs
+                    ih[J_REJ] += nrej
+                    return ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
+            level = new
+        # chunk accepted
+        steps += nsub
+        if est > est_all:
+            est_all = est
+        if worst > worst_all:
+            worst_all = worst
+        if level > 0 and worst * 2.0 ** q1 <= COARSEN:
+            level -= 1
     # accepted: normalise, check, commit
+    ih[J_NRHS] += nrhs
+    ih[J_REJ] += nrej
     _normalise(yw, qa, qa + 4)
     _normalise(yw, qp, qp + 4)
     for m in range(n):
@@ -384,15 +410,13 @@ def _interval(fb, ib, mi, md):
             for k in range(SEG_N):
                 seg[k] = segsave[k]
             return ST_NONFINITE
-    ih[J_NSTEPS] += nsub
-    if level > 0 and worst * 2.0 ** q1 <= COARSEN:
-        level -= 1
+    ih[J_NSTEPS] += steps
     ih[J_LEVEL] = level
     fh[H_CARRY] = carry
-    if est > fh[H_EST]:
-        fh[H_EST] = est
-    if worst > fh[H_NORM]:
-        fh[H_NORM] = worst
+    if est_all > fh[H_EST]:
+        fh[H_EST] = est_all
+    if worst_all > fh[H_NORM]:
+        fh[H_NORM] = worst_all
     for m in range(n):
         y[m] = yw[m]
     return 0
@@ -522,7 +546,7 @@ class Engine:
                          F_HDR: np.zeros(N_FH), F_Y: np.zeros(n), F_YW: np.zeros(n), F_Y1: np.zeros(n),
                          F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
                          F_AU: np.zeros(n), F_C: c, F_TR: np.zeros(2), F_WR: np.zeros((2, 3)),
-                         F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N)})
+                         F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n)})
         table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
         i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
                     I_TABLE: -np.ones(table_n, np.int64)}

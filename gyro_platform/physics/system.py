@@ -17,7 +17,7 @@ from ..errors import GimbalLockError, SimulationError
 from .model import (LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
-from .params import PlatformParams
+from .params import ParameterError, PlatformParams
 from .rotations import quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
@@ -445,7 +445,11 @@ class PlatformSystem:
         self.M0, self.G0 = M0, G0
         self.Ifz = M0[:3, :3].copy()
         self.mats = np.zeros((5, 8, 8))
-        self.mats[0] = np.linalg.inv(M0)
+        try:
+            self.mats[0] = np.linalg.inv(M0)
+        except np.linalg.LinAlgError:
+            raise ParameterError("the rest mass matrix of these parameters is singular (a body without "
+                                 "inertia about a joint axis)") from None
         self.mats[1] = G0
         self.mats[2, :3, :3] = self.Ifz
         self.mats[3, :3, :3] = np.linalg.inv(self.Ifz)
