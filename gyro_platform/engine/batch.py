@@ -1,16 +1,23 @@
-"""Compiled batch stepping: many input samples → many integration steps in one numba loop.
+"""Compiled stepping: one numba call per input sample (``push``) or per chunk (``block``).
 
-The Python ``Simulator.push`` costs tens of µs per sample in call overhead alone. When the
-samples are already at hand (replay, scenes, benchmarks) ``run_batch`` steps them inside one
-compiled loop that calls the right-hand-side kernel directly: no Python call and no allocation
-per sample.
+``Engine`` owns a simulator's integration state and every array the compiled step touches, in
+two flat buffers (``fb`` float64, ``ib`` int64: the system's kernel tables and work arrays, the
+state, the controller's scalars, the 2-row input of the current interval, the stage work
+arrays) plus the exponential methods' stage matrices (``mi`` int64 CSR pointers/indices,
+``md`` float64 values). A call passes these four arrays and the sample; the kernel rebuilds its
+views from the offset table at the start of ``ib`` (numba's dispatch costs ~0.1 µs per array
+argument: four buffers instead of ~45 arrays). The system's named arrays (``system.seg``,
+``system.P`` …) are rebound to views into ``fb``/``ib``, so the Python code sees the same memory.
 
 Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
 Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
-M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``). The step-size controller is the
-one of ``integrators.base.Controlled`` (levels of ``nsub·2^level`` substeps per interval, the same
-acceptance test, the same level updates), so the results equal ``Simulator.push`` with the
-same integrator to round-off, and the failures are the same.
+M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The
+step-size controller is the one of ``integrators.base.Controlled`` (levels of ``nsub·2^level``
+substeps per interval, the same acceptance test and level updates) and, for the exponential
+methods, the step grid with the carried remainder of ``_ETD._base`` (matrices per (friction
+regime, level, grid step), built on demand): the results equal the Python integrators' to
+round-off and the failures are the same. A sample is committed (state, time, input, counters)
+only when its interval succeeded; otherwise everything — ``seg`` included — is as before.
 """
 from __future__ import annotations
 
@@ -20,21 +27,83 @@ import numpy as np
 from numba import njit
 
 from .integrators import COARSEN, MAX_JUMP
-from ..physics.system import FASTMATH, platform_rhs, support_regime
+from .integrators import ETD2
+from ..physics.system import FASTMATH, SEG_N, platform_rhs, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
-#: run_batch status bits: 1 gimbal lock (precession), 2 mass matrix not positive definite,
-#: 4 non-finite state, 8 matrices for a new (regime, level) needed, 16 tolerance not met within
-#: the budget
-ST_LOCK, ST_NOT_PD, ST_NONFINITE, NEED_REGIME, ST_TOLERANCE = 1, 2, 4, 8, 16
-# info slots (float64 array): worst accepted estimate and norm, rejections, and for a refusal:
-# time, estimate, norm, step
-I_EST, I_NORM, I_REJ, I_T, I_EBAD, I_NBAD, I_H, I_STEPS = range(8)
-N_INFO = 8
-#: integrators with a compiled batch path → method code
+#: integrators with a compiled path → method code
 COMPILED = {"rk4": RK4, "etd2": EXPRK_D, "etd4": EXPRK}
+#: status bits of a compiled call: 1 gimbal lock (precession), 2 mass matrix not positive
+#: definite, 4 non-finite state, 8 matrices for a new (regime, level, step) needed, 16
+#: tolerance not met within the budget, 32 non-finite sample, 64 sample time not after the last
+ST_LOCK, ST_NOT_PD, ST_NONFINITE, NEED_REGIME, ST_TOLERANCE, ST_BAD_SAMPLE, ST_ORDER = 1, 2, 4, 8, 16, 32, 64
+#: exponential steps are multiples of max_step / GRID (as the Python etd2/etd4)
+GRID = ETD2.GRID
+
+# ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
+(F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
+ F_F, F_A, F_Q, F_RR, F_V, F_W,
+ F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC) = range(37)
+N_FSLOT = 37
+I_I, I_RHOST, I_HDR, I_TABLE = range(4)
+N_ISLOT = 4
+SLOT_W = 4                          # table entry: offset, d0, d1, d2
+TABLE_LEN = SLOT_W * (N_FSLOT + N_ISLOT)
+# float header
+(H_MAX_STEP, H_RTOL, H_ATOL, H_T_START, H_T_REL, H_CARRY, H_EST, H_NORM, H_T_BAD, H_E_BAD, H_N_BAD,
+ H_H_BAD) = range(12)
+N_FH = 12
+# int header
+(J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_LEVEL, J_NSAMP, J_NSTEPS, J_NRHS, J_NEED_R, J_NEED_L, J_NEED_H,
+ J_STARTED, J_HAS_F, J_NLEV, J_REJ, J_DONE, J_JOUT) = range(17)
+N_IH = 17
+#: system attributes rebound to buffer views: (slot, owner path, attribute)
+_SYSTEM_F = ((F_P, "", "P"), (F_SEG, "", "seg"), (F_MATS, "", "mats"), (F_R, "work", "R"), (F_WB, "work", "w"),
+             (F_WD, "work", "wd"), (F_J, "work", "J"), (F_FO, "work", "f"), (F_MM, "work", "M"),
+             (F_CC, "work", "c"), (F_TAU, "work", "tau_ext"), (F_FB, "", "_fb"), (F_CHOL, "", "_chol"),
+             (F_F, "", "_F"), (F_A, "", "_a"), (F_Q, "", "_Q"), (F_RR, "", "_RR"), (F_V, "", "_V"),
+             (F_W, "", "_W"))
 
 
+# ---------------------------------------------------------------------------- views (compiled)
+@njit(cache=True, inline="always")
+def _f1(fb, ib, k):
+    o = ib[SLOT_W * k]
+    return fb[o:o + ib[SLOT_W * k + 1]]
+
+
+@njit(cache=True, inline="always")
+def _f2(fb, ib, k):
+    o = ib[SLOT_W * k]
+    d0 = ib[SLOT_W * k + 1]
+    d1 = ib[SLOT_W * k + 2]
+    return fb[o:o + d0 * d1].reshape((d0, d1))
+
+
+@njit(cache=True, inline="always")
+def _f3(fb, ib, k):
+    o = ib[SLOT_W * k]
+    d0 = ib[SLOT_W * k + 1]
+    d1 = ib[SLOT_W * k + 2]
+    d2 = ib[SLOT_W * k + 3]
+    return fb[o:o + d0 * d1 * d2].reshape((d0, d1, d2))
+
+
+@njit(cache=True, inline="always")
+def _i1(ib, k):
+    o = ib[SLOT_W * (N_FSLOT + k)]
+    return ib[o:o + ib[SLOT_W * (N_FSLOT + k) + 1]]
+
+
+@njit(cache=True, inline="always")
+def _i2(ib, k):
+    o = ib[SLOT_W * (N_FSLOT + k)]
+    d0 = ib[SLOT_W * (N_FSLOT + k) + 1]
+    d1 = ib[SLOT_W * (N_FSLOT + k) + 2]
+    return ib[o:o + d0 * d1].reshape((d0, d1))
+
+
+# ---------------------------------------------------------------------------- kernels
 @njit(cache=True)
 def _normalise(y, a, b):
     if a < 0:
@@ -57,105 +126,162 @@ def _quat_ok(u, a):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _csr(Mptr, row, Midx, Mdat, x, y, out):
-    """out = y + M_row x for the CSR matrix ``row`` of a set."""
-    for r in range(y.shape[0]):
+def _csr(mi, po, row, io, md, do, x, y, out):
+    """out = y + M_row x for the CSR set at (pointers mi[po:], indices mi[io:], values md[do:])."""
+    n = out.shape[0]
+    base = po + row * (n + 1)
+    for r in range(n):
         acc = 0.0
-        for e in range(Mptr[row, r], Mptr[row, r + 1]):
-            acc += Mdat[e] * x[Midx[e]]
+        for e in range(mi[base + r], mi[base + r + 1]):
+            acc += md[do + e] * x[mi[io + e]]
         out[r] = y[r] + acc
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _csr_mv(Mptr, row, Midx, Mdat, x, out):
+def _csr_mv(mi, po, row, io, md, do, x, out):
     """out = M_row x."""
-    for r in range(out.shape[0]):
+    n = out.shape[0]
+    base = po + row * (n + 1)
+    for r in range(n):
         acc = 0.0
-        for e in range(Mptr[row, r], Mptr[row, r + 1]):
-            acc += Mdat[e] * x[Midx[e]]
+        for e in range(mi[base + r], mi[base + r + 1]):
+            acc += md[do + e] * x[mi[io + e]]
         out[r] = acc
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mptr_all, Midx, Mdat, c, t_rel, w,
-              f, y, out_idx, y_out, first, need, prog,
-              fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc, tau_ext, fb, chol, F, a,
-              Q, RR, V, W):
-    """Step ``y`` through the samples ``t_rel[i]`` (s, relative), ``w[i]`` (rad/s), ``f[i]``
-    (m/s²), starting after sample ``first``. Stores a copy of y after sample ``out_idx[j]`` in
-    ``y_out[j]``.
+def _interval(fb, ib, mi, md):
+    """Integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``, ``F_FR``) with the
+    controller of ``Controlled``. On success (status 0) the state, level, carry and counters
+    are committed and ``seg`` is the interval's; otherwise the state, level and carry are
+    unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header describes a refusal
+    (``H_T_BAD`` …) or the int header names the missing matrices (``NEED_REGIME``)."""
+    fh = _f1(fb, ib, F_HDR)
+    ih = _i1(ib, I_HDR)
+    I = _i2(ib, I_I)
+    P = _f1(fb, ib, F_P)
+    seg = _f1(fb, ib, F_SEG)
+    mats = _f3(fb, ib, F_MATS)
+    axis = _f2(fb, ib, F_AXIS)
+    inertia = _f3(fb, ib, F_INERTIA)
+    rhost = _i1(ib, I_RHOST)
+    raxis = _f2(fb, ib, F_RAXIS)
+    R = _f3(fb, ib, F_R)
+    wb = _f2(fb, ib, F_WB)
+    wd = _f2(fb, ib, F_WD)
+    J = _f3(fb, ib, F_J)
+    fo = _f2(fb, ib, F_FO)
+    Mm = _f2(fb, ib, F_MM)
+    cc = _f1(fb, ib, F_CC)
+    tau_ext = _f2(fb, ib, F_TAU)
+    fbb = _f2(fb, ib, F_FB)
+    chol = _f2(fb, ib, F_CHOL)
+    F = _f1(fb, ib, F_F)
+    a = _f1(fb, ib, F_A)
+    Q = _f1(fb, ib, F_Q)
+    RR = _f3(fb, ib, F_RR)
+    V = _f2(fb, ib, F_V)
+    W = _f2(fb, ib, F_W)
+    y = _f1(fb, ib, F_Y)
+    yw = _f1(fb, ib, F_YW)
+    y1 = _f1(fb, ib, F_Y1)
+    K = _f2(fb, ib, F_K)
+    k5 = _f1(fb, ib, F_K5)
+    U = _f1(fb, ib, F_U)
+    Ul = _f1(fb, ib, F_UL)
+    AU = _f1(fb, ib, F_AU)
+    c = _f1(fb, ib, F_C)
+    tr = _f1(fb, ib, F_TR)
+    wr = _f2(fb, ib, F_WR)
+    fr = _f2(fb, ib, F_FR)
+    segsave = _f1(fb, ib, F_SEGSAVE)
+    yc = _f1(fb, ib, F_YC)
+    table = _i1(ib, I_TABLE)
 
-    Controller: ``lev[0]`` is the substep level (in and out), ``rtol``/``atol`` the tolerance,
-    ``q1`` the estimator's order + 1, ``max_level`` the budget. ``info`` accumulates the worst
-    accepted estimate/norm and the rejections, and describes a refusal.
-    ``Mptr_all[set], Midx, Mdat``: exponential stage matrices in CSR form, one set per (support
-    friction regime, level) (``reg_of[regime, level]`` = set index, −1 = not built yet: the loop
-    then stops with status ``NEED_REGIME`` and ``need`` = (regime, level), and is resumed from
-    the sample it reached once Python has built the set). ``c``: stage nodes.
-    ``y`` changes only when a sample is accepted, and ``prog[0]`` then holds its index, so an
-    exception escaping the loop leaves (y, prog) at the last good sample.
-    Returns (index of the last sample reached, status): status ≠ 0 stops the loop with ``y`` at
-    the last good sample."""
+    method = ih[J_METHOD]
+    fid = ih[J_FID]
+    q1 = ih[J_Q1]
+    max_level = ih[J_MAX_LEVEL]
+    nlev = ih[J_NLEV]
+    max_step = fh[H_MAX_STEP]
+    rtol = fh[H_RTOL]
+    atol = fh[H_ATOL]
     n = y.shape[0]
     s = c.shape[0]
-    K = np.empty((s, n))
     Kf = K.reshape(s * n)
-    k5 = np.empty(n)
-    U = np.empty(n)
-    Ul = np.empty(n)
-    AU = np.empty(n)
-    yw = np.empty(n)
-    y1 = np.empty(n)
     qa = I[0, 3]
     qp = I[0, 2]
-    j_out = 0
-    nout = out_idx.shape[0]
-    while j_out < nout and out_idx[j_out] <= first:
-        j_out += 1
-    last = first
-    prog[0] = first
-    Mptr = Mptr_all[0]
-    r = 0
-    for i in range(first + 1, t_rel.shape[0]):
-        t0 = t_rel[i - 1]
-        t1 = t_rel[i]
-        seg[0] = t0
-        seg[1] = t1 - t0
-        for m in range(3):
-            seg[2 + m] = w[i - 1, m]
-            seg[5 + m] = w[i, m]
-            seg[8 + m] = f[i - 1, m]
-            seg[11 + m] = f[i, m]
+    for m in range(SEG_N):
+        segsave[m] = seg[m]
+    t0 = tr[0]
+    t1 = tr[1]
+    seg[0] = t0
+    seg[1] = t1 - t0
+    for m in range(3):
+        seg[2 + m] = wr[0, m]
+        seg[5 + m] = wr[1, m]
+        seg[8 + m] = fr[0, m]
+        seg[11 + m] = fr[1, m]
+    carry = 0.0
+    hq = 0
+    if method == RK4:
         nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
         if nsub0 < 1:
             nsub0 = 1
         h0 = (t1 - t0) / nsub0
-        if method != RK4:
-            r = support_regime(y, I, P, seg, RR)
-        level = lev[0]
-        level_start = level
+        r = 0
+    else:
+        # the step grid of _ETD._base: h a multiple of q, the remainder carried to the next interval
+        dt = (t1 - t0) + fh[H_CARRY]
+        q = max_step / GRID
+        nsub0 = int(math.ceil(dt / max_step - 1e-9))
+        if nsub0 < 1:
+            nsub0 = 1
+        hq = int(np.rint(dt / nsub0 / q))
+        if hq < 1:
+            hq = 1
+        h0 = hq * q
+        carry = dt - nsub0 * h0
+        r = support_regime(y, I, P, seg, RR)
+    level = ih[J_LEVEL]
+    po = 0
+    io = 0
+    do = 0
+    nrhs = 0
+    nrej = 0
+    steps = 0
+    est_all = 0.0
+    worst_all = 0.0
+    for m in range(n):
+        yw[m] = y[m]
+    have_k1 = False
+    for chunk in range(nsub0):
+        tc = t0 + chunk * h0
+        for m in range(n):
+            yc[m] = yw[m]
         while True:
             if method != RK4:
-                sidx = reg_of[r, level]
-                if sidx < 0:
-                    need[0] = r
-                    need[1] = level
-                    lev[0] = level
-                    return last, NEED_REGIME
-                Mptr = Mptr_all[sidx]
-            nsub = nsub0 << level
-            h = h0 / (1 << level)
-            for m in range(n):
-                yw[m] = y[m]
-            worst = 0.0
+                key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
+                po = table[key]
+                if po < 0:
+                    ih[J_NEED_R] = r
+                    ih[J_NEED_L] = level
+                    ih[J_NEED_H] = hq
+                    for m in range(SEG_N):
+                        seg[m] = segsave[m]
+                    return NEED_REGIME
+                do = table[key + 1]
+                io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
+            nsub = 1 << level
+            h = h0 / nsub
             est = 0.0
+            worst = 0.0
             bad = False
             status = 0
-            have_k1 = False
-            t_bad = t0
+            t_bad = tc
             nrm = 0.0
             for sub in range(nsub):
-                t = t0 + sub * h
+                t = tc + sub * h
                 # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
                 for j in range(s + 1):
                     if j == 0:
@@ -170,7 +296,7 @@ def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mp
                             for m in range(n):
                                 y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
                         else:
-                            _csr(Mptr, s - 1, Midx, Mdat, Kf, yw, y1)
+                            _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
                         for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
                             Ul[m] = U[m]
                             U[m] = y1[m]
@@ -179,13 +305,14 @@ def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mp
                         for m in range(n):
                             U[m] = yw[m] + cj * K[j - 1, m]
                     else:
-                        _csr(Mptr, j - 1, Midx, Mdat, Kf, yw, U)
+                        _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
                     if not (_quat_ok(U, qa) and _quat_ok(U, qp)):
                         status |= ST_NONFINITE
                         break
+                    nrhs += 1
                     status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I, P,
                                            seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc,
-                                           tau_ext, fb, chol, F, a, Q, RR, V, W)
+                                           tau_ext, fbb, chol, F, a, Q, RR, V, W)
                 if status & (ST_LOCK | ST_NOT_PD):
                     break
                 if status & ST_NONFINITE:
@@ -195,12 +322,12 @@ def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mp
                     break
                 if method == EXPRK:
                     # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
-                    _csr(Mptr, s - 1, Midx, Mdat, Kf, yw, y1)
+                    _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
                 elif method == EXPRK_D:
                     # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
                     for m in range(n):
                         U[m] = y1[m] - Ul[m]
-                    _csr_mv(Mptr, s, Midx, Mdat, U, AU)
+                    _csr_mv(mi, po, s, io, md, do, U, AU)
                 # error estimate and its weighted RMS norm
                 acc = 0.0
                 emax = 0.0
@@ -235,11 +362,17 @@ def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mp
                         K[0, m] = k5[m]
                     have_k1 = True
             if status & (ST_LOCK | ST_NOT_PD):
-                lev[0] = level_start          # as the Python controller: the level is not updated
-                return last, status & (ST_LOCK | ST_NOT_PD)
+                for m in range(SEG_N):
+                    seg[m] = segsave[m]
+                ih[J_NRHS] += nrhs
+                return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
             if not bad:
                 break
-            info[I_REJ] += 1.0
+            # rejected: redo the chunk from its start at a finer level
+            nrej += 1
+            for m in range(n):
+                yw[m] = yc[m]
+            have_k1 = False
             if nrm < math.inf:
                 jump = int(math.ceil(math.log2(nrm) / q1))
                 new = level + min(MAX_JUMP, max(1, jump))
@@ -249,96 +382,283 @@ def run_batch(method, max_step, rtol, atol, q1, max_level, lev, info, reg_of, Mp
                 if level < max_level:
                     new = max_level
                 else:
-                    lev[0] = level_start
-                    info[I_T] = t_bad
-                    info[I_EBAD] = est
-                    info[I_NBAD] = nrm
-                    info[I_H] = h
-                    return last, ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
+                    fh[H_T_BAD] = t_bad
+                    fh[H_E_BAD] = est
+                    fh[H_N_BAD] = nrm
+                    fh[H_H_BAD] = h
+                    for m in range(SEG_N):
+                        seg[m] = segsave[m]
+                    ih[J_NRHS] += nrhs
+                    ih[J_REJ] += nrej
+                    return ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
             level = new
-        # accepted: normalise, check, commit
-        _normalise(yw, qa, qa + 4)
-        _normalise(yw, qp, qp + 4)
-        for m in range(n):
-            if not math.isfinite(yw[m]):
-                lev[0] = level_start
-                return last, ST_NONFINITE
-        info[I_STEPS] += nsub
+        # chunk accepted
+        steps += nsub
+        if est > est_all:
+            est_all = est
+        if worst > worst_all:
+            worst_all = worst
         if level > 0 and worst * 2.0 ** q1 <= COARSEN:
             level -= 1
-        lev[0] = level
-        if est > info[I_EST]:
-            info[I_EST] = est
-        if worst > info[I_NORM]:
-            info[I_NORM] = worst
+    # accepted: normalise, check, commit
+    ih[J_NRHS] += nrhs
+    ih[J_REJ] += nrej
+    _normalise(yw, qa, qa + 4)
+    _normalise(yw, qp, qp + 4)
+    for m in range(n):
+        if not math.isfinite(yw[m]):
+            for k in range(SEG_N):
+                seg[k] = segsave[k]
+            return ST_NONFINITE
+    ih[J_NSTEPS] += steps
+    ih[J_LEVEL] = level
+    fh[H_CARRY] = carry
+    if est_all > fh[H_EST]:
+        fh[H_EST] = est_all
+    if worst_all > fh[H_NORM]:
+        fh[H_NORM] = worst_all
+    for m in range(n):
+        y[m] = yw[m]
+    return 0
 
-        for m in range(n):
-            y[m] = yw[m]
-        last = i
-        prog[0] = i
-        while j_out < nout and out_idx[j_out] == i:
+
+@njit(cache=True)
+def _sample(fb, ib, mi, md, t, w0, w1, w2, f0, f1, f2, has_f):
+    """Check, then integrate to one sample (time t in the samples' time base, s; rate rad/s and
+    specific force m/s², vehicle axes) and commit it. Returns the status (0: done)."""
+    fh = _f1(fb, ib, F_HDR)
+    ih = _i1(ib, I_HDR)
+    if not (math.isfinite(t) and math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)
+            and math.isfinite(f0) and math.isfinite(f1) and math.isfinite(f2)):
+        return ST_BAD_SAMPLE
+    t1 = t - fh[H_T_START]
+    if not t1 > fh[H_T_REL]:
+        return ST_ORDER
+    tr = _f1(fb, ib, F_TR)
+    wr = _f2(fb, ib, F_WR)
+    fr = _f2(fb, ib, F_FR)
+    tr[1] = t1
+    wr[1, 0] = w0
+    wr[1, 1] = w1
+    wr[1, 2] = w2
+    fr[1, 0] = f0
+    fr[1, 1] = f1
+    fr[1, 2] = f2
+    st = _interval(fb, ib, mi, md)
+    if st != 0:
+        return st
+    tr[0] = t1
+    for m in range(3):
+        wr[0, m] = wr[1, m]
+        fr[0, m] = fr[1, m]
+    fh[H_T_REL] = t1
+    ih[J_NSAMP] += 1
+    ih[J_HAS_F] = has_f
+    return 0
+
+
+@njit(cache=True)
+def push_kernel(fb, ib, mi, md, t, w, f, has_f):
+    """One sample (``w``, ``f`` (3,) arrays; ``f`` ignored unless ``has_f``). Returns the status."""
+    if has_f:
+        return _sample(fb, ib, mi, md, t, w[0], w[1], w[2], f[0], f[1], f[2], 1)
+    return _sample(fb, ib, mi, md, t, w[0], w[1], w[2], 0.0, 0.0, 0.0, 0)
+
+
+@njit(cache=True)
+def block_kernel(fb, ib, mi, md, t, w, f, has_f, first, out_idx, y_out, seg_out, ns_out):
+    """Samples ``first…N−1`` of a chunk (t (N,) s, w (N, 3), f (N, 3)); after each sample listed
+    in ``out_idx`` (increasing) its snapshot goes to ``y_out``/``seg_out``/``ns_out`` (the rows
+    from ``ih[J_JOUT]`` on). Stops at the first failing sample with its status;
+    ``ih[J_DONE]`` is then the index of that sample (all before it are committed)."""
+    ih = _i1(ib, I_HDR)
+    y = _f1(fb, ib, F_Y)
+    seg = _f1(fb, ib, F_SEG)
+    n = y.shape[0]
+    nout = out_idx.shape[0]
+    j = ih[J_JOUT]
+    for i in range(first, t.shape[0]):
+        ih[J_DONE] = i
+        if has_f:
+            st = _sample(fb, ib, mi, md, t[i], w[i, 0], w[i, 1], w[i, 2], f[i, 0], f[i, 1], f[i, 2], 1)
+        else:
+            st = _sample(fb, ib, mi, md, t[i], w[i, 0], w[i, 1], w[i, 2], 0.0, 0.0, 0.0, 0)
+        if st != 0:
+            ih[J_JOUT] = j
+            return st
+        while j < nout and out_idx[j] == i:
             for m in range(n):
-                y_out[j_out, m] = y[m]
-            j_out += 1
-    return last, 0
+                y_out[j, m] = y[m]
+            for m in range(SEG_N):
+                seg_out[j, m] = seg[m]
+            ns_out[j] = ih[J_NSTEPS]
+            j += 1
+    ih[J_DONE] = t.shape[0]
+    ih[J_JOUT] = j
+    return 0
 
 
+# ---------------------------------------------------------------------------- Python side
 def stage_matrices(integrator, system, h: float):
-    """(method code, CSR stage matrices (ptr (s, n+1), idx, data), nodes c) for an integrator
-    by name. Stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to U_j − y."""
+    """CSR stage matrices (ptr (s', n+1), idx, data) of an exponential integrator for step h,
+    relative offsets: stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to
+    U_j − y; etd2 adds the linear part A as a last row (for its defect estimate)."""
     n = system.layout.n
-    if integrator.name not in COMPILED:
-        raise ValueError(f"integrator {integrator.name!r} has no compiled batch path (rk4, etd2, etd4 have)")
-    if integrator.name == "rk4":
-        return RK4, (np.zeros((4, 1), np.int64), np.zeros(1, np.int64), np.zeros(1)), \
-            np.array([0.0, 0.5, 0.5, 1.0])
-    if integrator.name in ("etd2", "etd4"):
-        A, key = system.linear_part()
-        Ms = list(integrator.matrices(np.asarray(A, float), key, h))
-        if integrator.defect:
-            Ms.append(np.asarray(A, float))          # for the defect estimate
-        s = len(Ms)
-        ptr = np.zeros((s, n + 1), np.int64)
-        idx: list[int] = []
-        dat: list[float] = []
-        for j, Mj in enumerate(Ms):
-            for r in range(n):
-                cols = np.nonzero(Mj[r])[0]
-                ptr[j, r] = len(idx)
-                idx.extend(cols.tolist())
-                dat.extend(Mj[r, cols].tolist())
-            ptr[j, n] = len(idx)
-        return COMPILED[integrator.name], (ptr, np.asarray(idx, np.int64), np.asarray(dat, float)), \
-            np.asarray(integrator.c, float)
+    if integrator.name not in ("etd2", "etd4"):
+        raise ValueError(f"integrator {integrator.name!r} has no stage matrices (etd2, etd4 have)")
+    A, key = system.linear_part()
+    Ms = list(integrator.matrices(np.asarray(A, float), key, h))
+    if integrator.defect:
+        Ms.append(np.asarray(A, float))
+    ptr = np.zeros((len(Ms), n + 1), np.int64)
+    idx: list[int] = []
+    dat: list[float] = []
+    for j, Mj in enumerate(Ms):
+        for r in range(n):
+            cols = np.nonzero(Mj[r])[0]
+            ptr[j, r] = len(idx)
+            idx.extend(cols.tolist())
+            dat.extend(Mj[r, cols].tolist())
+        ptr[j, n] = len(idx)
+    return ptr, np.asarray(idx, np.int64), np.asarray(dat, float)
 
 
-class RegimeMatrices:
-    """CSR stage matrices of an exponential method, one set per (support-friction regime,
-    substep level), built on demand (a scene meets only a few of the 8 regimes and levels)."""
+class Engine:
+    """The compiled integration state of one simulator (see module doc).
 
-    def __init__(self, integrator, system, h: float):
-        self.integrator, self.system, self.h = integrator, system, h
+    ``y`` (n,): the state (a view: in-place edits change the state); ``seg``: the system's input
+    interval; ``fh``/``ih``: float and int headers (``H_*``, ``J_*``); ``rows()``: the current
+    sample (t_rel, w, f). ``stepper``: the compiled integrator (``rk4``/``etd2``/``etd4``) or
+    None (every sample then goes through the Python integrator)."""
+
+    def __init__(self, system, stepper=None):
+        self.system = system
+        self.stepper = stepper
         n = system.layout.n
-        self.reg_of = -np.ones((8, integrator.max_level + 1), dtype=np.int64)
-        self.ptr = np.zeros((1, 4, n + 1), np.int64)
-        self.idx = np.zeros(1, np.int64)
-        self.dat = np.zeros(1)
-        self._sets: list = []
+        tree, wk = system.tree, system.work
+        method = COMPILED.get(stepper.name) if stepper is not None else None
+        c = (np.array([0.0, 0.5, 0.5, 1.0]) if method in (None, RK4) else np.asarray(stepper.c, float))
+        max_level = stepper.max_level if stepper is not None else 0
+        nlev = max_level + 1
+        fl = [getattr(wk if o == "work" else system, a) for _, o, a in _SYSTEM_F]
+        f_arrays = {slot: arr for (slot, _, _), arr in zip(_SYSTEM_F, fl)}
+        f_arrays.update({F_AXIS: tree.axis, F_INERTIA: tree.inertia, F_RAXIS: tree.rotor_axis,
+                         F_HDR: np.zeros(N_FH), F_Y: np.zeros(n), F_YW: np.zeros(n), F_Y1: np.zeros(n),
+                         F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
+                         F_AU: np.zeros(n), F_C: c, F_TR: np.zeros(2), F_WR: np.zeros((2, 3)),
+                         F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n)})
+        table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
+        i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
+                    I_TABLE: -np.ones(table_n, np.int64)}
+        fsize = sum(np.asarray(a).size for a in f_arrays.values())
+        isize = TABLE_LEN + sum(np.asarray(a).size for a in i_arrays.values())
+        self.fb = np.zeros(fsize)
+        self.ib = np.zeros(isize, np.int64)
+        views: dict[int, np.ndarray] = {}
+        off = 0
+        for k in range(N_FSLOT):
+            a = np.asarray(f_arrays[k], float)
+            self._slot(k, off, a.shape)
+            v = self.fb[off:off + a.size].reshape(a.shape)
+            v[...] = a
+            views[k] = v
+            off += a.size
+        off = TABLE_LEN
+        iviews: dict[int, np.ndarray] = {}
+        for k in range(N_ISLOT):
+            a = np.asarray(i_arrays[k], np.int64)
+            self._slot(N_FSLOT + k, off, a.shape)
+            v = self.ib[off:off + a.size].reshape(a.shape)
+            v[...] = a
+            iviews[k] = v
+            off += a.size
+        # the system's arrays become views into the buffers (same values)
+        for (slot, o, name) in _SYSTEM_F:
+            setattr(wk if o == "work" else system, name, views[slot])
+        system.rebind(iviews[I_I])
+        self.fh, self.ih = views[F_HDR], iviews[I_HDR]
+        self.y, self.seg = views[F_Y], views[F_SEG]
+        self.tr, self.wr, self.fr = views[F_TR], views[F_WR], views[F_FR]
+        self.segsave = views[F_SEGSAVE]
+        self.table = iviews[I_TABLE]
+        self.mi = np.zeros(1, np.int64)
+        self.md = np.zeros(1)
+        self.method = method
+        ih, fh = self.ih, self.fh
+        ih[J_METHOD] = -1 if method is None else method
+        ih[J_FID] = system.fid
+        ih[J_Q1] = stepper.q1 if stepper is not None else 4
+        ih[J_MAX_LEVEL] = max_level
+        ih[J_NLEV] = nlev
+        if stepper is not None:
+            fh[H_MAX_STEP], fh[H_RTOL], fh[H_ATOL] = stepper.max_step, stepper.rtol, stepper.atol
 
-    def add(self, regime: int, level: int) -> None:
-        saved = self.system.regime
-        self.system.regime = regime
+    def _slot(self, k: int, off: int, shape: tuple) -> None:
+        e = self.ib[SLOT_W * k:SLOT_W * (k + 1)]
+        e[0] = off
+        dims = list(shape) + [1] * (3 - len(shape))
+        if len(shape) == 0:
+            dims = [1, 1, 1]
+        e[1:4] = dims[:3]
+
+    # ---- calls -------------------------------------------------------------------------
+    def push(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> int:
+        """One sample through the compiled step (building missing matrices on the way)."""
+        while True:
+            st = push_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f)
+            if st != NEED_REGIME:
+                return st
+            self.add_matrices()
+
+    def block(self, t, w, f, has_f: bool, first: int, out_idx, y_out, seg_out, ns_out) -> int:
+        """Samples ``first…`` of a chunk; returns the status (``ih[J_DONE]``: samples reached)."""
+        self.ih[J_JOUT] = int(np.searchsorted(out_idx, first))
+        while True:
+            st = block_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f, first, out_idx, y_out,
+                              seg_out, ns_out)
+            if st != NEED_REGIME:
+                return st
+            first = int(self.ih[J_DONE])
+            self.add_matrices()
+
+    def add_matrices(self) -> None:
+        """Build the stage matrices the last call asked for (regime, level, grid step)."""
+        r, level, hq = int(self.ih[J_NEED_R]), int(self.ih[J_NEED_L]), int(self.ih[J_NEED_H])
+        h = hq * (float(self.fh[H_MAX_STEP]) / GRID) / (1 << level)
+        sys_ = self.system
+        saved = sys_.regime
+        sys_.regime = r
         try:
-            _, (ptr, idx, dat), _ = stage_matrices(self.integrator, self.system, self.h / (1 << level))
+            ptr, idx, dat = stage_matrices(self.stepper, sys_, h)
         finally:
-            self.system.regime = saved
-        off = sum(len(s[1]) for s in self._sets)
-        self._sets.append((ptr + off, idx, dat))
-        self.reg_of[regime, level] = len(self._sets) - 1
-        s_max = max(p.shape[0] for p, _, _ in self._sets)
-        n1 = ptr.shape[1]
-        self.ptr = np.zeros((len(self._sets), s_max, n1), np.int64)
-        for k, (p, _, _) in enumerate(self._sets):
-            self.ptr[k, :p.shape[0]] = p
-        self.idx = np.concatenate([s[1] for s in self._sets])
-        self.dat = np.concatenate([s[2] for s in self._sets])
+            sys_.regime = saved
+        key = 2 * ((r * int(self.ih[J_NLEV]) + level) * (GRID + 1) + hq)
+        self.table[key] = self.mi.size
+        self.table[key + 1] = self.md.size
+        self.mi = np.concatenate([self.mi, ptr.reshape(-1), idx])
+        self.md = np.concatenate([self.md, dat])
+
+    # ---- state -------------------------------------------------------------------------
+    def clear(self, y0: np.ndarray) -> None:
+        """Fresh start: state y0, no sample, counters and controller at zero; matrices kept."""
+        self.y[:] = y0
+        self.fh[H_T_START:] = 0.0
+        keep = self.ih[[J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_NLEV]].copy()
+        self.ih[:] = 0
+        self.ih[[J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_NLEV]] = keep
+        self.tr[:] = 0.0
+        self.wr[:] = 0.0
+        self.fr[:] = 0.0
+
+    def sync_to(self, stepper) -> None:
+        """Controller state (level, carry) to a Python integrator."""
+        if stepper is not None and hasattr(stepper, "level"):
+            stepper.level = int(self.ih[J_LEVEL])
+            if hasattr(stepper, "_carry"):
+                stepper._carry = float(self.fh[H_CARRY])
+
+    def sync_from(self, stepper) -> None:
+        """Controller state (level, carry) from a Python integrator."""
+        if stepper is not None and hasattr(stepper, "level"):
+            self.ih[J_LEVEL] = int(stepper.level)
+            self.fh[H_CARRY] = float(getattr(stepper, "_carry", 0.0))

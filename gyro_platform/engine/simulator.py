@@ -18,7 +18,11 @@ from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
 from ..physics.model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
 from ..physics.options import NEEDS_SPECIFIC_FORCE, ModelOptions
+from .batch import (COMPILED, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
+                    J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
+                    ST_ORDER, ST_TOLERANCE, Engine)
 from .outputs import Outputs
+from .snapshots import SEG_N, Snapshots, first_segment, stack_outputs as _stack
 from ..physics.params import NAV1, PlatformParams
 from ..physics.system import PRECESSION, PlatformSystem
 from ..physics.rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
@@ -71,8 +75,16 @@ def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     nutation periods for rtol ≤ 1e-6; below rtol 1e-9 resolving an excited nutation costs RK4
     more than etd2. Beyond the stability limit (fast rotors), at looser or at tighter tolerance:
     etd2 (exact on the gyroscopic linear part, cost independent of the spin), etd4 below
-    rtol 1e-9 (fourth order: fewer substeps at tight tolerance)."""
-    if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT
+    rtol 1e-9 (fourth order: fewer substeps at tight tolerance).
+
+    Expected cost decides between the two where both qualify: a carried platform's gimbals are
+    driven by the vehicle directly, so the motion excites the nutation and RK4 must resolve it
+    (measured at rtol 1e-6 on the husky recording, 30 Hz: rk4 247 substeps and 997 right-hand
+    sides per sample against etd2's 78 and 161, 5× the CPU; on a 1 kHz bag 1.5×): etd2. A
+    stabilised platform is held by its servo and the nutation stays quiet: RK4 (husky: rk4 61
+    substeps, 262 rhs per sample against etd2's 98 and 209, 2.8× less CPU; 1 kHz: 2.7× less)."""
+    excited = options.mode == "carried" and options.fidelity != "precession"
+    if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT and not excited
             and AUTO_RK4_MIN_RTOL <= options.rtol <= AUTO_RK4_MAX_RTOL):
         return "rk4"
     return "etd2" if options.rtol >= AUTO_ETD4_BELOW else "etd4"
@@ -86,35 +98,139 @@ def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> I
     return make_integrator(options.integrator, **kw)
 
 
+_F64 = np.dtype(float)
+_ZERO3 = np.zeros(3)
+
+
+def _time(t, what: str = "sample time") -> float:
+    """A finite-or-not real scalar time (s) as float; anything else: InputError."""
+    if isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.integer, np.floating)):
+        raise InputError(f"{what} must be a real number (s), got {type(t).__name__} {t!r:.40}")
+    return float(t)
+
+
+def _vec3(x, what: str) -> np.ndarray:
+    """A 3-vector of reals as a float64 (3,) array; anything else: InputError (one line)."""
+    try:
+        a = np.asarray(x)
+    except Exception as e:                                   # ragged sequences, odd objects
+        raise InputError(f"{what} must be 3 real numbers: {type(e).__name__}") from None
+    if a.dtype.kind not in "iuf" or a.size != 3 or a.ndim > 2:
+        raise InputError(f"{what} must be 3 real numbers, got {a.dtype} of shape {a.shape}")
+    return np.ascontiguousarray(a, dtype=float).reshape(3)
+
+
+def _real_array(x, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(x)
+    except Exception as e:
+        raise InputError(f"{what} must be an array of real numbers: {type(e).__name__}") from None
+    if a.dtype.kind not in "iuf":
+        raise InputError(f"{what} must be an array of real numbers, got dtype {a.dtype}")
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def _rows3(x, n: int, what: str) -> np.ndarray:
+    a = _real_array(x, what)
+    if a.shape == (3,) and n == 1:
+        a = a.reshape(1, 3)
+    if a.shape != (n, 3):
+        raise InputError(f"{what} must have shape ({n}, 3) to match t, got {a.shape}")
+    return a
+
+
 class Simulator:
-    """Three-gyro platform simulation driven by vehicle rate samples (ROS-free)."""
+    """Three-gyro platform simulation driven by vehicle rate samples (ROS-free).
+
+    The integration state lives in a compiled ``batch.Engine`` (``y`` is a view into it: an
+    in-place edit changes the state). With rk4, etd2, etd4 (and auto's primary) a ``push`` is
+    one compiled call and ``push_block`` one per chunk; other integrators step in Python."""
 
     def __init__(self, params: PlatformParams = NAV1, options: ModelOptions | None = None,
-                 integrator: Integrator | None = None):
+                 integrator: Integrator | None = None, *, compiled: bool = True):
+        """``compiled=False``: every sample through the Python integrator (the reference the
+        compiled path is tested against; slow)."""
         self.params = params
         self.options = options if options is not None else ModelOptions()
         self.system = PlatformSystem(params, self.options)
         self.integrator = integrator if integrator is not None else choose_integrator(self.options, params)
         self.layout = self.system.layout
         self.needs_f = bool(self.options.effects & NEEDS_SPECIFIC_FORCE)
+        integ = self.integrator
+        self._auto = integ if isinstance(integ, Auto) else None
+        stepper = integ.primary if self._auto is not None else integ
+        self._stepper = stepper
+        self.engine = Engine(self.system, stepper if stepper.name in COMPILED else None)
+        self._compiled = compiled and self.engine.method is not None
         # full tree (with the true rotor momenta) for bearing torques at output instants
         self._out_tree = self.system.tree
         self._out_work = TreeWork(self._out_tree)
         self._ydot = np.zeros(self.layout.n)
         self.reset()
 
-    # ---- state -------------------------------------------------------------------------
+    # ---- state (kept in the engine's buffers) ------------------------------------------
+    @property
+    def y(self) -> np.ndarray:
+        """Integration state (``layout``); a view: in-place edits change the state."""
+        return self.engine.y
+
+    @y.setter
+    def y(self, value) -> None:
+        self.engine.y[:] = value
+
+    @property
+    def t_start(self) -> float | None:
+        """Time (s, the samples' time base) of the first sample since the start/reset."""
+        return float(self.engine.fh[H_T_START]) if self.engine.ih[J_STARTED] else None
+
+    @property
+    def t_rel(self) -> float:
+        """Time of the current instant relative to ``t_start`` (s)."""
+        return float(self.engine.fh[H_T_REL])
+
+    @t_rel.setter
+    def t_rel(self, value: float) -> None:
+        self.engine.fh[H_T_REL] = value
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.engine.ih[J_NSAMP])
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.engine.ih[J_NSTEPS])
+
+    @n_steps.setter
+    def n_steps(self, value: int) -> None:
+        self.engine.ih[J_NSTEPS] = value
+
+    @property
+    def max_error_estimate(self) -> float:
+        return float(self.engine.fh[H_EST])
+
+    @property
+    def max_error_norm(self) -> float:
+        return float(self.engine.fh[H_NORM])
+
+    @property
+    def n_rejected(self) -> int:
+        return int(self.engine.ih[J_REJ])
+
+    @property
+    def _last(self) -> RateSample | None:
+        """The current sample (time, rate, specific force) as held in ``system.seg``."""
+        if not self.engine.ih[J_STARTED]:
+            return None
+        seg = self.system.seg
+        return RateSample(self.t, seg[5:8].copy(), seg[11:14].copy() if self.engine.ih[J_HAS_F] else None)
+
     def reset(self) -> None:
-        """Back to the initial state; the next ``push`` starts a new time base."""
-        self.y = self.system.rest_state()
-        self.t_start: float | None = None
-        self.t_rel = 0.0
-        self._last: RateSample | None = None
-        self.n_samples = 0
-        self.n_steps = 0
-        self.max_error_estimate = 0.0
-        self.max_error_norm = 0.0
-        self.n_rejected = 0
+        """Back to the initial state: the next ``push`` starts a new time base, and everything
+        after it equals a fresh simulator fed the same samples (stage matrices are kept)."""
+        self.engine.clear(self.system.rest_state())
+        self.system.seg[:] = 0.0
+        self.system.seg[1] = 1.0
+        self.system.regime = 0
         self.integrator.reset()
         st = self.layout
         if self.system.stabilised and self.options.has("earth_rate"):
@@ -127,18 +243,17 @@ class Simulator:
         is carried): used when live parameters rebuild the simulator."""
         if old.t_start is None or old.layout.n != self.layout.n:
             return
-        self.y = old.y.copy()
-        self.t_start = old.t_start
-        self.t_rel = old.t_rel
-        self._last = old._last
-        self.n_samples = old.n_samples
-        self.n_steps = old.n_steps
-        self.max_error_estimate = old.max_error_estimate
+        e, o = self.engine, old.engine
+        e.y[:] = o.y
+        e.fh[[H_T_START, H_T_REL, H_EST]] = o.fh[[H_T_START, H_T_REL, H_EST]]
+        e.ih[[J_STARTED, J_NSAMP, J_NSTEPS, J_HAS_F]] = o.ih[[J_STARTED, J_NSAMP, J_NSTEPS, J_HAS_F]]
+        e.tr[:], e.wr[:], e.fr[:] = o.tr, o.wr, o.fr
+        self.system.seg[:] = old.system.seg
 
     @property
     def t(self) -> float | None:
         """Time (s, the samples' time base) of the last accepted sample."""
-        return None if self.t_start is None else self.t_start + self.t_rel
+        return None if not self.engine.ih[J_STARTED] else self.engine.fh[H_T_START] + self.engine.fh[H_T_REL]
 
     @property
     def stats(self) -> dict:
@@ -152,240 +267,292 @@ class Simulator:
         intervals/steps; ``rtol``, ``atol``: the tolerance asked; ``n_fallback``: intervals
         auto handed to exprb (0 otherwise)."""
         return {"integrator": self.integrator.name, "n_samples": self.n_samples, "n_steps": self.n_steps,
-                "n_rhs": self.system.n_rhs, "max_error_estimate": self.max_error_estimate,
+                "n_rhs": self.system.n_rhs + int(self.engine.ih[J_NRHS]),
+                "max_error_estimate": self.max_error_estimate,
                 "max_error_norm": self.max_error_norm, "n_rejected": self.n_rejected,
                 "rtol": self.integrator.rtol, "atol": self.integrator.atol,
                 "n_fallback": getattr(self.integrator, "n_fallback", 0)}
 
     def _account(self, est: float, norm: float, rejected: int) -> None:
+        fh = self.engine.fh
         if est == est:
-            self.max_error_estimate = max(self.max_error_estimate, float(est))
+            fh[H_EST] = max(fh[H_EST], float(est))
         if norm == norm:
-            self.max_error_norm = max(self.max_error_norm, float(norm))
-        self.n_rejected += int(rejected)
+            fh[H_NORM] = max(fh[H_NORM], float(norm))
+        self.engine.ih[J_REJ] += int(rejected)
 
-    def _first(self, s: RateSample) -> None:
-        self.t_start = s.t
-        self.t_rel = 0.0
+    def _first(self, t: float, w: np.ndarray, f: np.ndarray | None) -> None:
+        """The first sample after a start/reset: new time base, input held (no interval)."""
+        if not (math.isfinite(t) and np.all(np.isfinite(w)) and (f is None or np.all(np.isfinite(f)))):
+            raise InputError(f"non-finite sample at t = {t}")
+        e = self.engine
+        e.fh[H_T_START] = t
+        e.fh[H_T_REL] = 0.0
+        e.tr[:] = 0.0
+        e.wr[0] = w
+        e.fr[0] = 0.0 if f is None else f
+        e.ih[J_STARTED] = 1
+        e.ih[J_NSAMP] = 1
+        e.ih[J_HAS_F] = f is not None
+        first_segment(self.system.seg, w, f)
         st = self.layout
         if not self.system.stabilised and st.qd is not None:
             # consistent start of free gyros on a turning vehicle (spec 4.7)
-            Om = self.system.R_PB @ s.omega
+            Om = self.system.R_PB @ w
             self.y[st.qd] = [-Om[1], -Om[2], Om[2], -Om[2], -Om[0]]
 
-    def push(self, sample: RateSample) -> None:
-        """Integrate to ``sample.t``. Raises ``InputError`` (state unchanged) for a non-finite
-        sample, a time not after the last one, or a missing specific force that an effect
-        needs; ``SimulationError`` if the integration fails (state unchanged)."""
-        if not sample.is_finite():
-            raise InputError(f"non-finite sample at t = {sample.t}")
-        if self.needs_f and sample.specific_force is None:
-            raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
-                             + " need the specific force, which this sample does not carry")
-        if self._last is None:
-            self._first(sample)
-            self._last = sample
-            self.n_samples = 1
-            return
-        t1 = sample.t - self.t_start
-        if not t1 > self.t_rel:
-            raise InputError(f"sample time {sample.t!r} is not after the last one ({self.t!r})")
-        integ = self.integrator
-        stepper = integ.primary if isinstance(integ, Auto) else integ
-        if stepper.name == "rk4" and getattr(integ, "sticky", 0) <= 0:
-            # RK4 needs no per-step matrices: the compiled loop serves single samples too (the
-            # same steps as push_many, and fast when the tolerance asks for many substeps)
-            f = sample.specific_force
-            self._push_many(np.array([sample.t]), np.asarray(sample.omega, float).reshape(1, 3),
-                            np.zeros((1, 3)) if f is None else np.asarray(f, float).reshape(1, 3), f is not None,
-                            0, [])
-            return
-        self._push_python(sample, t1)
+    def _python_now(self) -> bool:
+        """This sample goes through the Python integrator (no compiled path, or auto is on its
+        fallback)."""
+        return not self._compiled or (self._auto is not None and self._auto.sticky > 0)
 
-    def _push_python(self, sample: RateSample, t1: float) -> None:
-        """One sample through ``integrator.advance`` (Python)."""
-        last = self._last
-        self.system.set_input(self.t_rel, t1, last.omega, sample.omega, last.specific_force,
-                              sample.specific_force)
+    def push(self, sample: RateSample) -> None:
+        """Integrate to ``sample.t``: one compiled call (rk4, etd2, etd4, auto's primary).
+        Raises ``InputError`` (state unchanged) for a sample that is not 3 finite reals (ω,
+        specific force) at a real time after the last one, or misses a specific force that an
+        effect needs; ``SimulationError`` if the integration fails (state, input and outputs
+        unchanged)."""
+        w = sample.omega
+        if w.__class__ is not np.ndarray or w.dtype is not _F64 or w.shape != (3,):
+            w = _vec3(w, "omega")
+        f = sample.specific_force
+        if f is None:
+            if self.needs_f:
+                raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
+                                 + " need the specific force, which this sample does not carry")
+            f, has_f = _ZERO3, False
+        else:
+            if f.__class__ is not np.ndarray or f.dtype is not _F64 or f.shape != (3,):
+                f = _vec3(f, "specific_force")
+            has_f = True
+        t = sample.t
+        if t.__class__ is not float:
+            t = _time(t)
+        if not self.engine.ih[J_STARTED]:
+            self._first(t, w, f if has_f else None)
+            return
+        if self._python_now():
+            self._push_python(t, w, f, has_f)
+            return
+        try:
+            st = self.engine.push(t, w, f, has_f)
+        except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
+            self.system.seg[:] = self.engine.segsave
+            raise SimulationError(f"integration failed at t = {t} ({type(e).__name__}: {e}); "
+                                  f"state kept at t = {self.t}") from e
+        if st:
+            self._refused(st, t, w, f, has_f)
+
+    def _refused(self, st: int, t: float, w, f, has_f: bool) -> None:
+        """A compiled sample came back with status ``st``: hand it to auto's fallback or raise
+        (nothing was committed)."""
+        if st & ST_BAD_SAMPLE:
+            raise InputError(f"non-finite sample at t = {t}")
+        if st & ST_ORDER:
+            raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
+        if st & ST_TOLERANCE and self._auto is not None:
+            # the primary cannot meet the tolerance here within its budget: auto's own push
+            # (primary again in Python, then exprb), then back to the compiled path
+            self.engine.sync_to(self._stepper)
+            try:
+                self._push_python(t, w, f, has_f)
+            finally:
+                self.engine.sync_from(self._stepper)
+            return
+        if st & ST_LOCK:
+            raise GimbalLockError(f"gimbal lock (precession model singular) after t = {self.t}; "
+                                  f"stopped before the sample at t = {t}")
+        fh = self.engine.fh
+        if st & ST_TOLERANCE:
+            raise self._stepper.refuse(self.t_start + float(fh[H_T_BAD]), float(fh[H_E_BAD]),
+                                       float(fh[H_N_BAD]), float(fh[H_H_BAD]))
+        if st & ST_NOT_PD:
+            raise SimulationError(f"mass matrix not positive definite after t = {self.t}; state kept there")
+        raise SimulationError(f"non-finite state after the step to t = {t}; state kept at t = {self.t}")
+
+    def _push_python(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> None:
+        """One sample through ``integrator.advance`` (Python); committed only on success."""
+        if not (math.isfinite(t) and np.all(np.isfinite(w)) and np.all(np.isfinite(f))):
+            raise InputError(f"non-finite sample at t = {t}")
+        e = self.engine
+        t1 = t - e.fh[H_T_START]
+        t0 = float(e.fh[H_T_REL])
+        if not t1 > t0:
+            raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
+        seg = self.system.seg
+        saved = seg.copy()
+        seg[0], seg[1] = t0, t1 - t0
+        seg[2:5], seg[5:8] = e.wr[0], w
+        seg[8:11], seg[11:14] = e.fr[0], (f if has_f else 0.0)
         try:
             if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
                 self.system.update_regime(self.y)
-            y1, stats = self.integrator.advance(self.system, self.t_rel, self.y, t1)
-        except (ArithmeticError, np.linalg.LinAlgError) as e:   # ZeroDivisionError, FloatingPointError
-            raise SimulationError(f"integration failed at t = {sample.t}: {type(e).__name__}: {e}; "
-                                  f"state kept at t = {self.t}") from e
-        if not np.all(np.isfinite(y1)):
-            raise SimulationError(f"non-finite state after the step to t = {sample.t}; state kept at t = {self.t}")
+            y1, stats = self.integrator.advance(self.system, t0, self.y, t1)
+            if not np.all(np.isfinite(y1)):
+                raise SimulationError(f"non-finite state after the step to t = {t}; state kept at t = {self.t}")
+        except (ArithmeticError, np.linalg.LinAlgError) as exc:   # ZeroDivisionError, FloatingPointError
+            seg[:] = saved
+            raise SimulationError(f"integration failed at t = {t}: {type(exc).__name__}: {exc}; "
+                                  f"state kept at t = {self.t}") from exc
+        except BaseException:
+            seg[:] = saved
+            raise
         st = self.layout
         for sl in (st.quat_IB, st.quat_IP):
             if sl is not None:
                 y1[sl] /= np.linalg.norm(y1[sl])
-        self.y = y1
-        self.t_rel = t1
-        self._last = sample
-        self.n_samples += 1
-        self.n_steps += stats.n_steps
+        self.y[:] = y1
+        e.fh[H_T_REL] = t1
+        e.tr[0] = t1
+        e.wr[0] = w
+        e.fr[0] = f if has_f else 0.0
+        e.ih[J_NSAMP] += 1
+        e.ih[J_HAS_F] = has_f
+        e.ih[J_NSTEPS] += stats.n_steps
         self._account(stats.error_estimate, stats.error_norm, stats.n_rejected)
+
+    # ---- blocks ------------------------------------------------------------------------
+    def _check_block(self, t, omega, specific_force, out_idx):
+        """Validated (t, w, f, has_f, out_idx) of a block, or InputError (state untouched)."""
+        t = _real_array(t, "t")
+        if t.ndim == 0:
+            t = t.reshape(1)
+        if t.ndim != 1:
+            raise InputError(f"t must be 1-D, got shape {t.shape}")
+        n = len(t)
+        w = _rows3(omega, n, "omega")
+        has_f = specific_force is not None
+        f = _rows3(specific_force, n, "specific_force") if has_f else np.zeros((n, 3))
+        ok = np.isfinite(t) & np.all(np.isfinite(w), 1) & np.all(np.isfinite(f), 1)
+        if not np.all(ok):
+            bad = int(np.argmin(ok))
+            raise InputError(f"non-finite sample at index {bad}")
+        if self.needs_f and not has_f:
+            raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
+                             + " need the specific force, which the samples do not carry")
+        if n:
+            t0 = self.t_start if self.t_start is not None else float(t[0])
+            rel = np.concatenate([[self.t_rel if self.t_start is not None else -math.inf], t - t0])
+            d = np.diff(rel)
+            if np.any(~(d > 0)):
+                bad = int(np.argmax(~(d > 0)))
+                raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
+        idx = _real_array(out_idx, "out_idx") if not isinstance(out_idx, np.ndarray) else out_idx
+        if idx.dtype.kind not in "iu" and not (idx.size and np.all(idx == np.round(idx))) and idx.size:
+            raise InputError(f"out_idx must hold integer indices, got dtype {idx.dtype}")
+        idx = np.ascontiguousarray(idx, dtype=np.int64).reshape(-1) if idx.size else np.zeros(0, np.int64)
+        if idx.size and (idx[0] < 0 or idx[-1] >= n or np.any(np.diff(idx) <= 0)):
+            raise InputError(f"out_idx must be increasing indices in [0, {n}), got {idx[:5]}…")
+        return t, w, f, has_f, idx
+
+    def push_block(self, t, omega, specific_force=None, out_idx=()):
+        """Push a chunk (t (N,) s, omega (N, 3) rad/s, specific_force (N, 3) m/s² or None) and
+        return the ``OutputBlock`` of the outputs after each sample in ``out_idx`` (increasing
+        indices into the chunk). One compiled call per chunk (rk4, etd2, etd4, auto's primary);
+        the same results and errors as pushing the samples one by one.
+
+        Raises ``InputError`` before touching the state if any sample or index is bad. If the
+        integration fails at some sample, the ``SimulationError`` carries ``.block`` (the
+        outputs computed before the failure) and ``.n_done`` (samples of this call taken);
+        the state is that after the last good sample."""
+        t, w, f, has_f, idx = self._check_block(t, omega, specific_force, out_idx)
+        n, k = len(t), len(idx)
+        y_out = np.zeros((k, self.layout.n))
+        seg_out = np.zeros((k, SEG_N))
+        ns_out = np.zeros(k, np.int64)
+        done, first, j = 0, 0, 0
+        try:
+            if n and not self.engine.ih[J_STARTED]:
+                self._first(float(t[0]), w[0], f[0] if has_f else None)
+                first = done = 1
+                j = self._record(idx, j, 0, y_out, seg_out, ns_out)
+            while first < n:
+                if self._python_now():
+                    self._push_python(float(t[first]), w[first], f[first], has_f)
+                    first = done = first + 1
+                    j = self._record(idx, j, first - 1, y_out, seg_out, ns_out)
+                    continue
+                try:
+                    st = self.engine.block(t, w, f, has_f, first, idx, y_out, seg_out, ns_out)
+                except ArithmeticError as exc:
+                    self.system.seg[:] = self.engine.segsave
+                    done = int(self.engine.ih[J_DONE])
+                    j = int(self.engine.ih[J_JOUT])
+                    raise SimulationError(f"integration failed after t = {self.t} ({type(exc).__name__}: {exc}); "
+                                          f"state kept there, stopped before the sample at t = {t[done]}") from exc
+                done = int(self.engine.ih[J_DONE])
+                j = int(self.engine.ih[J_JOUT])
+                if st == 0:
+                    break
+                self._refused(st, float(t[done]), w[done], f[done], has_f)   # raises unless auto takes it
+                first = done = done + 1
+                j = self._record(idx, j, done - 1, y_out, seg_out, ns_out)
+        except SimulationError as exc:
+            exc.n_done = done
+            exc.block = self._outputs_at(self._snapshots(t, idx[:j], y_out[:j], seg_out[:j], ns_out[:j]))
+            raise
+        return self._outputs_at(self._snapshots(t, idx, y_out, seg_out, ns_out))
+
+    def _record(self, idx, j: int, i: int, y_out, seg_out, ns_out) -> int:
+        """Snapshot the current instant as sample ``i`` of a block for every ``idx[j] == i``."""
+        while j < len(idx) and idx[j] == i:
+            y_out[j] = self.y
+            seg_out[j] = self.system.seg
+            ns_out[j] = self.n_steps
+            j += 1
+        return j
+
+    def _snapshots(self, t, idx, y_out, seg_out, ns_out) -> Snapshots:
+        t_rel = t[idx] - self.t_start if self.t_start is not None else np.zeros(len(idx))
+        return Snapshots(self.t_start + t_rel if len(idx) else np.zeros(0), t_rel, y_out, seg_out, ns_out)
+
+    def _snapshot(self) -> Snapshots:
+        """The current instant as a ``Snapshots`` of one."""
+        if self.t_start is None:
+            raise SimulationError("no sample pushed yet")
+        return Snapshots(np.array([self.t]), np.array([self.t_rel]), self.y.copy()[None, :],
+                         self.system.seg.copy()[None, :], np.array([self.n_steps], np.int64))
+
+    def _outputs_at(self, snaps: Snapshots):
+        """Outputs at the snapshots (fallback until the compiled output code: each instant set
+        as the current one, ``outputs()``, then the current instant restored)."""
+        if len(snaps) == 0 and self.t_start is None:
+            return _stack([])
+        saved = (self.y.copy(), self.t_rel, self.system.seg.copy(), self.n_steps)
+        outs = []
+        try:
+            for k in range(len(snaps)):
+                self.y[:] = snaps.y[k]
+                self.t_rel = float(snaps.t_rel[k])
+                self.system.seg[:] = snaps.seg[k]
+                self.n_steps = int(snaps.n_steps[k])
+                outs.append(self.outputs())
+        finally:
+            self.y[:], self.t_rel, self.system.seg[:], self.n_steps = saved
+        return _stack(outs)
 
     def push_many(self, t, omega, specific_force=None, output_every: int = 0) -> list[Outputs]:
         """Push many samples at once (arrays: t (N,) s, omega (N, 3) rad/s, specific_force
         (N, 3) m/s² or None); returns the outputs after every ``output_every``-th sample (0:
-        none). Uses the compiled batch loop (``fastpath``) for rk4/etd2/etd4 (and auto's
-        primary) when the sample intervals are uniform; otherwise pushes one by one. Same
+        none) as a list. ``push_block`` with ``out_idx = 0, output_every, …``: the same
         results and the same errors as ``push``.
 
         Raises ``InputError`` before touching the state if any sample is bad. If the
         integration fails at some sample, the ``SimulationError`` (``GimbalLockError``,
         ``ToleranceError``, …) is raised with the state at the last good sample and the
         outputs computed before the failure in its ``outputs`` attribute."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        w = np.ascontiguousarray(np.asarray(omega, dtype=float).reshape(-1, 3))
-        has_f = specific_force is not None
-        fB = (np.ascontiguousarray(np.asarray(specific_force, dtype=float).reshape(-1, 3)) if has_f
-              else np.zeros_like(w))
-        if len(t) != len(w) or len(fB) != len(w):
-            raise InputError("t, omega and specific_force must have the same length")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(w)) and np.all(np.isfinite(fB))):
-            bad = int(np.argmin(np.isfinite(t) & np.all(np.isfinite(w), 1) & np.all(np.isfinite(fB), 1)))
-            raise InputError(f"non-finite sample at index {bad}")
-        if self.needs_f and not has_f:
-            raise InputError("these effects need the specific force, which the samples do not carry")
-        if self._last is not None and len(t):
-            d = np.diff(np.concatenate([[self.t], t]))
-            if np.any(d <= 0):
-                bad = int(np.argmax(d <= 0))
-                raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
-        elif len(t) > 1 and np.any(np.diff(t) <= 0):
-            bad = int(np.argmax(np.diff(t) <= 0)) + 1
-            raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
-        outs: list[Outputs] = []
+        if isinstance(output_every, (bool, np.bool_)) or not isinstance(output_every, (int, np.integer)) \
+                or output_every < 0:
+            raise InputError(f"output_every must be an integer ≥ 0, got {output_every!r}")
+        n = int(np.size(t))
+        idx = np.arange(0, n, output_every, dtype=np.int64) if output_every else np.zeros(0, np.int64)
         try:
-            self._push_many(t, w, fB, has_f, output_every, outs)
+            block = self.push_block(t, omega, specific_force, idx)
         except SimulationError as e:
-            e.outputs = outs
+            blk = getattr(e, "block", None)
+            e.outputs = [blk[i] for i in range(len(blk))] if blk is not None else []
             raise
-        return outs
-
-    def _sample(self, t, w, fB, has_f, i) -> RateSample:
-        return RateSample(float(t[i]), w[i].copy(), fB[i].copy() if has_f else None)
-
-    def _push_many(self, t, w, fB, has_f, output_every, outs) -> None:
-        from .batch import (COMPILED, I_EBAD, I_EST, I_H, I_NBAD, I_NORM, I_REJ, I_STEPS, I_T, N_INFO,
-                               NEED_REGIME, ST_LOCK, ST_NOT_PD, ST_TOLERANCE, RegimeMatrices, run_batch)
-        if len(t) == 0:
-            return
-        start = 0
-        if self._last is None:
-            self.push(self._sample(t, w, fB, has_f, 0))
-            start = 1
-            if output_every:
-                outs.append(self.outputs())
-        t_rel = np.concatenate([[self.t_rel], t[start:] - self.t_start])
-        W = np.vstack([self._last.omega[None, :], w[start:]])
-        prev_f = self._last.specific_force
-        Fm = np.vstack([(prev_f if prev_f is not None else np.zeros(3))[None, :], fB[start:]])
-        sys_ = self.system
-        integ = self.integrator
-        auto = isinstance(integ, Auto)
-        stepper = integ.primary if auto else integ
-        h_max = self.options.max_step
-        dts = np.diff(t_rel)
-        if len(dts) == 0:
-            return
-        nsub = np.maximum(1, np.ceil(dts / h_max - 1e-9))
-        hs = dts / nsub
-        method = COMPILED.get(stepper.name)
-        uniform = method is not None and (method == 0 or np.max(np.abs(hs - hs[0])) <= 1e-9 * hs[0])
-
-        def emit(i: int) -> bool:                 # i: index into t_rel (sample index i − 1 + start)
-            return bool(output_every) and ((i - 1 + start) % output_every == 0)
-
-        if not uniform:
-            for i in range(1, len(t_rel)):
-                self.push(self._sample(t, w, fB, has_f, i - 1 + start))
-                if emit(i):
-                    outs.append(self.outputs())
-            return
-        idx = np.arange(1, len(t_rel))
-        sel = idx[((idx - 1 + start) % output_every) == 0].astype(np.int64) if output_every else idx[:0].astype(np.int64)
-        y_out = np.zeros((len(sel), self.layout.n))
-        c = np.array([0.0, 0.5, 0.5, 1.0]) if method == 0 else np.asarray(stepper.c, float)
-        h_step = float(hs[0]) if method else h_max
-        sets = RegimeMatrices(stepper, sys_, h_step)
-        lev = np.array([stepper.level], dtype=np.int64)
-        info = np.zeros(N_INFO)
-        need = np.zeros(2, dtype=np.int64)
-        prog = np.zeros(1, dtype=np.int64)
-        first, j_done = 0, 0
-        y = self.y.copy()
-        while True:
-            info[:] = 0.0
-            try:
-                last, status = run_batch(method, h_max, stepper.rtol, stepper.atol, stepper.q1, stepper.max_level,
-                                         lev, info, sets.reg_of, sets.ptr, sets.idx, sets.dat, c, t_rel, W, Fm, y,
-                                         sel, y_out, first, need, prog, sys_.fid, *sys_.kernel_args())
-                exc = None
-            except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
-                last, status, exc = int(prog[0]), -1, e
-            stepper.level = int(lev[0])
-            # commit what was reached: outputs, state, counters
-            steps = int(info[I_STEPS])
-            sys_.n_rhs += steps * len(c) + (last - first if method == 0 else 0)
-            self.n_steps += steps
-            self.n_samples += last - first
-            self._account(info[I_EST], info[I_NORM], int(info[I_REJ]))
-            while j_done < len(sel) and sel[j_done] <= last:
-                i = int(sel[j_done])
-                self._set_at(t_rel, W, Fm, t, has_f, start, i, y_out[j_done])
-                outs.append(self.outputs())
-                j_done += 1
-            self._set_at(t_rel, W, Fm, t, has_f, start, last, y)
-            if status == 0:
-                return
-            if status == NEED_REGIME:
-                sets.add(int(need[0]), int(need[1]))   # matrices for a new (regime, level)
-                first = last
-                continue
-            if status > 0 and status & ST_TOLERANCE and auto:
-                # the primary cannot meet the tolerance here within its budget: this interval by
-                # auto's own push (primary again, then exprb), then back to the compiled loop
-                i = last + 1
-                while True:                        # the refused interval and auto's sticky ones
-                    smp = self._sample(t, w, fB, has_f, i - 1 + start)
-                    self._push_python(smp, smp.t - self.t_start)
-                    if emit(i):
-                        outs.append(self.outputs())
-                    while j_done < len(sel) and sel[j_done] <= i:
-                        j_done += 1
-                    if i >= len(t_rel) - 1:
-                        return
-                    if integ.sticky <= 0:
-                        break
-                    i += 1
-                first = i
-                y = self.y.copy()
-                lev[0] = stepper.level
-                continue
-            at = float(t[min(last + start, len(t) - 1)])
-            if exc is not None:
-                raise SimulationError(f"integration failed after t = {self.t} ({type(exc).__name__}: {exc}); "
-                                      f"state kept there, stopped before the sample at t = {at}") from exc
-            if status & ST_LOCK:
-                raise GimbalLockError(f"gimbal lock (precession model singular) after t = {self.t}; "
-                                      f"stopped before the sample at t = {at}")
-            if status & ST_TOLERANCE:
-                raise stepper.refuse(float(info[I_T]), float(info[I_EBAD]), float(info[I_NBAD]), float(info[I_H]))
-            if status & ST_NOT_PD:
-                raise SimulationError(f"mass matrix not positive definite after t = {self.t}; state kept there")
-            raise SimulationError(f"non-finite state after the step to t = {at}; state kept at t = {self.t}")
-
-    def _set_at(self, t_rel, W, Fm, t, has_f, start, i, y) -> None:
-        """Make sample ``i`` of a batch (index into t_rel) the current one, with state y."""
-        self.y = np.array(y, dtype=float)
-        self.t_rel = float(t_rel[i])
-        if i > 0:
-            self.system.set_input(t_rel[i - 1], t_rel[i], W[i - 1], W[i], Fm[i - 1], Fm[i])
-            self._last = RateSample(float(t[i - 1 + start]), W[i].copy(), Fm[i].copy() if has_f else None)
+        return [block[i] for i in range(len(block))]
 
     def run(self, samples, output_period: float | None = None) -> list[Outputs]:
         """Push all samples; collect outputs every ``output_period`` s (None: after each)."""

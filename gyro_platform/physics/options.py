@@ -41,6 +41,12 @@ DEFAULT_EFFECTS = {
 DEFAULT_FIDELITY = {"carried": "full", "stabilised": "linear"}
 
 
+#: bounds of ``max_step`` (s) and the smallest ``rtol`` (double precision round-off ~1e-16 per
+#: step, accumulated over a step's stages and a run's steps)
+MAX_STEP_RANGE = (1e-6, 1.0)
+RTOL_MIN = 1e-13
+
+
 class OptionsError(ValueError):
     """Bad model options; the message names the option and what is allowed."""
 
@@ -53,7 +59,9 @@ class ModelOptions:
     ``rtol``/``atol``: the local error tolerance every integrator is held to (weighted RMS
     norm of its error estimate ≤ 1, scale ``atol + rtol·|y|``; state units: rad, rad/s, …);
     ``max_substeps``: budget, no step shorter than ``max_step / max_substeps`` (a method that
-    cannot meet the tolerance with it raises ``SimulationError``)."""
+    cannot meet the tolerance with it raises ``SimulationError``). Bounds: ``max_step`` in
+    ``MAX_STEP_RANGE`` (1 µs … 1 s), ``rtol`` in [``RTOL_MIN`` = 1e-13, 1), ``atol`` in (0, 1),
+    ``max_substeps`` an integer in [1, 2^24]; anything else: ``OptionsError`` naming the option."""
 
     mode: str = "stabilised"
     fidelity: str = DEFAULT_FIDELITY["stabilised"]
@@ -75,10 +83,18 @@ class ModelOptions:
             raise OptionsError(f"option 'effects': unknown effect(s) {unknown}; known: {sorted(EFFECTS)}")
         if self.mode == "carried" and eff & STABILISED_ONLY:
             raise OptionsError(f"option 'effects': {sorted(eff & STABILISED_ONLY)} need mode 'stabilised'")
-        if not (0.0 < self.max_step <= 1.0):
-            raise OptionsError(f"option 'max_step' = {self.max_step} s; allowed (0, 1]")
-        if not (0.0 < self.rtol < 1.0) or not (0.0 < self.atol < 1.0):
-            raise OptionsError("options 'rtol' and 'atol' must lie in (0, 1)")
+        for name in ("max_step", "rtol", "atol"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v:
+                raise OptionsError(f"option '{name}' = {v!r}: a real number is needed")
+        if not (MAX_STEP_RANGE[0] <= self.max_step <= MAX_STEP_RANGE[1]):
+            raise OptionsError(f"option 'max_step' = {self.max_step} s; allowed [{MAX_STEP_RANGE[0]:g}, "
+                               f"{MAX_STEP_RANGE[1]:g}] s (shorter steps cost more than 1000 steps per 1 ms sample)")
+        if not (RTOL_MIN <= self.rtol < 1.0):
+            raise OptionsError(f"option 'rtol' = {self.rtol}; allowed [{RTOL_MIN:g}, 1) (below {RTOL_MIN:g} the "
+                               "error estimate is round-off: the tolerance cannot be met)")
+        if not (0.0 < self.atol < 1.0):
+            raise OptionsError(f"option 'atol' = {self.atol}; allowed (0, 1)")
         if not (isinstance(self.max_substeps, int) and 1 <= self.max_substeps <= 2 ** 24):
             raise OptionsError(f"option 'max_substeps' = {self.max_substeps!r}; allowed: an integer in [1, 2^24]")
         object.__setattr__(self, "effects", eff)

@@ -146,6 +146,13 @@ class PlatformParams:
         return PlatformParams(**kw)
 
 
+#: lumped inertia of each gimbal about its axis (``PlatformParams.lumped``) and what it sums
+GIMBAL_INERTIAS = {"J4": "frame4[1] + housings 5, 7 and their rotors about y", "J5": "housing5[2] + rotor_A[0]",
+                   "J7": "housing7[2] + rotor_A[1]", "J9": "frame9[2] + housing10 and its rotor about z",
+                   "J10": "housing10[0] + rotor_A[2]"}
+MIN_GIMBAL_INERTIA = 1e-12
+
+
 def _check(name: str, values, lo: float, hi: float = math.inf, *, lo_open: bool = False) -> None:
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     for i, x in enumerate(arr):
@@ -173,6 +180,12 @@ def validate(p: PlatformParams) -> None:
         if C > 2 * A + 1e-15:
             raise ParameterError(f"parameter 'rotor_C[{i}]' = {C:g} must be ≤ 2·rotor_A[{i}] "
                                  f"= {2 * A:g} (axisymmetric rigid body)")
+    # every gimbal needs inertia about its own axis, or the mass matrix is singular
+    for name, value in p.lumped().items():
+        if name in GIMBAL_INERTIAS and not value > MIN_GIMBAL_INERTIA:
+            raise ParameterError(f"gimbal inertia {name} = {value:g} kg m² (from {GIMBAL_INERTIAS[name]}) must be "
+                                 f"> {MIN_GIMBAL_INERTIA:g} kg m²: a gimbal without inertia about its axis makes the "
+                                 "mass matrix singular")
     _check("platform[0:3]", p.platform[:3], 0.0, 1e4, lo_open=True)
     _check("platform[3:6]", p.platform[3:], -1e4, 1e4)
     eig = np.linalg.eigvalsh(p.platform_tensor)

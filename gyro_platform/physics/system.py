@@ -17,7 +17,7 @@ from ..errors import GimbalLockError, SimulationError
 from .model import (LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
-from .params import PlatformParams
+from .params import ParameterError, PlatformParams
 from .rotations import quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
@@ -445,7 +445,11 @@ class PlatformSystem:
         self.M0, self.G0 = M0, G0
         self.Ifz = M0[:3, :3].copy()
         self.mats = np.zeros((5, 8, 8))
-        self.mats[0] = np.linalg.inv(M0)
+        try:
+            self.mats[0] = np.linalg.inv(M0)
+        except np.linalg.LinAlgError:
+            raise ParameterError("the rest mass matrix of these parameters is singular (a body without "
+                                 "inertia about a joint axis)") from None
         self.mats[1] = G0
         self.mats[2, :3, :3] = self.Ifz
         self.mats[3, :3, :3] = np.linalg.inv(self.Ifz)
@@ -472,6 +476,17 @@ class PlatformSystem:
         self.last_status = 0
         self._lin: dict[int, tuple] = {}      # linear part per friction regime
         self._A_rest: np.ndarray | None = None
+
+    def rebind(self, I: np.ndarray) -> None:
+        """Use ``I`` (same values) as the int table and re-derive the named views of ``I`` and
+        ``P`` (after ``P`` was replaced by an equal array elsewhere, e.g. a packed buffer)."""
+        self.I = I
+        self.lay = I[0]
+        self.on = I[1]
+        self.k = self.P[0:P_L]
+        self.L = self.P[P_L:P_L + 3]
+        self.lc = self.P[P_LC:P_LC + 13]
+        self.w_IN = self.P[P_WIN:P_WIN + 3]
 
     # ---- input -------------------------------------------------------------------------
     def set_input(self, t0: float, t1: float, w0, w1, f0=None, f1=None) -> None:

@@ -13,10 +13,13 @@ upper bound of the step. The budget is ``max_substeps``: no step shorter than
 tolerance; ``y0`` is untouched (the caller keeps its state).
 
 The fixed-grid methods (rk4, etd*, exprb, implicit_midpoint) derive from :class:`Controlled`,
-one step-size controller: the interval is cut into ``nsub·2^level`` equal substeps; an interval
-with a rejected substep is redone at a finer level (``level += max(1, ceil(log2 ‖err‖ /
-(q+1)))``, q the estimator's order), and after an interval whose worst substep was
-≤ ``0.5·2^-(q+1)`` the next interval tries one level coarser. The compiled batch loop
+one step-size controller: the interval is cut into ``nsub = ceil(dt/max_step)`` equal chunks
+and each chunk into ``2^level`` equal substeps; a chunk with a rejected substep is redone at a
+finer level (``level += max(1, ceil(log2 ‖err‖ / (q+1)))``, q the estimator's order), and after
+a chunk whose worst substep was ≤ ``0.5·2^-(q+1)`` the next chunk tries one level coarser. So
+a brief hard stretch (a friction reversal inside a 33 ms interval) costs fine substeps only
+in its own chunk, not over the whole interval; at one chunk per interval (samples at
+≤ max_step) chunk and interval coincide. The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
 Non-finite results are never returned: ``SimulationError``.
@@ -213,25 +216,34 @@ class Controlled(Integrator):
         nsub0, h0 = self._base(t0, t1)
         nrhs = self._prepare(system, t0, y)
         level, rejected = self.level, 0
-        while True:
-            nsub = nsub0 << level
-            h = h0 / (1 << level)
-            y1, norm, est, n, t_bad = self._substeps(system, t0, y, nsub, h)
-            nrhs += n
-            if norm <= 1.0:
-                break
-            rejected += 1
-            new = next_level(level, norm, self.q1)
-            if not norm < math.inf:
-                new = level + MAX_JUMP
-            if new > self.max_level:
-                if level < self.max_level:
-                    new = self.max_level               # try the budget's own limit once
-                else:
-                    raise self.refuse(t_bad, est, norm, h)
-            level = new
-        self.level = coarser_level(level, norm, self.q1)
-        return y1, StepStats(nsub, nrhs, est, norm, rejected, level)
+        steps, est_all, worst, top = 0, 0.0, 0.0, level
+        for chunk in range(nsub0):
+            tc = t0 + chunk * h0
+            while True:
+                nsub = 1 << level
+                h = h0 / nsub
+                y1, norm, est, n, t_bad = self._substeps(system, tc, y, nsub, h)
+                nrhs += n
+                if norm <= 1.0:
+                    break
+                rejected += 1
+                new = next_level(level, norm, self.q1)
+                if not norm < math.inf:
+                    new = level + MAX_JUMP
+                if new > self.max_level:
+                    if level < self.max_level:
+                        new = self.max_level               # try the budget's own limit once
+                    else:
+                        raise self.refuse(t_bad, est, norm, h)
+                level = new
+            y = y1
+            steps += nsub
+            est_all = max(est_all, est)
+            worst = max(worst, norm)
+            top = max(top, level)
+            level = coarser_level(level, norm, self.q1)
+        self.level = level
+        return y, StepStats(steps, nrhs, est_all, worst, rejected, top)
 
     @abstractmethod
     def _substeps(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):

@@ -1,0 +1,89 @@
+"""State snapshots at output instants: what the stepping hands to the output code.
+
+``Simulator.push_block`` integrates a chunk of samples in one compiled call and records, after
+each sample listed in ``out_idx``, everything the outputs at that instant depend on; the output
+code (``engine.outputs``) turns a ``Snapshots`` into an ``OutputBlock``. ``Simulator.outputs()``
+is the K = 1 case: ``Simulator._snapshot()`` gives the current instant as a ``Snapshots``.
+
+The input over the interval ending at the instant is the ``seg`` row in the layout of
+``physics.system`` (``SEG_N`` = 14 floats): ``[t0_rel, dt, w0(3), w1(3), f0(3), f1(3)]`` —
+interval start (s, relative to the first sample), length (s, > 0), vehicle rate at its start and
+end (rad/s, vehicle axes), specific force at its start and end (m/s², vehicle axes; zeros when
+the samples carry none). The input at the instant itself is ``w1``/``f1``; the vehicle angular
+acceleration is ``(w1 − w0)/dt``. At the first sample after a start or reset there is no
+interval: ``w0 = w1``, ``f0 = f1``, ``t0_rel = 0``, ``dt = 1`` (input held constant, zero slope),
+exactly what ``system.seg`` holds then, so that a reset is a fresh start.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..physics.system import SEG_N
+
+__all__ = ["Snapshots", "SEG_N", "first_segment", "OutputList", "stack_outputs"]
+
+
+@dataclass(frozen=True, slots=True)
+class Snapshots:
+    """K output instants of one simulator (arrays over the instants, C-contiguous float64).
+
+    ``t`` (K,) s: sample time in the samples' time base (``t_start + t_rel``, what
+    ``Outputs.t`` reports); ``t_rel`` (K,) s since the first sample (the integration time: the
+    right-hand side and the reference frame use it); ``y`` (K, n): integration state after the
+    sample (``layout`` of the simulator's system); ``seg`` (K, 14): the input segment ending at
+    the sample (module doc); ``n_steps`` (K,) int64: accepted substeps since the start (or
+    reset) up to the sample (``status['n_steps']``)."""
+
+    t: np.ndarray
+    t_rel: np.ndarray
+    y: np.ndarray
+    seg: np.ndarray
+    n_steps: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @staticmethod
+    def empty(n: int) -> "Snapshots":
+        """No instant (state size ``n``)."""
+        return Snapshots(np.zeros(0), np.zeros(0), np.zeros((0, n)), np.zeros((0, SEG_N)), np.zeros(0, np.int64))
+
+    def take(self, k: slice | np.ndarray) -> "Snapshots":
+        """The instants ``k`` (a slice or an index array)."""
+        return Snapshots(self.t[k], self.t_rel[k], self.y[k], self.seg[k], self.n_steps[k])
+
+
+def first_segment(seg: np.ndarray, w: np.ndarray, f: np.ndarray | None) -> None:
+    """Fill ``seg`` (14,) for the first sample after a start/reset: input ``w`` (rad/s) and
+    ``f`` (m/s², None = zeros) held constant over a unit interval starting at 0."""
+    seg[0] = 0.0
+    seg[1] = 1.0
+    seg[2:5] = w
+    seg[5:8] = w
+    if f is None:
+        seg[8:14] = 0.0
+    else:
+        seg[8:11] = f
+        seg[11:14] = f
+
+
+class OutputList:
+    """Stand-in for ``outputs.OutputBlock`` while that is not there: ``len``, ``block[i]``."""
+
+    def __init__(self, outs: list) -> None:
+        self.outputs = outs
+
+    def __len__(self) -> int:
+        return len(self.outputs)
+
+    def __getitem__(self, i: int):
+        return self.outputs[i]
+
+
+def stack_outputs(outs: list):
+    """``OutputBlock.stack(outs)`` (``OutputList`` until ``outputs.OutputBlock`` exists)."""
+    from . import outputs
+    block = getattr(outputs, "OutputBlock", None)
+    return block.stack(outs) if block is not None else OutputList(outs)
