@@ -86,7 +86,7 @@ CONFIGS = st.builds(GateConfig, max_gap=st.sampled_from([1.0, 0.5, 2.5]),
                     on_gap=st.sampled_from(["reset", "integrate"]),
                     reset_on_jump_back=st.sampled_from([1.0, 0.0, 5.0]),
                     time_source=st.sampled_from(["auto", "auto", "header", "receive"]),
-                    require_specific_force=st.booleans())
+                    require_specific_force=st.booleans(), rebase_on_reset=st.booleans())
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -211,14 +211,37 @@ def test_bad_input_is_counted_by_reason_and_never_raises():
     assert st["gyro_platform: node"][2]["dropped_by_reason.bad_message"] == "2"
 
 
-def test_sample_the_simulator_rejects_is_counted_and_warned():
-    """mass_unbalance needs the specific force; an Imu that does not report it is rejected."""
+def test_sample_without_the_needed_specific_force_is_dropped_before_it_advances_the_gate():
+    """mass_unbalance needs the specific force: an Imu that does not report it is dropped by the
+    gate (``no_specific_force``, WARN), and the next valid sample — even at the same stamp — is
+    accepted (the dropped one did not advance the time base)."""
     core = make_core(output_rate=0.0, effects=["defaults", "mass_unbalance"])
     assert core.on_message(imu(BASE), BASE)
     assert core.on_message(imu(BASE + MS, cov_a=-1.0), BASE + MS) == []
-    assert core.snapshot()["simulator"] == {"pushed": 1, "rejected": 1}
-    level, message, _ = statuses(core.diagnostics(BASE + 2 * MS))["gyro_platform: node"]
-    assert level == 1 and "rejected" in message
+    assert core.snapshot()["dropped_by_reason"] == {"no_specific_force": 1}
+    level, message, _ = statuses(core.diagnostics(BASE + 2 * MS))["gyro_platform: input"]
+    assert level == 1 and "no_specific_force" in message
+    assert core.on_message(imu(BASE + MS), BASE + MS)
+    assert core.gate.last.reason == "ok" and core.snapshot()["simulator"] == {"pushed": 2, "dropped": 1}
+
+
+def test_a_sample_the_simulator_refuses_rolls_the_gate_back():
+    """A gate that does not know what the simulator needs accepts the sample; the simulator
+    refuses it; the pipeline rolls the gate back (``refused``), so the next sample at the same
+    stamp is not dropped as repeated_stamp and the run does not diverge."""
+    from gyro_platform.engine.simulator import Simulator
+    from gyro_platform.io.gate import GateConfig, TimeGate
+    from gyro_platform.io.messages import reading_from_msg
+    from gyro_platform.pipeline import Pipeline
+
+    cfg = NodeConfig.from_ros_params({"effects": ["defaults", "mass_unbalance"]})
+    pipe = Pipeline(Simulator(cfg.params, cfg.options), TimeGate(GateConfig()), 0.0)
+    assert pipe.offer(reading_from_msg(imu(BASE)), BASE).outcome == "pushed"
+    step = pipe.offer(reading_from_msg(imu(BASE + MS, cov_a=-1.0)), BASE + MS)
+    assert step.outcome == "rejected" and pipe.gate.last.reason == "refused"
+    assert pipe.gate.last_stamp_ns == BASE
+    assert pipe.offer(reading_from_msg(imu(BASE + MS)), BASE + MS).outcome == "pushed"
+    assert pipe.sim.n_samples == 2 and pipe.gate.snapshot()["dropped_by_reason"] == {"refused": 1}
 
 
 def test_gimbal_lock_proximity_is_reported():

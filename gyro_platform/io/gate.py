@@ -80,6 +80,7 @@ RESET_REASONS = ("jump_back", "gap")
 ACCEPT_REASONS = ("start", "ok")
 #: every decision reason; ``GateBlock.reason`` indexes this tuple
 REASONS = DROP_REASONS + RESET_REASONS + ACCEPT_REASONS
+ALL_REASONS = REASONS
 REASON_INDEX = {r: i for i, r in enumerate(REASONS)}
 NOTES = ("receive_time", "gap_integrated", "identity_frame")
 #: ``GateBlock.action`` codes
@@ -90,7 +91,7 @@ ACTION_CODE = {}  # filled below (Action → code)
 ACTION_CODE.update({Action.ACCEPT: ACCEPT, Action.DROP: DROP, Action.RESET: RESET})
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Decision:
     """The gate's verdict on one message.
 
@@ -118,7 +119,10 @@ class GateConfig:
     ``reset_on_jump_back`` s; ``max_rate`` rad/s; ``time_source``: ``auto`` | ``header`` |
     ``receive``; ``rate_smoothing``: weight of a new interval in the rate estimates;
     ``require_specific_force``: drop samples without specific force (``no_specific_force``),
-    set when the model's effects need it (the simulator would refuse them)."""
+    set when the model's effects need it (the simulator would refuse them);
+    ``rebase_on_reset``: a reset (gap, jump back) also moves the origin to the reset sample
+    (its ``sample.t`` is 0, as for a fresh gate: a reset is a fresh start; the node uses this);
+    default False: one origin for the whole stream."""
 
     max_gap: float = 1.0
     on_gap: str = "reset"
@@ -127,6 +131,7 @@ class GateConfig:
     time_source: str = "auto"
     rate_smoothing: float = 0.05
     require_specific_force: bool = False
+    rebase_on_reset: bool = False
 
     def __post_init__(self) -> None:
         if not (self.max_gap > 0 and math.isfinite(self.max_gap)):
@@ -232,8 +237,14 @@ class TimeGate:
     # ---- the decision ---------------------------------------------------------------
     def offer(self, reading: Reading | Rejected, receive_ns: int | None = None) -> Decision:
         """Decide about one message; ``receive_ns`` is its receive time (ns) if known."""
-        if receive_ns is not None:
-            self._arrival(receive_ns)
+        if receive_ns is not None:              # arrival rate (every message, dropped ones too)
+            s = self._s
+            last = s.rx_last
+            if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
+                dt = (receive_ns - last) / NS
+                e = s.rx_dt_ema
+                s.rx_dt_ema = dt if e is None else e + self.config.rate_smoothing * (dt - e)
+            s.rx_last = int(receive_ns)
         return self._offer(reading, receive_ns)
 
     def _offer(self, reading: Reading | Rejected, receive_ns: int | None) -> Decision:
@@ -266,14 +277,6 @@ class TimeGate:
         self.last = self.last_drop = Decision(Action.DROP, "refused", None, last.stamp_ns, last.source, detail)
         self._undo = None
 
-    def _arrival(self, receive_ns: int) -> None:
-        s = self._s
-        if s.rx_last is not None and 0 < receive_ns - s.rx_last <= self.config.max_gap * NS:
-            dt = (receive_ns - s.rx_last) / NS
-            a = self.config.rate_smoothing
-            s.rx_dt_ema = dt if s.rx_dt_ema is None else s.rx_dt_ema + a * (dt - s.rx_dt_ema)
-        s.rx_last = int(receive_ns)
-
     def _drop(self, reason: str, detail: str, stamp_ns: int | None = None, source: str | None = None) -> Decision:
         return Decision(Action.DROP, reason, None, stamp_ns, source, detail)
 
@@ -288,13 +291,12 @@ class TimeGate:
         if len(w) != 3 or (f is not None and len(f) != 3):
             return self._drop("bad_message", "rate or specific force is not a 3-vector")
         wx, wy, wz = float(w[0]), float(w[1]), float(w[2])
-        isfinite = math.isfinite
+        # x - x is 0.0 (false) for a finite x, NaN (true) for NaN or ±Inf
+        bad = (wx - wx) or (wy - wy) or (wz - wz)
         if f is not None:
             fx, fy, fz = float(f[0]), float(f[1]), float(f[2])
-            f_ok = isfinite(fx) and isfinite(fy) and isfinite(fz)
-        else:
-            f_ok = True
-        if not (isfinite(wx) and isfinite(wy) and isfinite(wz) and f_ok):
+            bad = bad or (fx - fx) or (fy - fy) or (fz - fz)
+        if bad:
             return self._drop("non_finite", f"non-finite value: omega={[wx, wy, wz]}, specific_force="
                                             f"{None if f is None else [fx, fy, fz]}")
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -356,7 +358,7 @@ class TimeGate:
             note += ("identity_frame",)
         self._undo = (s.source, s.origin_ns, s.last_ns, s.dt_ema, note)
         s.source = source
-        if s.origin_ns is None:
+        if s.origin_ns is None or (action is Action.RESET and cfg.rebase_on_reset):
             s.origin_ns = t_ns
         s.last_ns = t_ns
         s.dt_ema = dt_ema
@@ -429,7 +431,7 @@ class TimeGate:
         return GateBlock(action, reason, t, stamp)
 
     def _arrivals(self, rx: np.ndarray, rx_list: list[int]) -> None:
-        """:meth:`_arrival` for every receive time of a block (same float operations)."""
+        """The arrival-rate update of :meth:`offer` for every receive time of a block (same float operations)."""
         s = self._s
         prev = np.empty(len(rx), np.int64)
         prev[1:] = rx[:-1]

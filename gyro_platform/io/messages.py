@@ -210,10 +210,7 @@ class Mounting:
             m = self._rows[frame_id]
         except KeyError:
             return None
-        if m is None:
-            return v
-        x, y, z = v
-        return (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z)
+        return v if m is None else _mul(m, v)
 
     def rotate_block(self, rb: "RateBlock") -> "RateBlock":
         """The rows of ``rb`` in the vehicle frame (a new block; ``rb`` is not changed), row by
@@ -298,7 +295,7 @@ def as_rotation(value: Any) -> Rotation:
 Vec3 = tuple[float, float, float]
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Reading:
     """Rates of one message, rotated into the vehicle frame (not yet timed; the gate does that).
 
@@ -315,7 +312,7 @@ class Reading:
     identity_assumed: bool = False
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Rejected:
     """A message that cannot give a rate sample: ``reason`` (``no_rate``, ``unknown_frame``,
     ``bad_message``) and a human-readable ``detail``."""
@@ -383,34 +380,51 @@ def reading_from_msg(msg: Any, mounting: Mounting | None = None) -> Reading | Re
     stamp: int | None = None
     frame = ""
     try:
-        kind = message_kind(msg)
+        kind = _KIND_BY_CLASS.get(type(msg), False)
+        if kind is False:
+            kind = message_kind(msg)
         if kind is None:
             return Rejected("bad_message", f"unsupported message type {type_name(msg) or type(msg).__name__}")
         if kind == TWIST:
-            omega, force, frame = _vec3(msg.angular), None, mounting.vehicle_frame
+            v = msg.angular
+            omega, force, frame = (float(v.x), float(v.y), float(v.z)), None, mounting.vehicle_frame
         else:
             h = msg.header
             frame = str(h.frame_id)
             stamp = stamp_ns(h.stamp)
             if kind == TWIST_STAMPED:
-                omega, force = _vec3(msg.twist.angular), None
+                v = msg.twist.angular
+                omega, force = (float(v.x), float(v.y), float(v.z)), None
             else:
                 if float(msg.angular_velocity_covariance[0]) == -1.0:
                     return Rejected("no_rate", "angular_velocity_covariance[0] = -1 (rate not reported)",
                                     stamp, frame)
-                omega = _vec3(msg.angular_velocity)
-                force = (None if float(msg.linear_acceleration_covariance[0]) == -1.0
-                         else _vec3(msg.linear_acceleration))
+                v = msg.angular_velocity
+                omega = (float(v.x), float(v.y), float(v.z))
+                if float(msg.linear_acceleration_covariance[0]) == -1.0:
+                    force = None
+                else:
+                    v = msg.linear_acceleration
+                    force = (float(v.x), float(v.y), float(v.z))
     except (AttributeError, TypeError, ValueError, IndexError, OverflowError) as e:
         return Rejected("bad_message", f"malformed message: {e}", stamp, frame)
-    rotated = mounting.rotate(frame, omega)
-    if rotated is None:
-        if mounting.unknown_frame == "reject":
-            return Rejected("unknown_frame", f"no mounting configured for frame_id {frame!r}", stamp, frame)
-        return Reading(omega, force, stamp, frame, True)
-    if force is not None:
-        force = mounting.rotate(frame, force)
-    return Reading(rotated, force, stamp, frame, False)
+    rows = mounting._rows
+    if frame in rows:
+        m = rows[frame]
+        if m is not None:
+            omega = _mul(m, omega)
+            if force is not None:
+                force = _mul(m, force)
+        return Reading(omega, force, stamp, frame, False)
+    if mounting.unknown_frame == "reject":
+        return Rejected("unknown_frame", f"no mounting configured for frame_id {frame!r}", stamp, frame)
+    return Reading(omega, force, stamp, frame, True)
+
+
+def _mul(m: tuple[float, ...], v: Vec3) -> Vec3:
+    """Row-major 3×3 ``m`` times ``v`` (the float operations of :meth:`Mounting.rotate_block`)."""
+    x, y, z = v
+    return (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z)
 
 
 _DEFAULT_MOUNTING = Mounting()

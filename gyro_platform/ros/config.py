@@ -171,8 +171,9 @@ class NodeConfig:
     @staticmethod
     def _build(values: dict[str, Any], scene: Any) -> "NodeConfig":
         cfg = NodeConfig(dict(values), scene)
-        cfg._built.update(gate=cfg._gate_config(), mounting=cfg._mounting(), params=cfg._platform_params())
-        cfg._built["options"] = cfg._model_options()
+        cfg._built.update(mounting=cfg._mounting(), params=cfg._platform_params())
+        cfg._built["options"] = opts = cfg._model_options()
+        cfg._built["gate"] = cfg._gate_config(bool(opts.effects & NEEDS_SPECIFIC_FORCE))
         return cfg
 
     def with_changes(self, changes: Mapping[str, Any]) -> "NodeConfig":
@@ -214,10 +215,13 @@ class NodeConfig:
     def options(self) -> ModelOptions:
         return self._built["options"]
 
-    def _gate_config(self) -> GateConfig:
+    def _gate_config(self, needs_force: bool) -> GateConfig:
+        """The gate of the node: a sample without the specific force the model needs is dropped
+        (``no_specific_force``) before it reaches the time base; a reset re-anchors the time
+        origin (a reset is a fresh start of the core)."""
         kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate", "time_source")}
         try:
-            return GateConfig(**kw)
+            return GateConfig(**kw, require_specific_force=needs_force, rebase_on_reset=True)
         except ValueError as e:
             name = str(e).split(" ", 1)[0]
             raise ConfigError(f"gate.{name}" if f"gate.{name}" in SPECS else "gate", str(e)) from None
