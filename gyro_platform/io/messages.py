@@ -464,6 +464,14 @@ def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
 
     Velocity and effort are left empty (as the message definition allows) only when the outputs
     lack the mount rates (outputs built by an older producer); positions are always complete."""
+    names, pos, vel, eff = joint_state_values(out)
+    fa = types.float_array
+    return types[JOINT_STATE](header=header(types, t_ns), name=names, position=fa(pos), velocity=fa(vel),
+                              effort=fa(eff))
+
+
+def joint_state_values(out: Outputs) -> tuple[list[str], list[float], list[float], list[float]]:
+    """Names, positions, velocities and efforts of :func:`joint_state` (Python floats)."""
     pos = joint_positions(out)
     vel = [float(x) for x in out.gimbal_rates]
     eff = [float(x) for x in out.gimbal_axial_torques]
@@ -479,11 +487,9 @@ def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
     if out.rotor_rates is not None:
         vel += [float(x) for x in out.rotor_rates]
         eff += [float(x) for x in out.motor_torques]
-    fa = types.float_array
     if not complete:
         vel, eff = [], []
-    return types[JOINT_STATE](header=header(types, t_ns), name=list(pos), position=fa(list(pos.values())),
-                              velocity=fa(vel), effort=fa(eff))
+    return list(pos), list(pos.values()), vel, eff
 
 
 def _vector3(types: MessageTypes, v: Sequence[float]) -> Any:

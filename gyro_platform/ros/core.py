@@ -70,7 +70,7 @@ class _Timing:
 class OutputMessages:
     """The output messages of one instant (``messages.output_messages`` with the frame
     prefix), built once and refilled in place at each later instant: stamps, vectors,
-    quaternion, bearing torques; the JointState is built anew (its arrays are replaced).
+    quaternion, bearing torques, the JointState's arrays.
     Rebuilt from scratch when the set of outputs changes (e.g. the servo effect switched)."""
 
     def __init__(self, types: MessageTypes, frame_prefix: str = ""):
@@ -80,6 +80,7 @@ class OutputMessages:
         self._stamps: list[Any] = []
         self._vectors: list[tuple[Any, str, str | None]] = []   # (Vector3, Outputs field, bearing)
         self._quat: Any = None
+        self._js: Any = None
 
     def fill(self, out: Any, t_ns: int) -> list[tuple[str, Any]]:
         """(topic, message) pairs of ``out`` stamped ``t_ns`` (topics relative, as on_message)."""
@@ -97,13 +98,16 @@ class OutputMessages:
             v.x, v.y, v.z = (getattr(out, name) if bearing is None else bt[bearing]).tolist()
         q = self._quat
         q.x, q.y, q.z, q.w = out.platform_attitude.tolist()
-        self.pairs[0] = (self.pairs[0][0], msgs.joint_state(out, self.types, t_ns))
+        _, pos, vel, eff = msgs.joint_state_values(out)
+        js, fa = self._js, self.types.float_array
+        js.position, js.velocity, js.effort = fa(pos), fa(vel), fa(eff)
         return self.pairs
 
     def _build(self, out: Any, t_ns: int) -> None:
         pairs = [(t.lstrip("/"), m) for t, m in msgs.output_messages(out, self.types, t_ns, "")]
-        self._stamps, self._vectors = [], []
-        for topic, m in pairs[1:]:            # [0] is the JointState
+        self._js = pairs[0][1]                # the JointState
+        self._stamps, self._vectors = [self._js.header.stamp], []
+        for topic, m in pairs[1:]:
             self._stamps.append(m.header.stamp)
             if self.prefix and m.header.frame_id:
                 m.header.frame_id = self.prefix + m.header.frame_id
