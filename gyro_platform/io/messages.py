@@ -444,12 +444,18 @@ def joint_positions(out: Outputs) -> dict[str, float]:
     """Joint name → position (rad) of every moving joint of the URDF (:mod:`gyro_platform.io.urdf`):
     the gimbals, the mount joints (stabilised mode) and the rotors (spin angle ``ω_r t`` of
     the ideal speed control, wrapped to [-π, π)). Every value is finite for finite outputs."""
-    pos = dict(zip(GIMBAL_NAMES, (float(x) for x in out.gimbal_angles)))
+    pos = dict(zip(GIMBAL_NAMES, _floats(out.gimbal_angles)))
     if out.mount_angles is not None:
-        pos.update(zip(MOUNT_NAMES, (float(x) for x in out.mount_angles)))
+        pos.update(zip(MOUNT_NAMES, _floats(out.mount_angles)))
     if out.rotor_rates is not None:
-        pos.update(zip(ROTOR_JOINT_NAMES, (wrap_angle(w * out.t) for w in out.rotor_rates)))
+        t = float(out.t)
+        pos.update(zip(ROTOR_JOINT_NAMES, (wrap_angle(w * t) for w in _floats(out.rotor_rates))))
     return pos
+
+
+def _floats(v: Any) -> list[float]:
+    """A vector as a list of Python floats."""
+    return v.tolist() if isinstance(v, np.ndarray) and v.dtype == np.float64 else [float(x) for x in v]
 
 
 def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
@@ -473,20 +479,20 @@ def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
 def joint_state_values(out: Outputs) -> tuple[list[str], list[float], list[float], list[float]]:
     """Names, positions, velocities and efforts of :func:`joint_state` (Python floats)."""
     pos = joint_positions(out)
-    vel = [float(x) for x in out.gimbal_rates]
-    eff = [float(x) for x in out.gimbal_axial_torques]
+    vel = _floats(out.gimbal_rates)
+    eff = _floats(out.gimbal_axial_torques)
     complete = True
     if out.mount_angles is not None:
         if out.mount_rates is None:
             complete = False
         else:
-            vel += [float(x) for x in out.mount_rates]
-            axes = euler_xyz_axes(out.mount_angles)
-            servo = np.zeros(3) if out.servo_torque is None else np.asarray(out.servo_torque, float)
-            eff += [float(x) for x in axes.T @ servo]
+            vel += _floats(out.mount_rates)
+            (a, b, c), (d, e, f), (g, h, i) = euler_xyz_axes(out.mount_angles).tolist()
+            x, y, z = (0.0, 0.0, 0.0) if out.servo_torque is None else _floats(out.servo_torque)
+            eff += [a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z]   # axesᵀ · servo
     if out.rotor_rates is not None:
-        vel += [float(x) for x in out.rotor_rates]
-        eff += [float(x) for x in out.motor_torques]
+        vel += _floats(out.rotor_rates)
+        eff += _floats(out.motor_torques)
     if not complete:
         vel, eff = [], []
     return list(pos), list(pos.values()), vel, eff
