@@ -29,13 +29,16 @@ import array
 import importlib
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..physics.rotations import euler_xyz_axes
 from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+
+if TYPE_CHECKING:
+    from .blocks import RateBlock
 
 # ---- names -------------------------------------------------------------------------------
 IMU = "sensor_msgs/msg/Imu"

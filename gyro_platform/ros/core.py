@@ -106,9 +106,10 @@ class OutputMessages:
     def _build(self, out: Any, t_ns: int) -> None:
         pairs = [(t.lstrip("/"), m) for t, m in msgs.output_messages(out, self.types, t_ns, "")]
         self._js = pairs[0][1]                # the JointState
-        self._stamps, self._vectors = [self._js.header.stamp], []
+        stamp = self._js.header.stamp         # one Time object shared by every header
+        self._stamps, self._vectors = [stamp], []
         for topic, m in pairs[1:]:
-            self._stamps.append(m.header.stamp)
+            m.header.stamp = stamp
             if self.prefix and m.header.frame_id:
                 m.header.frame_id = self.prefix + m.header.frame_id
             if topic.startswith("bearing/"):
