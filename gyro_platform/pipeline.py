@@ -131,7 +131,7 @@ def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int) -> str:
 
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Step:
     """What one input did: the gate's ``decision``, the simulator's ``outcome`` (see
     :func:`apply_decision`) and ``emit``: the sample starts a new output slot, take the outputs."""
@@ -169,6 +169,8 @@ class Pipeline:
         """A gate decision: simulator, outcome count, output grid (restarted on a reset)."""
         outcome = apply_decision(self.sim, decision)
         self.outcomes[outcome] = self.outcomes.get(outcome, 0) + 1
+        if outcome == "rejected":       # the gate must not keep a time the simulator refused
+            self.gate.refuse("the simulator refused the sample")
         if outcome in ("reset", "restarted"):
             self.slot = None
         return Step(decision, outcome, outcome in ADVANCED and self.due(decision.stamp_ns))

@@ -211,14 +211,53 @@ def test_bad_input_is_counted_by_reason_and_never_raises():
     assert st["gyro_platform: node"][2]["dropped_by_reason.bad_message"] == "2"
 
 
-def test_sample_the_simulator_rejects_is_counted_and_warned():
-    """mass_unbalance needs the specific force; an Imu that does not report it is rejected."""
+@pytest.mark.parametrize("nanosec", [1_500_000_000, 1_000_000_000, -1])
+def test_stamp_with_nanosec_out_of_range_is_a_bad_message_not_a_time_jump(nanosec):
+    """``nanosec = 1.5e9`` is not 1.5 s later: the message is dropped (bad_message), the time
+    base and the output grid are untouched (issue 17: it lost 14 rows and sent t backwards)."""
+    core = make_core(output_rate=10.0)
+    published = {k: bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(150)}
+    bad = imu(BASE + 150 * MS)
+    bad.header.stamp.nanosec = nanosec
+    assert core.on_message(bad, BASE + 150 * MS) == []
+    assert core.gate.last.reason == "bad_message" and "nanosec" in core.gate.last.detail
+    assert core.gate.last_stamp_ns == BASE + 149 * MS
+    published.update({k: bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(151, 400)})
+    assert [k for k, p in published.items() if p] == [0, 100, 200, 300]       # the 10 Hz grid goes on
+    assert core.snapshot()["resets"] == 0
+
+
+def test_sample_without_the_needed_specific_force_is_dropped_before_it_advances_the_gate():
+    """mass_unbalance needs the specific force: an Imu that does not report it is dropped by the
+    gate (``no_specific_force``, WARN), and the next valid sample — even at the same stamp — is
+    accepted (the dropped one did not advance the time base)."""
     core = make_core(output_rate=0.0, effects=["defaults", "mass_unbalance"])
     assert core.on_message(imu(BASE), BASE)
     assert core.on_message(imu(BASE + MS, cov_a=-1.0), BASE + MS) == []
-    assert core.snapshot()["simulator"] == {"pushed": 1, "rejected": 1}
-    level, message, _ = statuses(core.diagnostics(BASE + 2 * MS))["gyro_platform: node"]
-    assert level == 1 and "rejected" in message
+    assert core.snapshot()["dropped_by_reason"] == {"no_specific_force": 1}
+    level, message, _ = statuses(core.diagnostics(BASE + 2 * MS))["gyro_platform: input"]
+    assert level == 1 and "no_specific_force" in message
+    assert core.on_message(imu(BASE + MS), BASE + MS)
+    assert core.gate.last.reason == "ok" and core.snapshot()["simulator"] == {"pushed": 2, "dropped": 1}
+
+
+def test_a_sample_the_simulator_refuses_rolls_the_gate_back():
+    """A gate that does not know what the simulator needs accepts the sample; the simulator
+    refuses it; the pipeline rolls the gate back (``refused``), so the next sample at the same
+    stamp is not dropped as repeated_stamp and the run does not diverge."""
+    from gyro_platform.engine.simulator import Simulator
+    from gyro_platform.io.gate import GateConfig, TimeGate
+    from gyro_platform.io.messages import reading_from_msg
+    from gyro_platform.pipeline import Pipeline
+
+    cfg = NodeConfig.from_ros_params({"effects": ["defaults", "mass_unbalance"]})
+    pipe = Pipeline(Simulator(cfg.params, cfg.options), TimeGate(GateConfig()), 0.0)
+    assert pipe.offer(reading_from_msg(imu(BASE)), BASE).outcome == "pushed"
+    step = pipe.offer(reading_from_msg(imu(BASE + MS, cov_a=-1.0)), BASE + MS)
+    assert step.outcome == "rejected" and pipe.gate.last.reason == "refused"
+    assert pipe.gate.last_stamp_ns == BASE
+    assert pipe.offer(reading_from_msg(imu(BASE + MS)), BASE + MS).outcome == "pushed"
+    assert pipe.sim.n_samples == 2 and pipe.gate.snapshot()["dropped_by_reason"] == {"refused": 1}
 
 
 def test_gimbal_lock_proximity_is_reported():
@@ -346,6 +385,11 @@ def test_effect_needing_specific_force_is_refused_on_a_twist_input():
     ({"mode": "carried", "effects": ["defaults", "servo"]}, "effects"),           # servo needs stabilised
     ({"scene": "no_such_scene"}, "scene"),
     ({"reset_on_clock_jump": 1}, "reset_on_clock_jump"),
+    ({"physics": {"servo_kp": True}}, "physics.servo_kp"),                       # a bool is not a double
+    ({"physics": {"bias_torque": [[0.0, 0.0], [0.0, 0.0, 0.0]]}}, "physics.bias_torque"),   # not flattened
+    ({"effects": [["servo"]]}, "effects"),
+    ({"fidelity": "precession", "physics": {"rotor_C": [0.0, 2.0e-5, 2.0e-5]}}, "fidelity"),  # L6 = 0: det G_R = 0
+    ({"fidelity": "precession", "physics": {"rotor_speed": [2500.0, 2500.0, 0.0]}}, "fidelity"),
 ])
 def test_config_errors_name_the_parameter(params, named):
     with pytest.raises(ConfigError) as e:
@@ -376,6 +420,70 @@ def test_reset_restarts_the_simulation_and_the_time_base():
     assert core.gate.last.reason == "start"
     assert core.snapshot()["resets_by_reason"] == {"service": 1}
     assert core.snapshot()["last_reset_reason"] == "service"
+
+
+def _published(out) -> dict[str, list[float]]:
+    """Every number of one output instant by topic (messages are reused between calls)."""
+    res = {}
+    for topic, m in out:
+        if topic == "gimbal/joint_states":
+            res[topic] = [*m.position, *m.velocity, *m.effort, stamp_ns(m.header.stamp)]
+        elif topic.startswith("bearing/"):
+            t = m.wrench.torque
+            res[topic] = [t.x, t.y, t.z, stamp_ns(m.header.stamp)]
+        elif topic == "platform/attitude":
+            q = m.quaternion
+            res[topic] = [q.x, q.y, q.z, q.w, stamp_ns(m.header.stamp)]
+        else:
+            v = m.vector
+            res[topic] = [v.x, v.y, v.z, stamp_ns(m.header.stamp)]
+    return res
+
+
+def test_reused_output_messages_equal_freshly_built_ones_at_every_instant():
+    """The core refills one set of message objects; at every instant they carry exactly what
+    ``messages.output_messages`` builds from the same outputs (also across a live change of
+    the effects, and with a frame prefix)."""
+    from gyro_platform.io.messages import output_messages
+
+    core = make_core(output_rate=0.0, frame_prefix="r1/", effects=["rotor_gyroscopic", "coriolis"])
+    rng = np.random.default_rng(7)
+    for k in range(60):
+        if k == 30:
+            assert core.set_parameters({"effects": ["rotor_gyroscopic", "coriolis", "servo"]})[0]
+        t = BASE + k * MS
+        out = core.on_message(imu(t, rng.normal(scale=0.3, size=3)), t)
+        ref = [(topic.lstrip("/"), m) for topic, m in output_messages(core.last_out, TYPES, t)]
+        assert [topic for topic, _ in out] == [topic for topic, _ in ref]
+        assert _published(out) == _published(ref)
+        assert all(m.header.frame_id in ("", "r1/" + r.header.frame_id) for (_, m), (_, r) in zip(out, ref))
+
+
+@pytest.mark.parametrize("how", ["gap", "jump_back", "service"])
+def test_every_reset_is_a_fresh_start_of_the_core(how):
+    """After a reset (a gap or a jump back in the stamps, or ~/reset) the core publishes exactly
+    what a fresh core fed the same messages publishes: state, input, time origin (rotor spin
+    angles), output grid (10 Hz) and input-loss window all start again (issue 17)."""
+    rng = np.random.default_rng(3)
+    w = rng.normal(scale=0.3, size=(700, 3))
+    a = np.array([0.0, 0.0, 9.81]) + rng.normal(scale=0.5, size=(700, 3))
+    before = [BASE + 7_300_000 + k * MS for k in range(400)]            # grid phase differs from after
+    start = {"gap": before[-1] + 3 * 10**9, "jump_back": BASE - 20 * 10**9, "service": before[-1] + 10 * MS}[how]
+    after = [start + k * MS for k in range(300)]
+    params = dict(output_rate=10.0, **STABILISED_BIAS)
+    core, fresh = make_core(**params), make_core(**params)
+    for k, t in enumerate(before):
+        core.on_message(imu(t, w[k], a[k]), t)
+    if how == "service":
+        core.reset("service")
+    got, want = [], []
+    for k, t in enumerate(after):
+        got.append(_published(core.on_message(imu(t, w[400 + k], a[400 + k]), t)))
+        want.append(_published(fresh.on_message(imu(t, w[400 + k], a[400 + k]), t)))
+    assert sum(bool(g) for g in got) == 3                             # t = 0, 0.1, 0.2 s after the reset
+    assert got == want
+    assert core.snapshot()["resets_by_reason"] == {how: 1}
+    assert core.snapshot()["input_lost"] == fresh.snapshot()["input_lost"] == 0
 
 
 @pytest.mark.parametrize("enabled", [True, False])
@@ -420,6 +528,36 @@ def test_params_file_sections_merge_wildcard_then_node(tmp_path):
     f.write_text("/**:\n  ros__parameters:\n    output_rate: 5\n")
     with pytest.raises(ConfigError, match=r"'output_rate'.*write 5.0"):
         NodeConfig.from_yaml(f)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("/**:\n  ros__parameters: [1, 2]\n", "must be a mapping"),
+    ("/**:\n  ros__parameters: 3\n", "must be a mapping"),
+    ("/**:\n  ros__parameters: text\n", "must be a mapping"),
+    ("- 1\n- 2\n", "mapping of node names"),
+    ("/**: [1]\n", "has no 'ros__parameters'"),
+    ("? [1, 2]\n: 3\n", "unhashable key"),
+    ("/**:\n  ros__parameters:\n    physics: {servo_kp: true}\n", "expected a double"),
+    ("/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_C: [0.0, 2.0e-5, 2.0e-5]}\n",
+     "zero spin momentum"),
+])
+def test_bad_params_files_give_one_line_naming_the_file(tmp_path, text, says):
+    f = tmp_path / "p.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as e:
+        NodeConfig.from_yaml(f)
+    assert says in str(e.value) and str(f) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_precession_with_a_rotor_at_rest_is_refused_at_node_start(tmp_path):
+    """The refusal a scene gives: ``gyro-platform node`` exits 2 with one line before it joins
+    any transport (no traceback)."""
+    f = tmp_path / "p.yaml"
+    f.write_text("/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_C: [0.0, 2.0e-5, 2.0e-5]}\n")
+    r = subprocess.run([sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--params-file", str(f)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert "zero spin momentum" in r.stderr and "Traceback" not in r.stderr
 
 
 @pytest.mark.parametrize("scene_file", SCENES, ids=[p.stem for p in SCENES])

@@ -24,6 +24,7 @@ Decisions and their reasons (checked in this order; every decision is counted by
 | `bad_message` | drop | undecodable or unsupported message |
 | `non_finite` | drop | NaN/Inf in rate or specific force |
 | `over_rate` | drop | ‖ω‖ > `max_rate` (rad/s; default 35 ≈ 2000 °/s, a gyro's full scale) |
+| `no_specific_force` | drop | the model needs the specific force (`require_specific_force`) and the message carries none |
 | `zero_stamp` | drop | header mode and stamp 0 |
 | `no_time` | drop | receive mode and no receive time given |
 | `repeated_stamp` | drop | t = previous accepted t |
@@ -31,10 +32,16 @@ Decisions and their reasons (checked in this order; every decision is counted by
 | `jump_back` | reset | t < previous accepted t by more than `reset_on_jump_back` (looped bag) |
 | `gap` | reset | t − previous > `max_gap` and `on_gap="reset"` (default) |
 | `ok` | accept | otherwise (first sample: `start`) |
+| `refused` | drop | the simulator refused a sample the gate had accepted (:meth:`TimeGate.refuse` rolls the gate back) |
 
 Notes counted beside the decisions: ``receive_time`` (time taken from the receive clock),
 ``gap_integrated`` (a gap integrated across with ``on_gap="integrate"``), ``identity_frame``
 (unknown frame taken as base_link).
+
+Blocks: :meth:`TimeGate.offer_block` decides a whole :class:`~gyro_platform.io.blocks.RateBlock`
+at once (:class:`GateBlock`): plain runs (usable, finite, in range, increasing, no gap) are
+vectorised, every other row goes through :meth:`TimeGate.offer`; counters, notes, the last
+decision and the rate estimates end as after one ``offer`` per row.
 
 Default ``on_gap="reset"``: across a gap the simulator would interpolate the rate linearly and
 so invent the vehicle's motion; restarting is honest, and the outputs before the gap are kept.
@@ -45,12 +52,16 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..engine.inputs import RateSample
+from .blocks import REJECT_REASONS
 from .messages import Reading, Rejected
+
+if TYPE_CHECKING:
+    from .blocks import RateBlock
 
 NS = 1_000_000_000
 
@@ -63,14 +74,24 @@ class Action(str, Enum):
     RESET = "reset"   # reset the simulator, then push the sample
 
 
-DROP_REASONS = ("no_rate", "unknown_frame", "bad_message", "non_finite", "over_rate", "zero_stamp",
-                "no_time", "repeated_stamp", "backward_stamp")
+DROP_REASONS = ("no_rate", "unknown_frame", "bad_message", "non_finite", "over_rate", "no_specific_force",
+                "zero_stamp", "no_time", "repeated_stamp", "backward_stamp", "refused")
 RESET_REASONS = ("jump_back", "gap")
 ACCEPT_REASONS = ("start", "ok")
+#: every decision reason; ``GateBlock.reason`` indexes this tuple
+REASONS = DROP_REASONS + RESET_REASONS + ACCEPT_REASONS
+ALL_REASONS = REASONS
+REASON_INDEX = {r: i for i, r in enumerate(REASONS)}
 NOTES = ("receive_time", "gap_integrated", "identity_frame")
+#: ``GateBlock.action`` codes
+ACCEPT, DROP, RESET = 0, 1, 2
+ACTION_CODE = {}  # filled below (Action → code)
 
 
-@dataclass(frozen=True, slots=True)
+ACTION_CODE.update({Action.ACCEPT: ACCEPT, Action.DROP: DROP, Action.RESET: RESET})
+
+
+@dataclass(slots=True)
 class Decision:
     """The gate's verdict on one message.
 
@@ -96,7 +117,12 @@ class Decision:
 class GateConfig:
     """Gate settings. ``max_gap`` s; ``on_gap``: ``reset`` | ``integrate``;
     ``reset_on_jump_back`` s; ``max_rate`` rad/s; ``time_source``: ``auto`` | ``header`` |
-    ``receive``; ``rate_smoothing``: weight of a new interval in the rate estimates."""
+    ``receive``; ``rate_smoothing``: weight of a new interval in the rate estimates;
+    ``require_specific_force``: drop samples without specific force (``no_specific_force``),
+    set when the model's effects need it (the simulator would refuse them);
+    ``rebase_on_reset``: a reset (gap, jump back) also moves the origin to the reset sample
+    (its ``sample.t`` is 0, as for a fresh gate: a reset is a fresh start; the node uses this);
+    default False: one origin for the whole stream."""
 
     max_gap: float = 1.0
     on_gap: str = "reset"
@@ -104,6 +130,8 @@ class GateConfig:
     max_rate: float = 35.0
     time_source: str = "auto"
     rate_smoothing: float = 0.05
+    require_specific_force: bool = False
+    rebase_on_reset: bool = False
 
     def __post_init__(self) -> None:
         if not (self.max_gap > 0 and math.isfinite(self.max_gap)):
@@ -130,6 +158,48 @@ class _State:
     rx_dt_ema: float | None = None     # s, smoothed interval of arriving messages
 
 
+@dataclass(slots=True)
+class GateBlock:
+    """The gate's decisions on the N rows of a RateBlock (:meth:`TimeGate.offer_block`).
+
+    ``action`` int8 (N,): ``ACCEPT`` 0, ``DROP`` 1, ``RESET`` 2; ``reason`` int16 (N,): index
+    into :data:`REASONS`; ``t`` float64 (N,): sample time s since the gate's origin as valid
+    after that row's decision (NaN if dropped); ``stamp_ns`` int64 (N,): the chosen time in
+    the input's time base (-1 if none)."""
+
+    action: np.ndarray
+    reason: np.ndarray
+    t: np.ndarray
+    stamp_ns: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.action)
+
+    @property
+    def accepted(self) -> np.ndarray:
+        """bool (N,): the sample goes to the simulator (ACCEPT or RESET)."""
+        return self.action != DROP
+
+    def reason_name(self, i: int) -> str:
+        return REASONS[int(self.reason[i])]
+
+
+def _ns_floor(seconds: float) -> int:
+    """Largest integer ns ≤ ``seconds``·1e9, so that ``d > seconds*NS`` ⟺ ``d > _ns_floor`` for int d."""
+    return min(math.floor(seconds * NS), 2**62)
+
+
+def _row(rb: "RateBlock", i: int) -> Reading | Rejected:
+    """Row ``i`` of a block as the scalar gate's input (what reading_from_msg gives)."""
+    stamp = int(rb.stamp_ns[i]) if rb.has_header[i] else None
+    rj = int(rb.reject[i])
+    if rj:
+        return Rejected(REJECT_REASONS[rj - 1], rb.detail.get(i, ""), stamp, rb.frame_id[i])
+    w = rb.omega[i].tolist()
+    f = tuple(rb.force[i].tolist()) if rb.has_force[i] else None
+    return Reading((w[0], w[1], w[2]), f, stamp, rb.frame_id[i], bool(rb.identity[i]))
+
+
 class TimeGate:
     """Decides for each message: accept, drop (with reason) or reset-then-accept. Never raises
     on input data; counts every decision; :meth:`snapshot` gives the diagnostics."""
@@ -142,6 +212,7 @@ class TimeGate:
         self.received = 0
         self.last: Decision | None = None
         self.last_drop: Decision | None = None
+        self._undo: tuple | None = None           # time base before the last accepted sample
 
     # ---- properties -----------------------------------------------------------------
     @property
@@ -161,12 +232,24 @@ class TimeGate:
     def restart(self) -> None:
         """Forget the time base (source lock, origin, last time); counters are kept."""
         self._s = _State()
+        self._undo = None
 
     # ---- the decision ---------------------------------------------------------------
     def offer(self, reading: Reading | Rejected, receive_ns: int | None = None) -> Decision:
         """Decide about one message; ``receive_ns`` is its receive time (ns) if known."""
+        if receive_ns is not None:              # arrival rate (every message, dropped ones too)
+            s = self._s
+            last = s.rx_last
+            if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
+                dt = (receive_ns - last) / NS
+                e = s.rx_dt_ema
+                s.rx_dt_ema = dt if e is None else e + self.config.rate_smoothing * (dt - e)
+            s.rx_last = int(receive_ns)
+        return self._offer(reading, receive_ns)
+
+    def _offer(self, reading: Reading | Rejected, receive_ns: int | None) -> Decision:
         self.received += 1
-        self._arrival(receive_ns)
+        self._undo = None
         try:
             d = self._decide(reading, receive_ns)
         except Exception as e:  # defensive: the gate never raises on data
@@ -177,38 +260,55 @@ class TimeGate:
             self.last_drop = d
         return d
 
-    def _arrival(self, receive_ns: int | None) -> None:
-        s = self._s
-        if receive_ns is None:
+    def refuse(self, detail: str) -> None:
+        """The simulator refused the sample of the last (accepting) decision: undo its effect
+        on the time base (source lock, origin, last time, rate estimate, notes) and count it as
+        dropped ``refused`` instead, so the next sample is judged as if it had never come.
+        Does nothing unless the last decision accepted a sample."""
+        undo, last = self._undo, self.last
+        if undo is None or last is None or last.action is Action.DROP:
             return
-        if s.rx_last is not None and 0 < receive_ns - s.rx_last <= self.config.max_gap * NS:
-            dt = (receive_ns - s.rx_last) / NS
-            a = self.config.rate_smoothing
-            s.rx_dt_ema = dt if s.rx_dt_ema is None else s.rx_dt_ema + a * (dt - s.rx_dt_ema)
-        s.rx_last = int(receive_ns)
+        s = self._s
+        s.source, s.origin_ns, s.last_ns, s.dt_ema, notes = undo
+        for n in notes:
+            self.notes[n] -= 1
+        self.counts[last.reason] -= 1
+        self.counts["refused"] += 1
+        self.last = self.last_drop = Decision(Action.DROP, "refused", None, last.stamp_ns, last.source, detail)
+        self._undo = None
 
     def _drop(self, reason: str, detail: str, stamp_ns: int | None = None, source: str | None = None) -> Decision:
         return Decision(Action.DROP, reason, None, stamp_ns, source, detail)
 
     def _decide(self, r: Reading | Rejected, receive_ns: int | None) -> Decision:
         cfg, s = self.config, self._s
-        if isinstance(r, Rejected):
-            return self._drop(r.reason, r.detail, r.stamp_ns)
-        if not isinstance(r, Reading):
-            return self._drop("bad_message", f"not a Reading: {type(r).__name__}")
-        omega = np.asarray(r.omega, dtype=float)
-        force = None if r.specific_force is None else np.asarray(r.specific_force, dtype=float)
-        if omega.shape != (3,) or (force is not None and force.shape != (3,)):
+        if type(r) is not Reading:
+            if isinstance(r, Rejected):
+                return self._drop(r.reason, r.detail, r.stamp_ns)
+            if not isinstance(r, Reading):
+                return self._drop("bad_message", f"not a Reading: {type(r).__name__}")
+        w, f = r.omega, r.specific_force
+        if len(w) != 3 or (f is not None and len(f) != 3):
             return self._drop("bad_message", "rate or specific force is not a 3-vector")
-        if not np.all(np.isfinite(omega)) or (force is not None and not np.all(np.isfinite(force))):
-            return self._drop("non_finite", f"non-finite value: omega={omega.tolist()}, "
-                                            f"specific_force={None if force is None else force.tolist()}")
-        rate = float(np.linalg.norm(omega))
+        wx, wy, wz = float(w[0]), float(w[1]), float(w[2])
+        # x - x is 0.0 (false) for a finite x, NaN (true) for NaN or ±Inf
+        bad = (wx - wx) or (wy - wy) or (wz - wz)
+        if f is not None:
+            fx, fy, fz = float(f[0]), float(f[1]), float(f[2])
+            bad = bad or (fx - fx) or (fy - fy) or (fz - fz)
+        if bad:
+            return self._drop("non_finite", f"non-finite value: omega={[wx, wy, wz]}, specific_force="
+                                            f"{None if f is None else [fx, fy, fz]}")
+        rate = math.sqrt(wx * wx + wy * wy + wz * wz)
         if rate > cfg.max_rate:
             return self._drop("over_rate", f"|omega| = {rate:.6g} rad/s > max_rate {cfg.max_rate:g} rad/s")
+        if f is None and cfg.require_specific_force:
+            return self._drop("no_specific_force", "the model's effects need the specific force; "
+                                                   "this message carries none")
 
         # -- choose the time
-        stamp_valid = r.stamp_ns is not None and r.stamp_ns != 0
+        stamp = r.stamp_ns
+        stamp_valid = stamp is not None and stamp != 0
         source = s.source
         if source is None:
             source = cfg.time_source
@@ -216,9 +316,9 @@ class TimeGate:
                 source = "header" if stamp_valid else "receive"
         if source == "header":
             if not stamp_valid:
-                what = "no header" if r.stamp_ns is None else "header stamp is 0"
+                what = "no header" if stamp is None else "header stamp is 0"
                 return self._drop("zero_stamp", f"{what} while timing by header stamps")
-            t_ns = int(r.stamp_ns)
+            t_ns = int(stamp)
         else:
             if receive_ns is None:
                 return self._drop("no_time", "timing by receive time but no receive time given")
@@ -226,7 +326,8 @@ class TimeGate:
 
         # -- order, gaps, jumps
         action, reason, detail = Action.ACCEPT, "ok", ""
-        note: list[str] = []
+        note: tuple[str, ...] = ()
+        dt_ema = s.dt_ema
         if s.last_ns is None:
             reason = "start"
         else:
@@ -245,24 +346,139 @@ class TimeGate:
                 if cfg.on_gap == "reset":
                     action, reason = Action.RESET, "gap"
                 else:
-                    note.append("gap_integrated")
+                    note = ("gap_integrated",)
             else:
                 dt = dt_ns / NS
-                s.dt_ema = dt if s.dt_ema is None else s.dt_ema + cfg.rate_smoothing * (dt - s.dt_ema)
+                dt_ema = dt if dt_ema is None else dt_ema + cfg.rate_smoothing * (dt - dt_ema)
 
         # -- commit
+        if source == "receive":
+            note += ("receive_time",)
+        if r.identity_assumed:
+            note += ("identity_frame",)
+        self._undo = (s.source, s.origin_ns, s.last_ns, s.dt_ema, note)
         s.source = source
-        if s.origin_ns is None:
+        if s.origin_ns is None or (action is Action.RESET and cfg.rebase_on_reset):
             s.origin_ns = t_ns
         s.last_ns = t_ns
-        if source == "receive":
-            note.append("receive_time")
-        if r.identity_assumed:
-            note.append("identity_frame")
+        s.dt_ema = dt_ema
         for n in note:
             self.notes[n] += 1
-        sample = RateSample((t_ns - s.origin_ns) / NS, omega, force)
+        sample = RateSample((t_ns - s.origin_ns) / NS, np.array((wx, wy, wz)),
+                            None if f is None else np.array((fx, fy, fz)))
         return Decision(action, reason, sample, t_ns, source, detail)
+
+    # ---- blocks -----------------------------------------------------------------------
+    def offer_block(self, rb: "RateBlock", receive_ns: np.ndarray | None = None) -> GateBlock:
+        """Decide about every row of ``rb`` (rows in base_link: :meth:`Mounting.rotate_block`),
+        ``receive_ns`` int64 (N,) their receive times (None: unknown). Same decisions, counters,
+        notes, last decision and rate estimates as one :meth:`offer` per row; runs of plain rows
+        (usable, finite, within ``max_rate``, time valid, increasing, no gap, source locked) are
+        decided with array operations, every other row by :meth:`offer`."""
+        n = len(rb)
+        action = np.full(n, DROP, np.int8)
+        reason = np.zeros(n, np.int16)
+        t = np.full(n, np.nan)
+        stamp = np.full(n, -1, np.int64)
+        if n == 0:
+            return GateBlock(action, reason, t, stamp)
+        cfg, s = self.config, self._s
+        rx = None if receive_ns is None else np.asarray(receive_ns, np.int64)
+        rx_list = None if rx is None else rx.tolist()
+        if rx_list is not None:
+            self._arrivals(rx, rx_list)
+
+        w, f = rb.omega, rb.force
+        with np.errstate(all="ignore"):
+            rate = np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2])
+            usable = (rb.reject == 0) & np.isfinite(w).all(axis=1) & (rate <= cfg.max_rate)
+        usable &= np.isfinite(f).all(axis=1) | ~rb.has_force
+        if cfg.require_specific_force:
+            usable &= rb.has_force
+        gap_ns = _ns_floor(cfg.max_gap)
+
+        tn = plain_next = intrinsic = stops = None
+        i = 0
+        while i < n:
+            if s.source is not None and tn is None:
+                if s.source == "header":
+                    tn, valid = rb.stamp_ns, rb.has_header & (rb.stamp_ns != 0)
+                elif rx is not None:
+                    tn, valid = rx, np.ones(n, bool)
+                else:
+                    tn, valid = np.zeros(n, np.int64), np.zeros(n, bool)
+                if np.abs(tn).max() > 2**62:           # int64 differences could wrap: no vectorising
+                    valid = np.zeros(n, bool)
+                d = np.diff(tn)
+                intrinsic = usable & valid
+                plain_next = intrinsic.copy()
+                plain_next[1:] &= (d > 0) & (d <= gap_ns)
+                stops = np.flatnonzero(~plain_next)
+            if tn is not None and intrinsic[i] and 0 < int(tn[i]) - s.last_ns <= gap_ns:
+                k = int(np.searchsorted(stops, i + 1))
+                j = int(stops[k]) if k < len(stops) else n
+                self._accept_run(rb, tn, i, j, action, reason, t, stamp)
+                i = j
+                continue
+            d1 = self._offer(_row(rb, i), None if rx_list is None else rx_list[i])
+            action[i] = ACTION_CODE[d1.action]
+            reason[i] = REASON_INDEX[d1.reason]
+            if d1.sample is not None:
+                t[i] = d1.sample.t
+            if d1.stamp_ns is not None:
+                stamp[i] = d1.stamp_ns
+            i += 1
+        return GateBlock(action, reason, t, stamp)
+
+    def _arrivals(self, rx: np.ndarray, rx_list: list[int]) -> None:
+        """The arrival-rate update of :meth:`offer` for every receive time of a block (same float operations)."""
+        s = self._s
+        prev = np.empty(len(rx), np.int64)
+        prev[1:] = rx[:-1]
+        first = s.rx_last
+        prev[0] = 0 if first is None else first
+        d = rx - prev
+        ok = (d > 0) & (d <= _ns_floor(self.config.max_gap))
+        if first is None:
+            ok[0] = False
+        a, e = self.config.rate_smoothing, s.rx_dt_ema
+        for dn in d[ok].tolist():
+            dt = dn / NS
+            e = dt if e is None else e + a * (dt - e)
+        s.rx_dt_ema = e
+        s.rx_last = int(rx_list[-1])
+
+    def _accept_run(self, rb: "RateBlock", tn: np.ndarray, i: int, j: int, action: np.ndarray,
+                    reason: np.ndarray, t: np.ndarray, stamp: np.ndarray) -> None:
+        """Accept rows i..j-1 (a plain run: each within (0, max_gap] after the previous one)."""
+        s, m = self._s, j - i
+        run = tn[i:j]
+        prev = np.empty(m, np.int64)
+        prev[0] = s.last_ns
+        prev[1:] = run[:-1]
+        a, e = self.config.rate_smoothing, s.dt_ema
+        for dn in (run - prev).tolist():
+            dt = dn / NS
+            e = dt if e is None else e + a * (dt - e)
+        s.dt_ema = e
+        s.last_ns = last_ns = int(run[-1])
+        origin = s.origin_ns
+        action[i:j] = ACCEPT
+        reason[i:j] = REASON_INDEX["ok"]
+        t[i:j] = (run - origin) / NS
+        stamp[i:j] = run
+        self.received += m
+        self.counts["ok"] += m
+        if s.source == "receive":
+            self.notes["receive_time"] += m
+        n_id = int(np.count_nonzero(rb.identity[i:j]))
+        if n_id:
+            self.notes["identity_frame"] += n_id
+        k = j - 1
+        force = rb.force[k].copy() if rb.has_force[k] else None
+        sample = RateSample((last_ns - origin) / NS, rb.omega[k].copy(), force)
+        self.last = Decision(Action.ACCEPT, "ok", sample, last_ns, s.source, "")
+        self._undo = None
 
     # ---- diagnostics ----------------------------------------------------------------
     @property

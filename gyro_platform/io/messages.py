@@ -29,12 +29,15 @@ import array
 import importlib
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+
+if TYPE_CHECKING:
+    from .blocks import RateBlock
 
 # ---- names -------------------------------------------------------------------------------
 IMU = "sensor_msgs/msg/Imu"
@@ -147,8 +150,12 @@ def jazzy_typestore():
 
 # ---- time ---------------------------------------------------------------------------------
 def stamp_ns(stamp: Any) -> int:
-    """``builtin_interfaces/Time`` → integer ns."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    """``builtin_interfaces/Time`` → integer ns. ValueError when ``nanosec`` is outside
+    [0, 1e9) (an invalid stamp, not a later time)."""
+    nsec = int(stamp.nanosec)
+    if not 0 <= nsec < 1_000_000_000:
+        raise ValueError(f"invalid stamp: nanosec = {nsec} outside [0, 1e9)")
+    return int(stamp.sec) * 1_000_000_000 + nsec
 
 
 def header(types: MessageTypes, t_ns: int, frame_id: str = "") -> Any:
@@ -179,6 +186,7 @@ class Mounting:
         self.unknown_frame = unknown_frame
         self._rot: dict[str, Rotation] = {vehicle_frame: Rotation.identity()}
         self._mat: dict[str, np.ndarray] = {vehicle_frame: np.eye(3)}
+        self._rows: dict[str, tuple[float, ...] | None] = {vehicle_frame: None}   # None: identity
         for frame, rot in (frames or {}).items():
             self.add(frame, rot)
 
@@ -186,7 +194,8 @@ class Mounting:
         """Set the mounting of ``frame_id``: a Rotation, a quaternion (x, y, z, w) or roll,
         pitch, yaw (rad, fixed axes x-y-z, i.e. R = Rz(yaw) Ry(pitch) Rx(roll), as in URDF)."""
         self._rot[frame_id] = r = as_rotation(rotation)
-        self._mat[frame_id] = r.as_matrix()
+        self._mat[frame_id] = m = r.as_matrix()
+        self._rows[frame_id] = None if np.array_equal(m, np.eye(3)) else tuple(float(x) for x in m.reshape(9))
 
     def frames(self) -> dict[str, tuple[float, float, float, float]]:
         """Configured frames → quaternion (x, y, z, w)."""
@@ -195,6 +204,53 @@ class Mounting:
     def matrix(self, frame_id: str) -> np.ndarray | None:
         """3×3 matrix sensor → vehicle, or None when the frame is unknown (whatever the policy)."""
         return self._mat.get(frame_id)
+
+    def rotate(self, frame_id: str, v: tuple[float, float, float]) -> tuple[float, float, float] | None:
+        """``v`` (sensor frame ``frame_id``) in the vehicle frame, as Python floats (None when
+        the frame is unknown). Identity mountings return ``v`` unchanged."""
+        try:
+            m = self._rows[frame_id]
+        except KeyError:
+            return None
+        return v if m is None else _mul(m, v)
+
+    def rotate_block(self, rb: "RateBlock") -> "RateBlock":
+        """The rows of ``rb`` in the vehicle frame (a new block; ``rb`` is not changed), row by
+        row what :func:`reading_from_msg` does: omega and force rotated by the mounting of their
+        ``frame_id`` (same float operations as :meth:`rotate`, so bit-identical); rows without a
+        header (Twist) take the vehicle frame; usable rows of an unknown frame are flagged in
+        ``identity`` (policy ``identity``: values kept) or rejected ``unknown_frame``
+        (policy ``reject``). Rows already rejected are left as they are."""
+        from .blocks import REJECT_UNKNOWN_FRAME, RateBlock
+
+        n = len(rb)
+        omega, force = rb.omega.copy(), rb.force.copy()
+        frames = list(rb.frame_id)
+        reject, detail = rb.reject.copy(), dict(rb.detail)
+        identity = np.zeros(n, bool)
+        no_header = ~rb.has_header
+        if no_header.any():
+            for i in np.flatnonzero(no_header).tolist():
+                frames[i] = self.vehicle_frame
+        usable = reject == 0
+        for frame, idx in _group(frames).items():
+            if frame in self._rows:
+                m = self._rows[frame]
+                if m is not None:
+                    for arr in (omega, force):
+                        x, y, z = arr[idx, 0], arr[idx, 1], arr[idx, 2]
+                        arr[idx] = np.stack([m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z,
+                                             m[6] * x + m[7] * y + m[8] * z], axis=1)
+                continue
+            rows = idx[usable[idx]]
+            if self.unknown_frame == "reject":
+                reject[rows] = REJECT_UNKNOWN_FRAME
+                text = f"no mounting configured for frame_id {frame!r}"
+                for i in rows.tolist():
+                    detail[i] = text
+            else:
+                identity[rows] = True
+        return RateBlock(rb.stamp_ns, rb.has_header, frames, omega, force, rb.has_force, reject, detail, identity)
 
     @staticmethod
     def parse_spec(spec: str) -> tuple[str, Rotation]:
@@ -207,6 +263,19 @@ class Mounting:
         except ValueError:
             raise ValueError(f"mounting {spec!r}: values must be numbers") from None
         return frame.strip(), as_rotation(nums)
+
+
+def _group(frames: list[str]) -> dict[str, np.ndarray]:
+    """frame id → indices of its rows (one group without a Python loop when all rows agree)."""
+    if not frames:
+        return {}
+    first = frames[0]
+    if frames.count(first) == len(frames):
+        return {first: np.arange(len(frames))}
+    groups: dict[str, list[int]] = {}
+    for i, f in enumerate(frames):
+        groups.setdefault(f, []).append(i)
+    return {f: np.asarray(ix) for f, ix in groups.items()}
 
 
 def as_rotation(value: Any) -> Rotation:
@@ -225,23 +294,27 @@ def as_rotation(value: Any) -> Rotation:
 
 
 # ---- inputs ------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True)
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(slots=True)
 class Reading:
     """Rates of one message, rotated into the vehicle frame (not yet timed; the gate does that).
 
-    ``omega`` rad/s and ``specific_force`` m/s² (or None), vehicle axes; ``stamp_ns`` the header
-    stamp (ns; 0 = not set) or None when the type has no header; ``identity_assumed`` when the
-    frame was unknown and taken as base_link.
+    ``omega`` rad/s and ``specific_force`` m/s² (or None), vehicle axes, as 3-tuples of Python
+    floats (any 3-sequence is accepted by the gate); ``stamp_ns`` the header stamp (ns; 0 =
+    not set) or None when the type has no header; ``identity_assumed`` when the frame was
+    unknown and taken as base_link.
     """
 
-    omega: np.ndarray
-    specific_force: np.ndarray | None
+    omega: Vec3
+    specific_force: Vec3 | None
     stamp_ns: int | None
     frame_id: str
     identity_assumed: bool = False
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Rejected:
     """A message that cannot give a rate sample: ``reason`` (``no_rate``, ``unknown_frame``,
     ``bad_message``) and a human-readable ``detail``."""
@@ -252,8 +325,8 @@ class Rejected:
     frame_id: str = ""
 
 
-def _vec3(v: Any) -> np.ndarray:
-    return np.array((float(v.x), float(v.y), float(v.z)))
+def _vec3(v: Any) -> Vec3:
+    return (float(v.x), float(v.y), float(v.z))
 
 
 def type_name(msg: Any) -> str | None:
@@ -268,12 +341,25 @@ def type_name(msg: Any) -> str | None:
     return None
 
 
+_KIND_BY_CLASS: dict[type, str | None] = {}
+
+
 def message_kind(msg: Any) -> str | None:
     """``IMU``, ``TWIST_STAMPED``, ``TWIST`` or None: by type name when known (other types,
-    e.g. nav_msgs/Odometry, are None), else by the fields (duck typing)."""
+    e.g. nav_msgs/Odometry, are None; cached per class), else by the fields (duck typing)."""
+    cls = type(msg)
+    try:
+        return _KIND_BY_CLASS[cls]
+    except (KeyError, TypeError):
+        pass
     name = type_name(msg)
     if name is not None:
-        return name if name in INPUT_TYPES else None
+        kind = name if name in INPUT_TYPES else None
+        try:
+            _KIND_BY_CLASS[cls] = kind
+        except TypeError:
+            pass
+        return kind
     if hasattr(msg, "angular_velocity") and hasattr(msg, "header"):
         return IMU
     if hasattr(msg, "twist") and hasattr(msg, "header"):
@@ -287,42 +373,60 @@ def reading_from_msg(msg: Any, mounting: Mounting | None = None) -> Reading | Re
     """Imu / Twist / TwistStamped → :class:`Reading` in base_link, or :class:`Rejected`. Never raises.
 
     Imu: ``angular_velocity_covariance[0] == -1`` (sensor_msgs: "not reported") → rejected
-    ``no_rate``; ``linear_acceleration_covariance[0] == -1`` → ``specific_force`` None.
-    Values are passed through as they are (NaN/Inf and range are the gate's job).
+    ``no_rate``; ``linear_acceleration_covariance[0] == -1`` → ``specific_force`` None. A
+    stamp with ``nanosec`` outside [0, 1e9) → rejected ``bad_message``. Values are passed
+    through as they are (NaN/Inf and range are the gate's job). Pure Python floats: no numpy
+    call per message.
     """
     mounting = mounting if mounting is not None else _DEFAULT_MOUNTING
     stamp: int | None = None
     frame = ""
     try:
-        kind = message_kind(msg)
+        kind = _KIND_BY_CLASS.get(type(msg), False)
+        if kind is False:
+            kind = message_kind(msg)
         if kind is None:
             return Rejected("bad_message", f"unsupported message type {type_name(msg) or type(msg).__name__}")
         if kind == TWIST:
-            omega, force, frame = _vec3(msg.angular), None, mounting.vehicle_frame
+            v = msg.angular
+            omega, force, frame = (float(v.x), float(v.y), float(v.z)), None, mounting.vehicle_frame
         else:
-            stamp = stamp_ns(msg.header.stamp)
-            frame = str(msg.header.frame_id)
+            h = msg.header
+            frame = str(h.frame_id)
+            stamp = stamp_ns(h.stamp)
             if kind == TWIST_STAMPED:
-                omega, force = _vec3(msg.twist.angular), None
+                v = msg.twist.angular
+                omega, force = (float(v.x), float(v.y), float(v.z)), None
             else:
                 if float(msg.angular_velocity_covariance[0]) == -1.0:
                     return Rejected("no_rate", "angular_velocity_covariance[0] = -1 (rate not reported)",
                                     stamp, frame)
-                omega = _vec3(msg.angular_velocity)
-                force = (None if float(msg.linear_acceleration_covariance[0]) == -1.0
-                         else _vec3(msg.linear_acceleration))
-    except (AttributeError, TypeError, ValueError, IndexError) as e:
+                v = msg.angular_velocity
+                omega = (float(v.x), float(v.y), float(v.z))
+                if float(msg.linear_acceleration_covariance[0]) == -1.0:
+                    force = None
+                else:
+                    v = msg.linear_acceleration
+                    force = (float(v.x), float(v.y), float(v.z))
+    except (AttributeError, TypeError, ValueError, IndexError, OverflowError) as e:
         return Rejected("bad_message", f"malformed message: {e}", stamp, frame)
-    mat = mounting.matrix(frame)
-    assumed = False
-    if mat is None:
-        if mounting.unknown_frame == "reject":
-            return Rejected("unknown_frame", f"no mounting configured for frame_id {frame!r}", stamp, frame)
-        mat, assumed = None, True
-    if mat is not None:
-        omega = mat @ omega
-        force = None if force is None else mat @ force
-    return Reading(omega, force, stamp, frame, assumed)
+    rows = mounting._rows
+    if frame in rows:
+        m = rows[frame]
+        if m is not None:
+            omega = _mul(m, omega)
+            if force is not None:
+                force = _mul(m, force)
+        return Reading(omega, force, stamp, frame, False)
+    if mounting.unknown_frame == "reject":
+        return Rejected("unknown_frame", f"no mounting configured for frame_id {frame!r}", stamp, frame)
+    return Reading(omega, force, stamp, frame, True)
+
+
+def _mul(m: tuple[float, ...], v: Vec3) -> Vec3:
+    """Row-major 3×3 ``m`` times ``v`` (the float operations of :meth:`Mounting.rotate_block`)."""
+    x, y, z = v
+    return (m[0] * x + m[1] * y + m[2] * z, m[3] * x + m[4] * y + m[5] * z, m[6] * x + m[7] * y + m[8] * z)
 
 
 _DEFAULT_MOUNTING = Mounting()
@@ -419,6 +523,13 @@ def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
     fa = types.float_array
     return types[JOINT_STATE](header=header(types, t_ns), name=list(cols.names), position=fa(cols.position[0]),
                               velocity=fa(cols.velocity[0]), effort=fa(cols.effort[0]))
+
+
+def joint_state_values(out: Outputs) -> tuple[list[str], list[float], list[float], list[float]]:
+    """Names, positions, velocities and efforts of :func:`joint_state` (Python floats; the
+    numbers of :func:`joint_columns`)."""
+    cols = joint_columns(out)
+    return (list(cols.names), cols.position[0].tolist(), cols.velocity[0].tolist(), cols.effort[0].tolist())
 
 
 def _vector3(types: MessageTypes, v: Sequence[float]) -> Any:

@@ -113,8 +113,8 @@ def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, 
     path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise ConfigError("params_file", f"{path}: {e}") from None
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        raise ConfigError("params_file", f"{path}: {' '.join(str(e).split())}") from None   # one line
     if not isinstance(doc, dict):
         raise ConfigError("params_file", f"{path}: expected a mapping of node names")
     keys = [k for k in doc if k == "/**"] + [k for k in doc if k != "/**" and
@@ -126,7 +126,11 @@ def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, 
         sec = doc[k]
         if not isinstance(sec, dict) or "ros__parameters" not in sec:
             raise ConfigError("params_file", f"{path}: section {k!r} has no 'ros__parameters'")
-        merged.update(_flatten(sec["ros__parameters"] or {}))
+        values = sec["ros__parameters"] or {}
+        if not isinstance(values, Mapping):
+            raise ConfigError("params_file", f"{path}: 'ros__parameters' of section {k!r} must be a mapping "
+                                             f"of parameter names, got {type(values).__name__} {values!r}")
+        merged.update(_flatten(values))
     return merged
 
 
@@ -165,14 +169,20 @@ class NodeConfig:
 
     @staticmethod
     def from_yaml(path: str | Path, node_name: str = NODE_NAME) -> "NodeConfig":
-        """Config from a params file (sections selected by ``load_params_file``)."""
-        return NodeConfig.from_ros_params(load_params_file(path, node_name))
+        """Config from a params file (sections selected by ``load_params_file``); a bad value
+        is a ConfigError naming the parameter and the file."""
+        params = load_params_file(path, node_name)
+        try:
+            return NodeConfig.from_ros_params(params)
+        except ConfigError as e:
+            raise e.in_file(path) from None
 
     @staticmethod
     def _build(values: dict[str, Any], scene: Any) -> "NodeConfig":
         cfg = NodeConfig(dict(values), scene)
-        cfg._built.update(gate=cfg._gate_config(), mounting=cfg._mounting(), params=cfg._platform_params())
-        cfg._built["options"] = cfg._model_options()
+        cfg._built.update(mounting=cfg._mounting(), params=cfg._platform_params())
+        cfg._built["options"] = opts = cfg._model_options()
+        cfg._built["gate"] = cfg._gate_config(bool(opts.effects & NEEDS_SPECIFIC_FORCE))
         return cfg
 
     def with_changes(self, changes: Mapping[str, Any]) -> "NodeConfig":
@@ -214,10 +224,13 @@ class NodeConfig:
     def options(self) -> ModelOptions:
         return self._built["options"]
 
-    def _gate_config(self) -> GateConfig:
+    def _gate_config(self, needs_force: bool) -> GateConfig:
+        """The gate of the node: a sample without the specific force the model needs is dropped
+        (``no_specific_force``) before it reaches the time base; a reset re-anchors the time
+        origin (a reset is a fresh start of the core)."""
         kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate", "time_source")}
         try:
-            return GateConfig(**kw)
+            return GateConfig(**kw, require_specific_force=needs_force, rebase_on_reset=True)
         except ValueError as e:
             name = str(e).split(" ", 1)[0]
             raise ConfigError(f"gate.{name}" if f"gate.{name}" in SPECS else "gate", str(e)) from None
@@ -255,6 +268,14 @@ class NodeConfig:
         except OptionsError as e:
             name = str(e).split("'")[1] if "'" in str(e) else "effects"
             raise ConfigError(name if name in SPECS else "effects", str(e)) from None
+        if opts.fidelity == "precession":          # the refusal a scene gives, before any simulator exists
+            from ..errors import PrecessionInvalidError
+            from ..physics.model import check_precession_valid
+
+            try:
+                check_precession_valid(self.params, opts)
+            except PrecessionInvalidError as e:
+                raise ConfigError("fidelity", str(e)) from None
         need = sorted(opts.effects & NEEDS_SPECIFIC_FORCE)
         if need and self["input_type"] != "imu":
             raise ConfigError("effects", f"{need} need the specific force, which input_type "

@@ -14,6 +14,13 @@ Topic names returned by :meth:`NodeCore.on_message` are relative to the node nam
 resolves them itself, other transports with ``messages.resolve(name, namespace)``. Output
 messages are stamped with the sample time (the input header stamp, or the receive time when the
 stamps are not set); diagnostics with the ``now_ns`` the caller passes.
+
+The per-message path is :class:`gyro_platform.pipeline.Pipeline` (the one replay and scenes
+use): ``reading_from_msg`` → gate → ``apply_decision`` → output grid. Outputs are computed only
+at output instants, into message objects built once and refilled (the transports publish
+synchronously): the pairs :meth:`NodeCore.on_message` returns are valid until its next call.
+A reset (``~/reset``, a clock jump back, a gap or a jump back in the stamps) is a fresh start:
+new simulator state, time origin and output grid at the next sample, input-loss window cleared.
 """
 from __future__ import annotations
 
@@ -22,14 +29,13 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
-import numpy as np
-
+from ..errors import SimulationError
 from ..io import messages as msgs
-from ..io.messages import MessageTypes
+from ..io.messages import MessageTypes, Reading
 from .config import NodeConfig
 from .overload import InputLoss
 from .parameters import SPECS, ConfigError
-from ..pipeline import apply_decision, grid_index
+from ..pipeline import Pipeline, grid_index
 from ..io.gate import NS, TimeGate
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -61,6 +67,62 @@ class _Timing:
 
 
 
+class OutputMessages:
+    """The output messages of one instant (``messages.output_messages`` with the frame
+    prefix), built once and refilled in place at each later instant: stamps, vectors,
+    quaternion, bearing torques, the JointState's arrays.
+    Rebuilt from scratch when the set of outputs changes (e.g. the servo effect switched)."""
+
+    def __init__(self, types: MessageTypes, frame_prefix: str = ""):
+        self.types, self.prefix = types, frame_prefix
+        self._key: tuple | None = None
+        self.pairs: list[tuple[str, Any]] = []
+        self._stamps: list[Any] = []
+        self._vectors: list[tuple[Any, str, str | None]] = []   # (Vector3, Outputs field, bearing)
+        self._quat: Any = None
+        self._js: Any = None
+
+    def fill(self, out: Any, t_ns: int) -> list[tuple[str, Any]]:
+        """(topic, message) pairs of ``out`` stamped ``t_ns`` (topics relative, as on_message)."""
+        key = (out.servo_torque is None, out.mount_angles is None, out.mount_rates is None,
+               out.rotor_rates is None, tuple(out.bearing_torques))
+        if key != self._key:
+            self._build(out, t_ns)
+            self._key = key
+            return self.pairs
+        sec, nsec = divmod(max(int(t_ns), 0), NS)
+        for st in self._stamps:
+            st.sec, st.nanosec = sec, nsec
+        bt = out.bearing_torques
+        for v, name, bearing in self._vectors:
+            v.x, v.y, v.z = (getattr(out, name) if bearing is None else bt[bearing]).tolist()
+        q = self._quat
+        q.x, q.y, q.z, q.w = out.platform_attitude.tolist()
+        _, pos, vel, eff = msgs.joint_state_values(out)
+        js, fa = self._js, self.types.float_array
+        js.position, js.velocity, js.effort = fa(pos), fa(vel), fa(eff)
+        return self.pairs
+
+    def _build(self, out: Any, t_ns: int) -> None:
+        pairs = [(t.lstrip("/"), m) for t, m in msgs.output_messages(out, self.types, t_ns, "")]
+        self._js = pairs[0][1]                # the JointState
+        stamp = self._js.header.stamp         # one Time object shared by every header
+        self._stamps, self._vectors = [stamp], []
+        for topic, m in pairs[1:]:
+            m.header.stamp = stamp
+            if self.prefix and m.header.frame_id:
+                m.header.frame_id = self.prefix + m.header.frame_id
+            if topic.startswith("bearing/"):
+                self._vectors.append((m.wrench.torque, "", topic.split("/")[1]))
+            elif topic == "platform/attitude":
+                self._quat = m.quaternion
+            else:
+                field = {"drift/angle": "drift_angle", "drift/rate": "drift_rate",
+                         "platform/servo_torque": "servo_torque"}[topic]
+                self._vectors.append((m.vector, field, None))
+        self.pairs = pairs
+
+
 class NodeCore:
     """Input message → gate → simulator → output messages, with diagnostics and parameters.
 
@@ -77,9 +139,12 @@ class NodeCore:
         self.types = types
         self._clock_ns = clock_ns
         self.gate = TimeGate(config.gate)
-        self.sim = Simulator(config.params, config.options)
-        self.timing = _Timing()
+        self.pipe = Pipeline(Simulator(config.params, config.options), self.gate, config["output_rate"],
+                             config.mounting)
         self.outcomes: Counter[str] = Counter()     # apply_decision results + output_failed
+        self.pipe.outcomes = self.outcomes          # one count: the pipeline's
+        self.messages = OutputMessages(types, config["frame_prefix"])
+        self.timing = _Timing()
         self.resets: Counter[str] = Counter()       # reset reason -> count (core resets and gate resets)
         self.clock_jumps: Counter[str] = Counter()  # "back" / "forward"
         self.received = 0
@@ -91,11 +156,15 @@ class NodeCore:
         self.last_error: str | None = None
         self.last_reset_reason: str | None = None
         self.last_out = None
-        self._slot: int | None = None
         self._last_rx_ns: int | None = None
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
         self.loss = InputLoss()
+
+    @property
+    def sim(self) -> Any:
+        """The Simulator (rebuilt by live parameter changes)."""
+        return self.pipe.sim
 
     # ---- topics ---------------------------------------------------------------------
     @property
@@ -122,7 +191,8 @@ class NodeCore:
     def on_message(self, msg: Any, receive_ns: int | None) -> list[tuple[str, Any]]:
         """Process one input message received at ``receive_ns`` (node clock, ns; None or ≤ 0 =
         unknown). Returns the ``(topic, message)`` pairs to publish now: the outputs when the
-        sample starts a new slot of the output grid, else nothing. Never raises."""
+        sample starts a new slot of the output grid, else nothing. The messages are reused by
+        the next call (publish them before it). Never raises."""
         t0 = self._clock_ns()
         self.received += 1
         rx = int(receive_ns) if receive_ns is not None and receive_ns > 0 else None
@@ -130,28 +200,22 @@ class NodeCore:
             self._last_rx_ns = rx
         result: list[tuple[str, Any]] = []
         try:
-            with np.errstate(all="ignore"):           # NaN/Inf input: the gate counts it, no warning spam
-                reading = msgs.reading_from_msg(msg, self.config.mounting)
-            if getattr(reading, "identity_assumed", False) and reading.frame_id not in self.identity_frames:
-                self.identity_frames.add(reading.frame_id)
-                self.notices.append(f"input frame '{reading.frame_id}' has no sensor mounting: taken as "
-                                    "base_link (identity); counted as identity_frame in /diagnostics")
-            decision = self.gate.offer(reading, rx)
-            outcome = apply_decision(self.sim, decision)
-            self.outcomes[outcome] += 1
-            if outcome == "pushed" and self.gate.time_source == "header":   # receive times say nothing
-                self.loss.on_stamp(decision.stamp_ns, rx if rx is not None else self._last_rx_ns,
-                                   self.config["gate.max_gap"])
-            if outcome in ("reset", "restarted"):
-                self.loss.restart()
-                self._slot = None
-                reason = decision.reason if outcome == "reset" else "integration_failed"
-                self.resets[reason] += 1
-                self.last_reset_reason = reason
-            if outcome in ("rejected", "restarted"):
+            reading = msgs.reading_from_msg(msg, self.config.mounting)
+            if reading.__class__ is Reading and reading.identity_assumed:
+                self._identity_notice(reading.frame_id)
+            step = self.pipe.offer(reading, rx)
+            outcome = step.outcome
+            if outcome == "pushed":
+                if self.gate.time_source == "header":   # receive times say nothing about loss
+                    self.loss.on_stamp(step.decision.stamp_ns, rx if rx is not None else self._last_rx_ns,
+                                       self.config["gate.max_gap"])
+            elif outcome in ("reset", "restarted"):
+                self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
+                                  step.decision.stamp_ns, rx)
+            elif outcome == "rejected":
                 self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
-            if outcome in ("pushed", "reset", "restarted") and self._due(decision.stamp_ns):
-                result = self._emit(decision.stamp_ns)
+            if step.emit:
+                result = self._emit(step.decision.stamp_ns)
         except Exception as e:  # defensive: a message must never take the node down
             self.internal_errors += 1
             self.last_error = f"{type(e).__name__}: {e}"
@@ -161,42 +225,41 @@ class NodeCore:
             self.timing.add(self._clock_ns() - t0)
         return result
 
+    def _identity_notice(self, frame: str) -> None:
+        if frame not in self.identity_frames:
+            self.identity_frames.add(frame)
+            self.notices.append(f"input frame '{frame}' has no sensor mounting: taken as "
+                                "base_link (identity); counted as identity_frame in /diagnostics")
+
+    def _fresh_start(self, reason: str, stamp_ns: int, rx: int | None) -> None:
+        """Bookkeeping of a reset the pipeline already applied (simulator reset, grid restarted,
+        time origin moved to this sample by the gate's ``rebase_on_reset``)."""
+        self.loss.restart()
+        if self.gate.time_source == "header":      # as the first sample of a fresh core
+            self.loss.on_stamp(stamp_ns, rx, self.config["gate.max_gap"])
+        self.resets[reason] += 1
+        self.last_reset_reason = reason
+        if reason == "integration_failed":
+            self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
+
     def take_notices(self) -> list[str]:
         """The one-time INFO lines gathered since the last call (the transport logs them)."""
         out, self.notices = self.notices, []
         return out
 
-    def _due(self, stamp_ns: int) -> bool:
-        if self.config["output_rate"] <= 0:
-            return True
-        slot = self._grid(stamp_ns)
-        if self._slot is None or slot > self._slot:
-            self._slot = slot
-            return True
-        return False
-
     def _grid(self, stamp_ns: int) -> int:
         return grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
 
     def _emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
-        from ..errors import SimulationError
-
         try:
             out = self.sim.outputs()
         except SimulationError as e:
             self.outcomes["output_failed"] += 1
             self.last_error = f"outputs failed: {e}"
             return []
-        pairs = [(t.lstrip("/"), m) for t, m in msgs.output_messages(out, self.types, stamp_ns, "")]
-        prefix = self.config["frame_prefix"]
-        if prefix:
-            for _, m in pairs:
-                h = getattr(m, "header", None)
-                if h is not None and h.frame_id:
-                    h.frame_id = prefix + h.frame_id
         self.last_out = out
         self.published += 1
-        return pairs
+        return self.messages.fill(out, stamp_ns)
 
     # ---- control --------------------------------------------------------------------
     def reset(self, reason: str) -> None:
@@ -205,7 +268,7 @@ class NodeCore:
         self.sim.reset()
         self.gate.restart()
         self.loss.restart()
-        self._slot = None
+        self.pipe.slot = None
         self.resets[reason] += 1
         self.last_reset_reason = reason
 
@@ -239,13 +302,18 @@ class NodeCore:
             except Exception as e:  # e.g. precession model invalid for these values
                 return False, f"cannot rebuild the model: {e}"
             sim.carry_state_from(self.sim)
-            self.sim = sim
+            self.pipe.sim = sim
         if new.gate != old.gate:
             self.gate.config = new.gate
+        if new.mounting is not old.mounting:
+            self.pipe.mounting = new.mounting
+        if new["frame_prefix"] != old["frame_prefix"]:
+            self.messages = OutputMessages(self.types, new["frame_prefix"])
         self.config = new
         if new["output_rate"] != old["output_rate"]:
+            self.pipe.output_rate = new["output_rate"]
             last = self.gate.last_stamp_ns
-            self._slot = self._grid(last) if (last is not None and new["output_rate"] > 0) else None
+            self.pipe.slot = self._grid(last) if (last is not None and new["output_rate"] > 0) else None
         self.parameter_changes += 1
         return True, ""
 

@@ -1,9 +1,8 @@
 """Input overload: samples lost before the node took them (transport reports and stamp gaps)."""
 from __future__ import annotations
 
+from bisect import bisect_left, insort
 from collections import deque
-
-import numpy as np
 
 from ..io.gate import NS
 
@@ -26,7 +25,8 @@ class InputLoss:
         self.transport = 0                 # samples the transport says it lost
         self.stamp_gaps = 0                # samples missing between consecutive stamps
         self.last_rx_ns: int | None = None  # receive time of the last loss (node clock)
-        self._steps: deque[int] = deque(maxlen=self.WINDOW)
+        self._steps: deque[int] = deque()  # the last WINDOW steps (ns), oldest first
+        self._sorted: list[int] = []       # the same steps, sorted
         self._last_stamp: int | None = None
 
     @property
@@ -39,21 +39,42 @@ class InputLoss:
             self.last_rx_ns = rx_ns
 
     def on_stamp(self, stamp_ns: int, rx_ns: int | None, max_gap_s: float) -> None:
+        """One accepted sample's stamp (ns). Pure Python on a sorted window (no numpy per
+        call): the quartile is numpy's default (linear) percentile, the mean is exact."""
         last, self._last_stamp = self._last_stamp, stamp_ns
         if last is None or stamp_ns <= last:
             return
         step = stamp_ns - last
-        if len(self._steps) >= 8 and step <= max_gap_s * NS:
-            steps = np.fromiter(self._steps, float)
-            q = float(np.percentile(steps, 25))
-            period = float(np.mean(steps[steps < 1.5 * q]))      # mean of the single steps
+        srt = self._sorted
+        # a loss needs step ≥ 1.5 period ≥ 1.5 min(window): below that nothing to compute
+        if len(srt) >= 8 and step <= max_gap_s * NS and step >= 1.5 * srt[0]:
+            q = _quartile(srt)
+            single = srt[:bisect_left(srt, 1.5 * q)]         # steps < 1.5 q (q > 0: never empty)
+            period = sum(single) / len(single)              # mean of the single steps
             k = int(round(step / period)) if period > 0 else 1
             if k >= 2:
                 self.stamp_gaps += k - 1
                 self.last_rx_ns = rx_ns
-        self._steps.append(step)
+        steps = self._steps
+        if len(steps) == self.WINDOW:
+            del srt[bisect_left(srt, steps.popleft())]
+        steps.append(step)
+        insort(srt, step)
 
     def restart(self) -> None:
         """A new time base (reset): stamp steps across it are not gaps."""
         self._steps.clear()
+        self._sorted.clear()
         self._last_stamp = None
+
+
+def _quartile(srt: list[int]) -> float:
+    """25th percentile of sorted values, as ``numpy.percentile(..., 25)`` (linear interpolation)."""
+    pos = 0.25 * (len(srt) - 1)
+    lo = int(pos)
+    frac = pos - lo
+    if frac == 0.0:
+        return float(srt[lo])
+    a, b = srt[lo], srt[lo + 1]
+    diff = b - a
+    return b - diff * (1.0 - frac) if frac >= 0.5 else a + diff * frac

@@ -31,6 +31,13 @@ class ConfigError(ValueError):
     def __init__(self, parameter: str, message: str):
         super().__init__(f"parameter '{parameter}': {message}")
         self.parameter = parameter
+        self.message = message
+
+    def in_file(self, path: Any) -> "ConfigError":
+        """The same error naming the params file it came from (``params_file`` errors already do)."""
+        if self.parameter == "params_file":
+            return self
+        return ConfigError(self.parameter, f"{self.message} (in {path})")
 
 
 @dataclass(frozen=True)
