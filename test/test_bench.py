@@ -152,3 +152,11 @@ def test_bench_refuses_non_positive_repeats(value, capsys):
     assert cli.main(["bench", "hotpath", "--repeats", value]) == cli.EXIT_USAGE
     err = capsys.readouterr().err
     assert "--repeats must be between 1 and 1000" in err and "Traceback" not in err
+
+
+def test_bench_refuses_an_unwritable_out_before_running(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert cli.main(["bench", "consumer", "--out", str(blocker / "results")]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "cannot write the results to" in err and "Traceback" not in err

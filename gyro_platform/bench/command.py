@@ -31,7 +31,7 @@ def add_arguments(p) -> None:
                    help="which benchmark (default: consumer, then peer)")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
-                   help="short runs (consumer: 10 s bags, husky's first 30 s; peer: 2 s scene; accuracy: 60 s "
+                   help="short runs (consumer: 10 s bags, husky's first 30 s; peer: 2 s scenes; accuracy: 60 s "
                         "ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
@@ -45,6 +45,14 @@ def run(args) -> int:
     out = Path(args.out)
     if not 1 <= args.repeats <= 1000:
         print(f"gyro-platform bench: error: --repeats must be between 1 and 1000, got {args.repeats}", file=sys.stderr)
+        return 2
+    try:                 # refuse an unwritable --out now, not after minutes of benchmarking
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write_test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        print(f"gyro-platform bench: error: cannot write the results to {out}: {e.strerror or e}", file=sys.stderr)
         return 2
     if args.what in ("default", "consumer"):
         consumer(out, quick=args.quick, repeats=args.repeats, whole_command=not args.no_whole_command)
