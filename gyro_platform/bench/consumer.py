@@ -239,7 +239,8 @@ def _scene_row(repeats: int, work: Path) -> Row:
         us.append(s["wall_time"] / s["n_samples"] * 1e6)
     t, w, f = scene.motion.generator.arrays(scene.duration, scene.sample_rate)
     k = kernel_us(t, w, f, repeats, scene.params, scene.options)
-    return Row("run_default", "run default (scene, 100 Hz input, 60 s)", "config/scenes/default.yaml",
+    return Row("run_default", f"run default (scene, {scene.sample_rate:g} Hz input, {scene.duration:g} s)",
+               str(scene.source or "default"),
                rtf=float(np.median(rtf)), us_per_sample=float(np.median(us)), kernel_us=k,
                extra={"command_wall_s": float(np.median(walls)), "duration_s": scene.duration,
                       "options": f"{scene.options.mode}/{scene.options.fidelity}/{scene.options.integrator}"})
