@@ -31,6 +31,8 @@ setup(
         "dds": ["cyclonedds>=11.0.1"],
         # gyro-platform sweep: Dask scheduling, Parquet tables
         "sweep": ["dask>=2024.1", "distributed>=2024.1", "pyarrow>=14"],
+        # gyro-platform bench peer: the same carried platform in MuJoCo (bench/peer_mujoco.py)
+        "bench": ["mujoco>=3.1"],
         # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests
         "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6"],
     },

@@ -30,7 +30,8 @@ EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXI
 SUBCOMMANDS = {
     "run": ("gyro_platform.scenes.command", "run a scene (file or name): summary table, CSV/JSON, plot"),
     "replay": ("gyro_platform.replay.command", "replay a rosbag2 bag through the simulator into an output bag"),
-    "bench": ("gyro_platform.bench.command", "benchmarks: accuracy versus time, hard cases, hot path, effects cost"),
+    "bench": ("gyro_platform.bench.command", "benchmarks: consumer figures beside the kernel, MuJoCo peer, accuracy versus time, hard cases, "
+                                          "hot path, effects cost"),
     "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
     "sweep": ("gyro_platform.sweep.command", "Monte Carlo drift budgets and fleet replays on Dask"),
 }

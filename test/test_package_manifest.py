@@ -50,6 +50,7 @@ PROVIDERS = {
     "distributed": PIP,
     "pandas": "python3-pandas",
     "pyarrow": PIP,
+    "mujoco": PIP,
 }
 
 

@@ -1,4 +1,9 @@
-"""``gyro-platform bench``: the benchmarks' command line (accuracy, hard, effects, hotpath, sweep).
+"""``gyro-platform bench [WHAT]``: the benchmarks' command line (consumer, peer, accuracy, hard,
+effects, hotpath, sweep; without WHAT: consumer then peer).
+
+``consumer`` (:mod:`.consumer`): replay, scene run and node figures beside the compiled kernel;
+``peer`` (:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs
+``pip install '.[bench]'``; skipped with a note without it);
 
 ``accuracy`` (:mod:`.accuracy`): work-precision study; ``hard`` (:mod:`.hard`): the hard-case
 table, exit code 1 if any cell is WRONG; ``effects`` and ``hotpath`` (:mod:`.hotpath`): per-sample
@@ -8,9 +13,11 @@ scene on 1 and 2 Dask workers, results identical. Each writes its tables and plo
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from .accuracy import accuracy
+from .consumer import consumer
 from .hard import hard
 from .hotpath import effects_cost, hotpath
 
@@ -19,18 +26,42 @@ __all__ = ["add_arguments", "run"]
 
 def add_arguments(p) -> None:
     """The ``bench`` subcommand's arguments on the argparse parser ``p``."""
-    p.add_argument("what", choices=["accuracy", "effects", "hotpath", "hard", "sweep"], help="which benchmark")
+    p.add_argument("what", nargs="?", default="default",
+                   choices=["default", "consumer", "peer", "accuracy", "effects", "hotpath", "hard", "sweep"],
+                   help="which benchmark (default: consumer, then peer)")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
-                   help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
+                   help="short runs (consumer: 10 s bags, husky's first 30 s; peer: 2 s scenes; accuracy: 60 s "
+                        "ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
     p.add_argument("--runs", type=int, default=8, help="sweep: Monte Carlo runs per worker count (default 8)")
+    p.add_argument("--no-whole-command", action="store_true",
+                   help="consumer: skip the subprocess runs of the whole replay command (start-up included)")
 
 
 def run(args) -> int:
     """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0)."""
     out = Path(args.out)
+    if not 1 <= args.repeats <= 1000:
+        print(f"gyro-platform bench: error: --repeats must be between 1 and 1000, got {args.repeats}", file=sys.stderr)
+        return 2
+    try:                 # refuse an unwritable --out now, not after minutes of benchmarking
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write_test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        print(f"gyro-platform bench: error: cannot write the results to {out}: {e.strerror or e}", file=sys.stderr)
+        return 2
+    if args.what in ("default", "consumer"):
+        consumer(out, quick=args.quick, repeats=args.repeats, whole_command=not args.no_whole_command)
+    if args.what in ("default", "peer"):
+        from .peer_mujoco import peer
+
+        return peer(out, quick=args.quick, repeats=args.repeats, required=args.what == "peer")
+    if args.what in ("default", "consumer", "peer"):
+        return 0
     if args.what == "accuracy":
         accuracy(out, quick=args.quick, repeats=args.repeats)
     elif args.what == "hard":

@@ -1,0 +1,394 @@
+"""What a user gets: the consumer paths timed beside the compiled kernel (``gyro-platform bench consumer``).
+
+Rows, all in one process run (medians of ``repeats``):
+
+* ``replay`` of a 1 kHz ``sensor_msgs/Imu`` bag of the benchmark's own making (:mod:`.bags`;
+  120 s, ``--quick`` 10 s), ``--output-rate 100``, sqlite3 and mcap, through the real command
+  (:mod:`gyro_platform.replay.command` in-process: the summary's ``real_time_factor``; and the
+  whole command in a subprocess, ``python -m gyro_platform replay …`` with default options:
+  wall time including interpreter start-up, imports and the plot);
+* ``replay`` of the shared husky recording (30 Hz, 395 s; ``--quick``: its first 30 s), found as
+  the ``husky_replay`` scene finds it ("not found" when absent);
+* ``run default`` (the README's first command) through :mod:`gyro_platform.scenes.command`;
+* ``NodeCore.on_message`` per 1 kHz Imu message (rosbags message objects, default node
+  configuration, 20000 messages; median and p99 µs).
+
+Beside each, the kernel's figure on the same input samples and options: the compiled
+``Simulator.push_many`` µs per sample (integration only); the ratio consumer/kernel says what
+the consumer adds around the kernel (1 = nothing). Times are wall clock (``perf_counter``), as
+the real-time factors are; the machine may be shared, so medians are quoted. Writes
+``consumer.json``, ``consumer.md`` and ``consumer.png`` under ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .bags import IMU_TOPIC, cache_dir, cached_imu_bag, husky_bag, short_copy, vehicle_imu
+
+__all__ = ["Row", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
+
+OUTPUT_RATE = 100.0            # Hz, replay --output-rate of the 1 kHz rows
+NODE_MESSAGES = 20_000
+#: the issue's targets, for the table (real-time factor, or µs per message)
+TARGETS = {"replay_1khz": "≥ 500×", "replay_husky": "≥ 300×", "node_median": "≤ 10 µs", "node_p99": "≤ 50 µs"}
+ROOT = Path(__file__).resolve().parents[2]      # the folder holding the gyro_platform package
+
+
+@dataclass
+class Row:
+    """One consumer figure: ``us_per_sample`` (wall µs per input message, all in) beside the
+    kernel's ``kernel_us`` on the same samples; ``rtf`` the real-time factor (None for the node)."""
+
+    name: str
+    what: str
+    input: str
+    status: str = "ok"                 # ok | not found | failed: … | skipped: …
+    rtf: float | None = None
+    us_per_sample: float | None = None
+    kernel_us: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+    target: str = ""
+
+    @property
+    def ratio(self) -> float | None:
+        """consumer / kernel µs per sample (how much the consumer adds; 1 = nothing)."""
+        if self.us_per_sample is None or not self.kernel_us:
+            return None
+        return self.us_per_sample / self.kernel_us
+
+
+# ---------------------------------------------------------------------------------------------
+# the kernel
+
+def kernel_us(t: np.ndarray, omega: np.ndarray, force: np.ndarray | None, repeats: int,
+              params: Any = None, options: Any = None) -> float:
+    """Median wall µs per sample of the compiled ``Simulator.push_many`` (no outputs) over
+    these samples (t s, omega rad/s, force m/s²), a fresh simulator each repeat (compiled first)."""
+    from ..engine.simulator import Simulator
+
+    kw = {k: v for k, v in (("params", params), ("options", options)) if v is not None}
+    warm = Simulator(**kw)
+    warm.push_many(t[:3], omega[:3], None if force is None else force[:3])
+    out = []
+    for _ in range(repeats):
+        sim = Simulator(**kw)
+        t0 = time.perf_counter()
+        sim.push_many(t, omega, force)
+        out.append((time.perf_counter() - t0) / len(t) * 1e6)
+    return float(np.median(out))
+
+
+def bag_samples(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The accepted samples of a bag's input topic as the replay's gate yields them (the first
+    run of increasing times): t (s since the origin), omega (rad/s), force (m/s², 0 if absent)."""
+    from ..pipeline import read_samples
+
+    t, w, f = [], [], []
+    for item in read_samples(path):
+        s = item.sample
+        if s is None or (t and s.t <= t[-1]):
+            continue
+        t.append(s.t)
+        w.append(s.omega)
+        f.append(np.zeros(3) if s.specific_force is None else s.specific_force)
+    return np.asarray(t), np.asarray(w), np.asarray(f)
+
+
+# ---------------------------------------------------------------------------------------------
+# the consumers
+
+def _quietly(fn: Callable[[], Any]) -> Any:
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        return fn()
+
+
+def replay_once(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> dict:
+    """One ``gyro-platform replay BAG --out OUT --quiet --no-plot …`` through the command's own
+    ``add_arguments``/``run``, in this process; the summary (``OUT.summary.json``) with
+    ``command_wall_s`` (the whole call) added. Raises RuntimeError on a non-zero exit."""
+    from ..replay import command as replay_command
+    from ..replay.loop import sidecar_paths
+
+    p = argparse.ArgumentParser(prog="gyro-platform replay")
+    replay_command.add_arguments(p)
+    args = p.parse_args([str(bag), "--out", str(out), "--quiet", "--no-plot", *extra])
+    t0 = time.perf_counter()
+    code = _quietly(lambda: replay_command.run(args))
+    wall = time.perf_counter() - t0
+    if code != 0:
+        raise RuntimeError(f"replay exited {code}")
+    summary = json.loads(sidecar_paths(out)[0].read_text())
+    summary["command_wall_s"] = wall
+    return summary
+
+
+def replay_subprocess(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> float:
+    """Wall seconds of the whole ``python -m gyro_platform replay BAG --out OUT --quiet …`` (start-up,
+    imports, compiled-code loading, the plot: what a user waits for)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cmd = [sys.executable, "-m", "gyro_platform", "replay", str(bag), "--out", str(out), "--quiet", *extra]
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, cwd=str(ROOT), env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise RuntimeError(f"replay exited {r.returncode}: {r.stderr.strip().splitlines()[-1:] or ''}")
+    return wall
+
+
+def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra: tuple[str, ...],
+                kernel: float, target: str, whole: bool) -> Row:
+    rtf, us, walls = [], [], []
+    summary: dict = {}
+    for i in range(repeats):
+        summary = replay_once(bag, work / f"{name}_{i}", extra)
+        rtf.append(summary["real_time_factor"])
+        us.append(summary["wall_time_s"] / max(summary["counts"]["in"], 1) * 1e6)
+        walls.append(summary["command_wall_s"])
+    row = Row(name, what, str(bag), rtf=float(np.median(rtf)), us_per_sample=float(np.median(us)),
+              kernel_us=kernel, target=target,
+              extra={"duration_s": summary["duration_s"], "messages": summary["counts"]["in"],
+                     "outputs": summary["counts"]["out"], "in_process_command_wall_s": float(np.median(walls)),
+                     "integrator": summary["simulator"]["stats"]["integrator"],
+                     "max_error_norm": summary["simulator"]["stats"].get("max_error_norm")})
+    if whole:
+        w = [replay_subprocess(bag, work / f"{name}_sub{i}", extra) for i in range(repeats)]
+        row.extra["whole_command_wall_s"] = float(np.median(w))
+        row.extra["whole_command_rtf"] = summary["duration_s"] / float(np.median(w))
+    return row
+
+
+def node_us(msgs: list, repeats: int) -> dict[str, float]:
+    """µs per ``NodeCore.on_message`` call (default node configuration, rosbags messages,
+    receive time = header stamp): median and p99 over the messages, medians over repeats."""
+    from ..io.messages import MessageTypes, stamp_ns
+    from ..ros.core import NodeConfig, NodeCore
+
+    types = MessageTypes.rosbags()
+    stamps = [stamp_ns(m.header.stamp) for m in msgs]
+    warm = NodeCore(NodeConfig.from_ros_params(), types)
+    for m, s in zip(msgs[:300], stamps[:300]):
+        warm.on_message(m, s)
+    med, p99, mx, outs = [], [], [], 0
+    clock = time.perf_counter_ns
+    for _ in range(repeats):
+        core = NodeCore(NodeConfig.from_ros_params(), types)
+        dt = np.empty(len(msgs))
+        for i, (m, s) in enumerate(zip(msgs, stamps)):
+            t0 = clock()
+            core.on_message(m, s)
+            dt[i] = clock() - t0
+        dt *= 1e-3
+        med.append(np.median(dt))
+        p99.append(np.percentile(dt, 99))
+        mx.append(dt.max())
+        outs = core.published
+    return {"median_us": float(np.median(med)), "p99_us": float(np.median(p99)), "max_us": float(np.median(mx)),
+            "published": outs, "internal_errors": core.internal_errors}
+
+
+def _imu_objects(bag: Path, n: int) -> list:
+    """The first ``n`` messages of the bag's Imu topic as rosbags objects."""
+    from rosbags.rosbag2 import Reader
+
+    from ..io.messages import jazzy_typestore
+
+    store = jazzy_typestore()
+    out = []
+    with Reader(bag) as r:
+        conns = [c for c in r.connections if c.topic == IMU_TOPIC]
+        for c, _, raw in r.messages(connections=conns):
+            out.append(store.deserialize_cdr(raw, c.msgtype))
+            if len(out) >= n:
+                break
+    return out
+
+
+def _scene_row(repeats: int, work: Path) -> Row:
+    """``gyro-platform run default --out DIR`` in this process; RTF = duration / the summary's wall."""
+    from ..scenes import command as scene_command
+    from ..scenes.schema import load_scene
+
+    scene = load_scene("default")
+    p = argparse.ArgumentParser(prog="gyro-platform run")
+    scene_command.add_arguments(p)
+    rtf, walls, us = [], [], []
+    for i in range(repeats):
+        out = work / f"run_default_{i}"
+        args = p.parse_args(["default", "--out", str(out)])
+        t0 = time.perf_counter()
+        code = _quietly(lambda: scene_command.run(args))
+        walls.append(time.perf_counter() - t0)
+        if code not in (0, 1):          # 1: an expectation failed; the timing still holds
+            raise RuntimeError(f"run exited {code}")
+        s = json.loads((out / "summary.json").read_text())["summary"]
+        rtf.append(scene.duration / s["wall_time"])
+        us.append(s["wall_time"] / s["n_samples"] * 1e6)
+    t, w, f = scene.motion.generator.arrays(scene.duration, scene.sample_rate)
+    k = kernel_us(t, w, f, repeats, scene.params, scene.options)
+    return Row("run_default", f"run default (scene, {scene.sample_rate:g} Hz input, {scene.duration:g} s)",
+               str(scene.source or "default"),
+               rtf=float(np.median(rtf)), us_per_sample=float(np.median(us)), kernel_us=k,
+               extra={"command_wall_s": float(np.median(walls)), "duration_s": scene.duration,
+                      "options": f"{scene.options.mode}/{scene.options.fidelity}/{scene.options.integrator}"})
+
+
+def _guard(name: str, what: str, fn: Callable[[], Row]) -> Row:
+    """A row whatever happens: a failure is reported in the row, never a crash of the benchmark."""
+    try:
+        return fn()
+    except KeyboardInterrupt:
+        raise
+    except Exception as e:  # the benchmark reports, it does not stop
+        return Row(name, what, "", status=f"failed: {type(e).__name__}: {str(e)[:120]}")
+
+
+def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command: bool = True) -> list[Row]:
+    """Run every consumer row and its kernel figure; print the table, write JSON, Markdown, PNG."""
+    duration = 10.0 if quick else 120.0
+    n_node = 5_000 if quick else NODE_MESSAGES
+    rows: list[Row] = []
+    work = Path(tempfile.mkdtemp(prefix="gyro_bench_consumer_"))
+    try:
+        print(f"consumer figures: 1 kHz Imu bag of {duration:g} s (generated once, cached in {cache_dir()}), "
+              f"medians of {repeats} repeat(s)", flush=True)
+        imu = vehicle_imu(duration)
+        k_imu = kernel_us(imu.t, imu.omega, imu.force, repeats)
+        for storage in ("sqlite3", "mcap"):
+            name = f"replay_1khz_{storage}"
+            what = f"replay 1 kHz Imu, {duration:g} s, --output-rate 100, {storage}"
+            rows.append(_guard(name, what, lambda: _replay_row(
+                name, what, cached_imu_bag(duration, storage), work, repeats, ("--output-rate", f"{OUTPUT_RATE:g}"),
+                k_imu, TARGETS["replay_1khz"], whole_command)))
+            print(_line(rows[-1]), flush=True)
+        rows.append(_husky_row(work, repeats, quick, whole_command))
+        print(_line(rows[-1]), flush=True)
+        rows.append(_guard("run_default", "run default", lambda: _scene_row(repeats, work)))
+        print(_line(rows[-1]), flush=True)
+        rows.extend(_node_rows(duration, n_node, repeats, imu))
+        print(_line(rows[-2]) + "\n" + _line(rows[-1]), flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    write_outputs(rows, out_dir, quick=quick, repeats=repeats)
+    return rows
+
+
+def _husky_row(work: Path, repeats: int, quick: bool, whole: bool) -> Row:
+    name, what = "replay_husky", "replay husky (30 Hz Imu, 395 s, mcap), default options"
+    path, why = husky_bag()
+    if path is None:
+        return Row(name, what, "robot_localization_husky_test1", status=why, target=TARGETS["replay_husky"])
+
+    def run() -> Row:
+        bag = short_copy(path, 30.0) if quick else path
+        t, w, f = bag_samples(bag)
+        k = kernel_us(t, w, f, repeats)
+        return _replay_row(name, what.replace("395 s", "first 30 s") if quick else what, bag, work, repeats, (),
+                           k, TARGETS["replay_husky"], whole)
+
+    return _guard(name, what, run)
+
+
+def _node_rows(duration: float, n: int, repeats: int, imu) -> list[Row]:
+    what = f"NodeCore.on_message, 1 kHz Imu, {n} msgs"
+
+    def run() -> dict:
+        msgs = _imu_objects(cached_imu_bag(duration, "mcap"), n)
+        res = node_us(msgs, repeats)
+        res["kernel_us"] = kernel_us(imu.t[:len(msgs)], imu.omega[:len(msgs)], imu.force[:len(msgs)], repeats)
+        return res
+
+    try:
+        r = run()
+    except KeyboardInterrupt:
+        raise
+    except Exception as e:
+        bad = f"failed: {type(e).__name__}: {str(e)[:120]}"
+        return [Row("node_median", what + " (median)", "", status=bad), Row("node_p99", what + " (p99)", "", status=bad)]
+    extra = {k: r[k] for k in ("max_us", "published", "internal_errors")}
+    return [Row("node_median", what + " (median)", "generated", us_per_sample=r["median_us"], kernel_us=r["kernel_us"],
+                extra=extra, target=TARGETS["node_median"]),
+            Row("node_p99", what + " (p99)", "generated", us_per_sample=r["p99_us"], kernel_us=r["kernel_us"],
+                extra=extra, target=TARGETS["node_p99"])]
+
+
+# ---------------------------------------------------------------------------------------------
+# output
+
+def _fmt(x: float | None, spec: str) -> str:
+    return "" if x is None else format(x, spec)
+
+
+def _line(r: Row) -> str:
+    if r.status != "ok":
+        return f"  {r.what}: {r.status}"
+    rtf = f"×{r.rtf:.3g} real time, " if r.rtf else ""
+    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg; kernel {r.kernel_us:.2f} µs/sample; ratio {r.ratio:.1f}"
+
+
+def table(rows: list[Row]) -> str:
+    """The Markdown table: one line per figure."""
+    lines = ["| figure | real-time × (summary) | whole command: wall s (×) | µs per input msg | kernel µs/sample "
+             "| consumer / kernel | target |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r.status != "ok":
+            lines.append(f"| {r.what} | {r.status} | | | | | {r.target} |")
+            continue
+        wc = r.extra.get("whole_command_wall_s")
+        whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
+        lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} | {r.kernel_us:.2f} "
+                     f"| {_fmt(r.ratio, '.1f')} | {r.target} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(rows: list[Row], out_dir: Path, **meta: Any) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    text = table(rows)
+    print("\n" + text, end="")
+    doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
+                    "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
+           "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
+    (out_dir / "consumer.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    (out_dir / "consumer.md").write_text(text)
+    plot(rows, out_dir / "consumer.png")
+    print(f"wrote {out_dir / 'consumer.json'}, {out_dir / 'consumer.md'}, {out_dir / 'consumer.png'}")
+
+
+def plot(rows: list[Row], path: Path) -> None:
+    """Horizontal bars, log µs per input message: consumer beside kernel for every figure."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rows if r.status == "ok" and r.us_per_sample]
+    fig, ax = plt.subplots(figsize=(11, 0.6 * max(len(ok), 1) + 1.6))
+    y = np.arange(len(ok))
+    ax.barh(y - 0.2, [r.us_per_sample for r in ok], 0.4, label="consumer (all in)", color="tab:orange")
+    ax.barh(y + 0.2, [r.kernel_us or np.nan for r in ok], 0.4, label="kernel push_many", color="tab:blue")
+    for yi, r in zip(y, ok):
+        if r.ratio:
+            ax.text(r.us_per_sample * 1.1, yi - 0.2, f"×{r.ratio:.1f}", va="center", fontsize=8)
+    ax.axvline(1e3, color="tab:red", lw=0.8, ls=":")
+    ax.text(1e3, -0.45, " 1 ms: real time at 1 kHz", color="tab:red", fontsize=7, va="bottom")
+    ax.set_yticks(y, [r.what for r in ok], fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlabel("wall µs per input message (lower is better)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title("consumer paths beside the compiled kernel (same input samples)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

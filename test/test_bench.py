@@ -1,0 +1,162 @@
+"""The benchmark's physics and plumbing (never its timings): the MuJoCo peer model is the same
+carried platform as gyro_platform's (gimbal-angle trajectories agree), the generated Imu bag
+decodes back to the motion it was made from, the consumer rows go through the real command and
+report a missing bag as "not found", and bad benchmark options are refused."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gyro_platform import cli
+from gyro_platform.bench import bags, consumer
+from gyro_platform.bench.bench_scenes import ship_scene
+from gyro_platform.physics.params import NAV1
+
+
+@pytest.fixture(autouse=True)
+def _bag_cache(tmp_path, monkeypatch):
+    """Generated bags go to this test's folder, not the shared cache."""
+    monkeypatch.setenv("GYRO_PLATFORM_BENCH_CACHE", str(tmp_path / "cache"))
+
+
+# ---- the MuJoCo peer -------------------------------------------------------------------------
+
+def _mujoco():
+    pytest.importorskip("mujoco", reason="mujoco is optional (pip install '.[bench]'): the peer model needs it")
+    from gyro_platform.bench import peer_mujoco
+
+    return peer_mujoco
+
+
+def test_mujoco_model_has_the_nav1_inertias_and_axes():
+    pm = _mujoco()
+    import mujoco
+
+    mp = pm.MujocoPlatform.build(NAV1)
+    m = mp.model
+    body = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i): i for i in range(m.nbody)}
+    np.testing.assert_allclose(m.body_inertia[body["frame4"]], NAV1.frame4, rtol=1e-12)
+    np.testing.assert_allclose(m.body_inertia[body["housing10"]], NAV1.housing10, rtol=1e-12)
+    C, A = NAV1.rotor_C[2], NAV1.rotor_A[2]
+    np.testing.assert_allclose(m.body_inertia[body["rotor11"]], (A, C, A), rtol=1e-12)
+    axes = {n: m.jnt_axis[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in pm.GIMBALS}
+    # spec 1: alpha4 about +2, beta5 about +3, beta7 about -3, alpha9 about +3, beta10 about +1
+    for n, a in {"alpha4": (0, 1, 0), "beta5": (0, 0, 1), "beta7": (0, 0, -1), "alpha9": (0, 0, 1),
+                 "beta10": (1, 0, 0)}.items():
+        np.testing.assert_allclose(axes[n], a, atol=1e-15)
+
+
+def _both(pm, t, w, out_every):
+    tg, g, _ = pm.gyro_run(t, w, pm.carried_options(1e-12, 1e-15, max_step=2.5e-4, integrator="rk4",
+                                                     max_substeps=1 << 20), out_every=out_every)
+    tm, m, _ = pm.mujoco_run(t, w, substeps=16, out_every=out_every)
+    np.testing.assert_allclose(tg, tm, atol=1e-12)
+    return g, m
+
+
+def test_mujoco_peer_agrees_with_gyro_platform_on_ship_motion():
+    """Ship roll/pitch, 1 s: the gimbals swing ~0.07 rad; both models give the same angles to
+    1e-8 rad (what is left: the MuJoCo rotors' finite speed loop)."""
+    pm = _mujoco()
+    sc = ship_scene(1.0)
+    g, m = _both(pm, sc.t, sc.omega, out_every=50)
+    assert np.max(np.abs(g)) > 0.05          # the gimbals did move: the comparison means something
+    np.testing.assert_allclose(m, g, atol=1e-8, rtol=0)
+
+
+def test_mujoco_peer_carries_the_same_nutation_after_a_rate_step():
+    """A 0.05 rad/s roll step excites the ≈ 90 Hz nutation; sampled every millisecond over
+    0.15 s, both models give the same oscillation (amplitude ~1e-4 rad) to 2 % of it."""
+    pm = _mujoco()
+    sc = pm.steps_scene(1.0)
+    n = int(0.2 * 1000)
+    t, w = sc.t[:n], sc.omega[:n]
+    g, m = _both(pm, t, w, out_every=1)
+    after = t >= 0.05
+    osc = g[after] - g[after].mean(axis=0)
+    amp = np.max(np.abs(osc))
+    assert amp > 2e-5
+    assert np.max(np.abs(m[after] - g[after])) < 0.02 * amp
+
+
+def test_peer_without_mujoco_is_a_note_not_a_crash(monkeypatch, tmp_path, capsys):
+    from gyro_platform.bench import peer_mujoco
+
+    monkeypatch.setattr(peer_mujoco, "available", lambda: "mujoco is not installed (test)")
+    assert peer_mujoco.peer(tmp_path, quick=True, repeats=1, required=False) == 0
+    assert peer_mujoco.peer(tmp_path, quick=True, repeats=1, required=True) == 1
+    assert "peer comparison skipped: mujoco is not installed" in capsys.readouterr().out
+
+
+# ---- the consumer benchmark's bags and rows --------------------------------------------------
+
+def test_generated_imu_bag_reads_back_as_the_motion(tmp_path):
+    """The 1 kHz Imu bag (rosbags writer, both storages) decodes through the replay's own reader
+    and gate to exactly the samples it was made from."""
+    imu = bags.vehicle_imu(0.5)
+    assert imu.t.size == 501 and math.isclose(imu.t[1] - imu.t[0], 1e-3)
+    for storage in ("sqlite3", "mcap"):
+        path = bags.cached_imu_bag(0.5, storage)
+        assert path.name.endswith(storage) and (path / "metadata.yaml").is_file()
+        t, w, f = consumer.bag_samples(path)
+        np.testing.assert_allclose(t, imu.t, atol=1e-12)
+        np.testing.assert_array_equal(w, imu.omega)
+        np.testing.assert_array_equal(f, imu.force)
+    # a realistic vehicle: ~1 g upwards, noisy rates of a few deg/s
+    assert 9.0 < np.mean(imu.force[:, 2]) < 10.6
+    assert 1e-3 < np.std(imu.omega[:, 0]) < 0.5
+
+
+def test_replay_row_goes_through_the_command_and_counts_every_message(tmp_path):
+    path = bags.cached_imu_bag(0.3, "mcap")
+    s = consumer.replay_once(path, tmp_path / "out", ("--output-rate", "100"))
+    assert s["counts"]["in"] == 301 and s["counts"]["accepted"] == 301
+    assert s["counts"]["out"] == 31                      # 100 Hz grid over 0.3 s, both ends
+    assert s["real_time_factor"] > 0 and s["command_wall_s"] >= s["wall_time_s"]
+
+
+def test_node_figure_publishes_on_the_default_grid():
+    msgs = consumer._imu_objects(bags.cached_imu_bag(0.5, "mcap"), 400)
+    r = consumer.node_us(msgs, repeats=1)
+    assert r["internal_errors"] == 0
+    assert r["published"] == 4                           # default output_rate 10 Hz over 0.4 s
+    assert 0 < r["median_us"] <= r["p99_us"] <= r["max_us"]
+
+
+def test_missing_husky_bag_is_a_row_saying_not_found(monkeypatch, tmp_path):
+    monkeypatch.setattr(consumer, "husky_bag", lambda: (None, "not found"))
+    row = consumer._husky_row(tmp_path, repeats=1, quick=True, whole=False)
+    assert row.status == "not found" and row.ratio is None
+    assert "| not found |" in consumer.table([row])
+
+
+def test_short_copy_keeps_every_topic_and_only_the_first_seconds():
+    path, why = bags.husky_bag()
+    if path is None:
+        pytest.skip(f"husky recording: {why}")
+    from rosbags.rosbag2 import Reader
+
+    short = bags.short_copy(path, 5.0)
+    with Reader(path) as full, Reader(short) as cut:
+        assert {c.topic for c in cut.connections} == {c.topic for c in full.connections}
+        stamps = [ts for _, ts, _ in cut.messages()]
+        assert stamps[0] == full.start_time and stamps[-1] <= full.start_time + 5_000_000_000
+        n_full = sum(1 for _, ts, _ in full.messages() if ts <= full.start_time + 5_000_000_000)
+    assert len(stamps) == n_full
+
+
+@pytest.mark.parametrize("value", ["0", "-3"])
+def test_bench_refuses_non_positive_repeats(value, capsys):
+    assert cli.main(["bench", "hotpath", "--repeats", value]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--repeats must be between 1 and 1000" in err and "Traceback" not in err
+
+
+def test_bench_refuses_an_unwritable_out_before_running(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert cli.main(["bench", "consumer", "--out", str(blocker / "results")]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "cannot write the results to" in err and "Traceback" not in err
