@@ -196,7 +196,7 @@ def test_header_time_on_zero_stamps_is_an_error_naming_the_fix(tmp_path, capsys)
     code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", "--time-source", "header"])
     cap = capsys.readouterr()
     line = one_line_error(cap.err, "replay")
-    assert code == cli.EXIT_USAGE and "zero_stamp" in line and "--time-source receive" in line
+    assert code == cli.EXIT_DATA and "zero_stamp" in line and "--time-source receive" in line
     s = json.loads(rp.sidecar_paths(out)[0].read_text())
     assert s["counts"]["accepted"] == 0 and s["counts"]["dropped_by_reason"] == {"zero_stamp": 51}
     assert s["warnings"] == [line.split("error: ", 1)[1]]

@@ -8,7 +8,10 @@ scene on 1 and 2 Dask workers, results identical. Each writes its tables and plo
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
+
+from ..errors import EXIT_USAGE, OutputError, check_output_path
 
 from .accuracy import accuracy
 from .hard import hard
@@ -24,13 +27,28 @@ def add_arguments(p) -> None:
     p.add_argument("--quick", action="store_true",
                    help="short scenes (accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
-    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
+    p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
     p.add_argument("--runs", type=int, default=8, help="sweep: Monte Carlo runs per worker count (default 8)")
 
 
+MAX_REPEATS = 1000
+
+
+def _error(text: str) -> int:
+    print(f"gyro-platform bench: error: {text}", file=sys.stderr)
+    return EXIT_USAGE
+
+
 def run(args) -> int:
-    """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0)."""
+    """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0;
+    2 a bad flag or an unwritable ``--out``, refused before any run)."""
     out = Path(args.out)
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        return _error(f"--repeats must be between 1 and {MAX_REPEATS}, got {args.repeats}")
+    try:
+        check_output_path(out, "--out")
+    except OutputError as e:
+        return _error(str(e))
     if args.what == "accuracy":
         accuracy(out, quick=args.quick, repeats=args.repeats)
     elif args.what == "hard":
@@ -40,8 +58,7 @@ def run(args) -> int:
         from ..sweep.scaling import scaling, table
 
         if not 1 <= args.runs <= 10_000:
-            print(f"gyro-platform bench: error: --runs must be between 1 and 10000, got {args.runs}")
-            return 2
+            return _error(f"--runs must be between 1 and 10000, got {args.runs}")
         rows = scaling(out, runs=args.runs)
         print(table(rows), end="")
         return 0 if all(r["identical_to_1_worker"] for r in rows) else 1

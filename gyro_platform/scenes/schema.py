@@ -24,7 +24,7 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
     max_step: 1.0e-3          # s, largest internal step                     (default 1e-3)
     rtol: 1.0e-6              # local error tolerance every integrator is held to (default 1e-6)
     atol: 1.0e-9              # absolute part, state units rad, rad/s (default 1e-9)
-    duration: 60              # s simulated (required, > 0)
+    duration: 60              # s simulated (required, > 0; see "Run size" below)
     test_duration: 20         # s; the shortest run for which the expectations still hold —
                               # the test suite runs the scene this long    (optional, ≤ duration)
     sample_rate: 100          # Hz of the input samples (default 100; not allowed with bag)
@@ -32,6 +32,14 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
     fit_start: 0              # s after the start where the least-squares drift fits begin
     motion: {type: ..., ...}  # the vehicle motion, see below (required)
     expect: [...]             # checks on the run's summary, see below (default none)
+
+Run size: a synthetic scene is refused before it starts when its estimate exceeds
+``MAX_MEMORY_BYTES`` (8 GiB: ``BYTES_PER_SAMPLE`` per input sample, ``BYTES_PER_OUTPUT`` per
+recorded output) or ``MAX_STEPS`` (1e9 internal steps: at least ``duration / max_step`` and one
+per sample, ~``SECONDS_PER_STEP`` each); the error names the key (``duration``, ``sample_rate``
+or ``max_step``) and gives the estimate (:func:`run_budget`). Parameter overrides are numbers or
+flat lists of numbers (``true``, nested lists and strings that are no number are refused);
+``rtol`` ≥ 1e-14 (below, float64 rounding cannot meet it).
 
 Motions (angles in degrees where the key says ``_deg``, else SI; body axes FLU, navigation
 axes ENU; see ``motions`` for the exact kinematics)::
@@ -127,6 +135,70 @@ class ScenarioError(ValueError):
     """A scene file is invalid; the message names the file and the key path."""
 
 
+# ---- run size: refuse what cannot run before it starts -------------------------------------
+MAX_MEMORY_BYTES = 8 * 2 ** 30      # 8 GiB
+MAX_STEPS = 1e9                     # internal integrator steps
+BYTES_PER_SAMPLE = 88               # synthetic input: t, omega, force (float64) and attitude quaternion
+BYTES_PER_OUTPUT = 5 * 2 ** 10      # one recorded output (measured ~4.6 kB with Recorder)
+SECONDS_PER_STEP = 1.2e-6           # compiled kernel, one linear RK4 step (the README's figure)
+MIN_RTOL = 1e-14                    # ~50 float64 epsilons: a tighter rtol cannot be met
+
+
+@dataclass(frozen=True)
+class RunBudget:
+    """Size estimate of a synthetic run: input ``samples``, recorded ``outputs``, internal
+    ``steps`` (lower bound), ``memory_bytes`` and CPU ``seconds`` (lower bound)."""
+
+    samples: float
+    outputs: float
+    steps: float
+    memory_bytes: float
+    seconds: float
+
+    def describe(self) -> str:
+        return (f"~{self.samples:.3g} samples, {self.outputs:.3g} outputs, ≥ {self.steps:.3g} steps: "
+                f"~{self.memory_bytes / 2 ** 30:.3g} GiB of memory (bound {MAX_MEMORY_BYTES / 2 ** 30:g} GiB), "
+                f"≥ {_human_seconds(self.seconds)} of CPU (bound {MAX_STEPS:.0e} steps)")
+
+    @property
+    def too_big(self) -> bool:
+        return self.memory_bytes > MAX_MEMORY_BYTES or self.steps > MAX_STEPS
+
+
+def _human_seconds(s: float) -> str:
+    for unit, size in (("years", 3.15576e7), ("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if s >= size:
+            return f"{s / size:.3g} {unit}"
+    return f"{s:.3g} s"
+
+
+def run_budget(duration: float, sample_rate: float, output_rate: float, max_step: float) -> RunBudget:
+    """Estimate of a synthetic run of ``duration`` s sampled at ``sample_rate`` Hz, recorded at
+    ``output_rate`` Hz, internal steps ≤ ``max_step`` s."""
+    samples = duration * sample_rate
+    outputs = duration * output_rate
+    steps = max(duration / max_step, samples)
+    return RunBudget(samples, outputs, steps, samples * BYTES_PER_SAMPLE + outputs * BYTES_PER_OUTPUT,
+                     steps * SECONDS_PER_STEP)
+
+
+def check_budget(source: str, duration: float, sample_rate: float | None, output_rate: float, max_step: float,
+                 keys: dict[str, str] | None = None) -> None:
+    """ScenarioError naming the key that makes the run too big (the one furthest from the usual
+    60 s, 100 Hz, 1 ms); ``keys`` renames them for flags (``{"duration": "--duration"}``)."""
+    if sample_rate is None:           # a bag: its own length bounds the run
+        return
+    b = run_budget(duration, sample_rate, output_rate, max_step)
+    if not b.too_big:
+        return
+    excess = {"duration": duration / 60.0, "sample_rate": sample_rate / 100.0, "max_step": 1e-3 / max_step}
+    key = max(excess, key=excess.get)
+    value = {"duration": duration, "sample_rate": sample_rate, "max_step": max_step}[key]
+    name = (keys or {}).get(key, key)
+    raise ScenarioError(f"scene '{source}': {name}: {value:g} makes the run too big to start: {b.describe()}; "
+                        f"shorten duration, lower sample_rate or raise max_step")
+
+
 # ---- validation helpers -----------------------------------------------------------------
 class _V:
     def __init__(self, source: str):
@@ -194,6 +266,13 @@ class _V:
                     self.fail(f"{path}[{i}]", f"must be ≥ {lo:g}, got {x:g}")
             return arr
         return np.full(n, self.number(v, path, lo=lo))
+
+
+def _param_value(v: _V, val: Any, path: str) -> Any:
+    """A parameter override: a number or a flat list of numbers (no booleans, no nesting)."""
+    if isinstance(val, (list, tuple)):
+        return [v.number(x, f"{path}[{i}]") for i, x in enumerate(val)]
+    return v.number(val, path)
 
 
 def _join(path: str, key: str) -> str:
@@ -324,6 +403,8 @@ class Scene:
         if self.fit_start >= duration:
             raise ScenarioError(f"scene '{self.name}': --duration {duration:g} s must exceed fit_start "
                                 f"({self.fit_start:g} s)")
+        check_budget(self.name, duration, self.sample_rate, self.output_rate, self.max_step,
+                     {"duration": "--duration"})
         return replace(self, duration=float(duration), test_duration=self.expect_duration)
 
     def with_integrator(self, integrator: str | None = None, max_step: float | None = None) -> "Scene":
@@ -339,6 +420,7 @@ class Scene:
             opts = self.options.with_(integrator=name, max_step=step)
         except OptionsError as e:
             raise ScenarioError(f"scene '{self.name}': {e}") from None
+        check_budget(self.name, self.duration, self.sample_rate, self.output_rate, step, {"max_step": "--max-step"})
         return replace(self, integrator=name, max_step=step, options=opts)
 
 
@@ -455,6 +537,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     overrides = d.get("params", {}) or {}
     known = tuple(f.name for f in dc_fields(PlatformParams))
     v.mapping(overrides, "params", known)
+    overrides = {k: _param_value(v, val, f"params.{k}") for k, val in overrides.items()}
     try:
         params = PlatformParams.from_dict(overrides)
     except ParameterError as e:
@@ -469,6 +552,8 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     for k in ("rtol", "atol"):
         if k in d:
             kw[k] = v.number(d[k], k, lo=0.0, hi=1.0, lo_open=True)
+    if kw.get("rtol", MIN_RTOL) < MIN_RTOL:
+        v.fail("rtol", f"must be ≥ {MIN_RTOL:g} (float64 rounding cannot meet less), got {kw['rtol']:g}")
     try:
         options = ModelOptions.make(mode, fidelity, effects, **kw)
     except OptionsError as e:
@@ -495,6 +580,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
             v.fail("output_rate", f"must be ≤ sample_rate ({sample_rate:g} Hz), got {output_rate:g}")
         if sample_rate * duration < 1.0:
             v.fail("sample_rate", f"gives fewer than 2 samples over {duration:g} s")
+    check_budget(source, duration, sample_rate, output_rate, max_step)
 
     raw_expect = d.get("expect", []) or []
     if not isinstance(raw_expect, list):
@@ -678,4 +764,5 @@ def scene_info(scene: Scene) -> dict:
 
 
 __all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene", "find_scene",
-           "scene_dirs", "scene_names", "scene_from_dict", "scene_info"]
+           "scene_dirs", "scene_names", "scene_from_dict", "scene_info", "RunBudget", "run_budget", "check_budget",
+           "MAX_MEMORY_BYTES", "MAX_STEPS"]
