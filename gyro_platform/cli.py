@@ -69,8 +69,21 @@ def _quiet_broken_pipe() -> None:
         pass
 
 
+def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """argparse turns ``--flag=--`` into ``[]`` without calling the flag's type: refuse any
+    single-valued typed option whose value is not of its type (argparse's one-line error, exit 2)."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    for action in sub._actions:
+        if action.nargs is None and action.type in (int, float) and action.option_strings:
+            value = getattr(args, action.dest, None)
+            if value is not None and value is not action.default and not isinstance(value, action.type):
+                sub.error(f"argument {'/'.join(action.option_strings)}: expected one {action.type.__name__} value")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _check_scalar_values(parser, args)
     err = getattr(args, "_import_error", None)
     if err:
         print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)

@@ -94,12 +94,18 @@ def print_results(summary: dict[str, Any], out_bag: Any, file: Any = None) -> No
 
 def config_from_args(args: argparse.Namespace) -> ReplayConfig:
     """ReplayConfig from parsed arguments (loads the scene if given)."""
-    frames = dict(Mounting.parse_spec(s) for s in args.mount)
+    try:
+        frames = dict(Mounting.parse_spec(s) for s in args.mount)
+    except ValueError as e:
+        raise ReplayError(f"--mount: {e}") from None
+    try:
+        gate = GateConfig(max_gap=args.max_gap, on_gap=args.on_gap, reset_on_jump_back=args.reset_on_jump_back,
+                          max_rate=args.max_rate, time_source=args.time_source)
+    except ValueError as e:     # "max_gap = inf s; must be > 0": name the flag
+        raise ReplayError(f"--{str(e).split(' ', 1)[0].replace('_', '-')}: {e}") from None
     cfg = ReplayConfig(
         topic=args.topic, storage=args.storage, diagnostics_rate=args.diagnostics_rate,
-        mounting=Mounting(frames, unknown_frame=args.unknown_frame),
-        gate=GateConfig(max_gap=args.max_gap, on_gap=args.on_gap, reset_on_jump_back=args.reset_on_jump_back,
-                        max_rate=args.max_rate, time_source=args.time_source),
+        mounting=Mounting(frames, unknown_frame=args.unknown_frame), gate=gate,
         namespace=args.namespace, plot=not args.no_plot, progress=not args.quiet)
     if args.scene:
         from ..scenes.schema import load_scene
