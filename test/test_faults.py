@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import os
 import resource
-import shutil
 import signal
 import subprocess
 import sys
@@ -305,3 +304,21 @@ def test_unwritable_out_folders_are_refused_before_the_start(command, tmp_path, 
         (tmp_path / "r" / "outputs.csv").mkdir(parents=True)
         assert cli.main([*command, "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
         assert "outputs.csv is a folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")])
+def test_a_signal_stops_run_with_one_line(tmp_path, sig, code, word):
+    """``run`` of a synthetic scene (30 s at ≥ 500 steps per sample): SIGTERM / Ctrl-C end it
+    with 143 / 130 and one line, no traceback."""
+    scene = tmp_path / "slow.yaml"
+    scene.write_text("name: slowrun\nduration: 30\nsample_rate: 100\nmax_step: 2.0e-6\n"
+                     "motion: {type: constant, omega: [0, 0, 0.01]}\n")
+    proc = subprocess.Popen([PY, "-m", "gyro_platform.cli", "run", str(scene), "--out", str(tmp_path / "r")],
+                            env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().startswith("scene slowrun")       # printed just before the run starts
+    time.sleep(3.0)
+    assert proc.poll() is None
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and err.strip().splitlines() == [f"gyro-platform run: {word}"], err

@@ -167,7 +167,7 @@ def run(args) -> int:
         return EXIT_USAGE
     out = Path(args.out) if args.out else Path("results") / "sweeps" / Path(args.spec).stem
     try:
-        check_output_path(out, "--out", files=("sweep.json", "summary.json", "runs"))
+        check_output_path(out, "--out", files=("sweep.json", "summary.json"))
     except OutputError as e:
         print(f"{prog}: {e}", file=sys.stderr)
         return EXIT_USAGE
