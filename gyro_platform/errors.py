@@ -8,6 +8,7 @@ command. :class:`StopSignals` turns SIGINT and SIGTERM into one orderly stop
 (``KeyboardInterrupt`` / :class:`Terminated`) and :func:`deferred_signals` holds them off while
 a file is being closed; :func:`check_output_path` refuses unwritable outputs before a run.
 """
+import errno
 import os
 import signal
 import sqlite3
@@ -103,8 +104,8 @@ class StopSignals:
     one raise nothing (the outputs are being closed; a traceback there would leave them
     unreadable): they are noted once on stderr. Inside :func:`deferred_signals` a first signal
     is held and raised when the block ends. ``final``: the process exits after the block (the
-    command line): after a stop, later signals stay ignored up to the exit. ``SIGKILL`` cannot be caught: what survives it is
-    what the writers committed (see the README)."""
+    command line): after a stop, later signals stay ignored up to the exit. ``SIGKILL`` cannot
+    be caught: what survives it is what the writers committed (see the README)."""
 
     _active: "StopSignals | None" = None
 
@@ -176,13 +177,18 @@ def deferred_signals():
 
 
 # ---- output paths ----------------------------------------------------------------------------
+#: OSError numbers of a write that cannot succeed (not a bug, not the input)
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES,
+                          errno.EPERM, errno.ENOTDIR, errno.EISDIR, errno.EEXIST})
+
+
 def write_failure(exc: BaseException) -> str | None:
     """One line for an exception raised while writing outputs, None if it is not a write
-    failure: ``OSError`` (disk full ``ENOSPC``, file size limit ``EFBIG``, read-only, I/O error …)
-    and SQLite's "database or disk is full" / "disk I/O error"."""
+    failure: ``OSError`` of ``WRITE_ERRNOS`` (disk full ``ENOSPC``, file size limit ``EFBIG``,
+    read-only, I/O error …) and SQLite's "database or disk is full" / "disk I/O error"."""
     if isinstance(exc, OutputError):
         return str(exc)
-    if isinstance(exc, OSError):
+    if isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         return f"{where}{exc.strerror or exc}"
     if isinstance(exc, sqlite3.Error):
