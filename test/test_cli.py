@@ -623,8 +623,13 @@ def test_signals_inside_a_deferred_block_arrive_after_it():
 
     from gyro_platform.errors import StopSignals, Terminated, deferred_signals
 
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers live in the main thread only")
     done = []
     with StopSignals("test") as stop:
+        assert sg.getsignal(sg.SIGTERM) == stop._handler      # never SIGTERM the test runner itself
         with pytest.raises(Terminated):
             with deferred_signals():
                 os.kill(os.getpid(), sg.SIGTERM)
