@@ -7,10 +7,14 @@ dependency only affects its own subcommand.
 Exit status, the same for every subcommand (``EXIT_CODES``, defined in ``gyro_platform.errors``;
 also in every ``--help``):
 0 success; 1 the command ran but failed (an expectation failed or could not be evaluated, the
-transport could not start); 2 bad argument or input path (argparse's convention: unknown flag,
-missing file, a file that is not a bag or scene, an invalid scene); 3 corrupt input data (a
-damaged bag: what was readable is processed and written, the error is named); 130 interrupted
-(Ctrl-C). Errors are one line on stderr, ``gyro-platform <command>: error: …``.
+simulation failed, the transport could not start); 2 bad argument or path, refused before
+anything is written (argparse's convention: unknown flag, value out of range, missing file, a
+file that is not a bag or scene, an invalid scene, an unwritable output path, a run beyond the
+memory/step bounds); 3 unusable input data (a damaged bag: what was readable is processed and
+written; or no usable input sample: no outputs); 4 an output could not be written during the
+run (disk full, file size limit); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM, the same
+orderly stop as Ctrl-C: :class:`~gyro_platform.errors.StopSignals`). Errors are one line on
+stderr, ``gyro-platform <command>: error: …``.
 """
 from __future__ import annotations
 
@@ -20,10 +24,11 @@ import os
 import sys
 
 from . import __version__
-from .errors import EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
+from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
+                     EXIT_USAGE, EXIT_WRITE, StopSignals, stop_exit_code, stop_reason, write_failure)
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
-           "EXIT_DATA", "EXIT_INTERRUPTED"]   # the exit codes are re-exported from errors
+           "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
 
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
 
@@ -65,20 +70,41 @@ def _quiet_broken_pipe() -> None:
         pass
 
 
+def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """argparse turns ``--flag=--`` into ``[]`` without calling the flag's type: refuse any
+    single-valued typed option whose value is not of its type (argparse's one-line error, exit 2)."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    for action in sub._actions:
+        if action.nargs is None and action.type in (int, float) and action.option_strings:
+            value = getattr(args, action.dest, None)
+            if value is not None and value is not action.default and not isinstance(value, action.type):
+                sub.error(f"argument {'/'.join(action.option_strings)}: expected one {action.type.__name__} value")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _check_scalar_values(parser, args)
     err = getattr(args, "_import_error", None)
     if err:
         print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)
         return EXIT_USAGE
-    try:
-        return int(importlib.import_module(args._module).run(args) or 0)
-    except BrokenPipeError:
-        _quiet_broken_pipe()
-        return EXIT_OK
-    except KeyboardInterrupt:
-        print(f"gyro-platform {args.command}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    prog = f"gyro-platform {args.command}"
+    with StopSignals(prog, final=argv is None):      # argv None: the process's own command line
+        try:
+            return int(importlib.import_module(args._module).run(args) or 0)
+        except BrokenPipeError:
+            _quiet_broken_pipe()
+            return EXIT_OK
+        except KeyboardInterrupt as e:      # Ctrl-C or SIGTERM before the command could stop in order
+            print(f"{prog}: {stop_reason(e)}", file=sys.stderr)
+            return stop_exit_code(e)
+        except Exception as e:              # an output failed where the command does not catch it
+            why = write_failure(e)
+            if why is None:
+                raise
+            print(f"{prog}: error: cannot write the output: {why}", file=sys.stderr)
+            return EXIT_WRITE
 
 
 if __name__ == "__main__":

@@ -1,10 +1,22 @@
-"""Exceptions and exit codes shared by every room (the leaf: imports nothing).
+"""Exceptions, exit codes and stop signals shared by every room (the leaf: imports only the
+standard library).
 
 Simulation errors derive from ``SimulationError`` (a ``ValueError``); bag errors from
-``BagReadError``; outputs that cannot be written raise ``OutputWriteError``; ``ReplayError``
-is a replay that cannot start. ``EXIT_*``/``EXIT_CODES``: the
-exit status of every ``gyro-platform`` command.
+``BagReadError``; ``ReplayError`` is a replay that cannot start; ``OutputError`` an output that
+cannot be written. ``EXIT_*``/``EXIT_CODES``: the exit status of every ``gyro-platform``
+command. :class:`StopSignals` turns SIGINT and SIGTERM into one orderly stop
+(``KeyboardInterrupt`` / :class:`Terminated`) and :func:`deferred_signals` holds them off while
+a file is being closed; :func:`check_output_path` refuses unwritable outputs before a run.
 """
+import errno
+import os
+import signal
+import sqlite3
+import sys
+import tempfile
+import threading
+from contextlib import contextmanager
+from pathlib import Path
 
 
 class SimulationError(ValueError):
@@ -38,22 +50,215 @@ class BagPathError(BagReadError):
     a folder without storage file): a bad input path, not damaged data."""
 
 
-class OutputWriteError(Exception):
-    """An output cannot be written: a read-only or full file system (ENOSPC, EFBIG), a path
-    under a file, a directory where a file must go. The message names the file and the error;
-    a bag is left closed and readable with what it held before the failure."""
-
-
 class ReplayError(Exception):
     """The replay cannot start as asked (no input topic, output exists, topic clash …)."""
 
 
+class OutputError(Exception):
+    """An output cannot be written: refused before the start (read-only or missing folder, a path
+    under a file, a folder where a file goes) or failed during the run (disk full, file size
+    limit, I/O error). The message names the path and the cause in one line."""
+
+
 # ---- exit status of every command (re-exported by ``gyro_platform.cli``) ----------------
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_WRITE = 0, 1, 2, 3, 4
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143          # 128 + SIGINT, 128 + SIGTERM
 EXIT_CODES: dict[int, str] = {
     EXIT_OK: "success",
-    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, or the transport could not start",
-    EXIT_USAGE: "bad argument or input path (unknown flag, missing file, not a bag/scene, invalid scene)",
-    EXIT_DATA: "corrupt input data (damaged bag; the readable part is processed and written)",
-    EXIT_INTERRUPTED: "interrupted (Ctrl-C); files written so far are closed and readable",
+    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, the simulation failed, "
+                 "or the transport could not start",
+    EXIT_USAGE: "bad argument or path, refused before anything is written (unknown flag, value out of "
+                "range, missing file, not a bag/scene, invalid scene, unwritable output path, a run "
+                "beyond the memory/step bounds)",
+    EXIT_DATA: "unusable input data: a damaged bag (the readable part is processed and written), or no "
+               "usable input sample (empty topic, every sample dropped or refused: no outputs)",
+    EXIT_WRITE: "an output could not be written during the run (disk full, file size limit, I/O error); "
+                "what was written is closed",
+    EXIT_INTERRUPTED: "interrupted (Ctrl-C, SIGINT); files written so far are closed and readable",
+    EXIT_TERMINATED: "terminated (SIGTERM: systemd, docker stop, CI time-outs); the same orderly stop as Ctrl-C",
 }
+
+
+# ---- stop signals -------------------------------------------------------------------------
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's ``KeyboardInterrupt`` so that every ``except
+    KeyboardInterrupt`` makes the same orderly stop; :func:`stop_reason` tells them apart."""
+
+
+def stop_reason(exc: BaseException) -> str:
+    """``"terminated"`` for :class:`Terminated` (SIGTERM), else ``"interrupted"`` (Ctrl-C)."""
+    return "terminated" if isinstance(exc, Terminated) else "interrupted"
+
+
+def stop_exit_code(exc: BaseException) -> int:
+    """Exit status of a stop: 143 after SIGTERM, 130 after Ctrl-C."""
+    return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+
+
+class StopSignals:
+    """SIGINT and SIGTERM as one orderly stop, for the time of a command (a context manager;
+    only in the main thread, elsewhere it does nothing).
+
+    The first signal raises ``KeyboardInterrupt`` (SIGINT) or :class:`Terminated` (SIGTERM) in
+    the main thread: the command closes its outputs and writes its summary. Signals after that
+    one raise nothing (the outputs are being closed; a traceback there would leave them
+    unreadable): they are noted once on stderr. Inside :func:`deferred_signals` a first signal
+    is held and raised when the block ends. ``final``: the process exits after the block (the
+    command line): after a stop, later signals stay ignored up to the exit. ``SIGKILL`` cannot
+    be caught: what survives it is what the writers committed (see the README)."""
+
+    _active: "StopSignals | None" = None
+
+    def __init__(self, prog: str = "gyro-platform", final: bool = False):
+        self.prog = prog
+        self.final = final                   # the process ends after the block (the command line)
+        self.received: int | None = None     # the signal that started the stop
+        self.pending: int | None = None      # a signal held by deferred_signals
+        self.depth = 0                       # nesting of deferred_signals blocks
+        self._old: dict[int, object] = {}
+        self._outer: "StopSignals | None" = None
+        self._noted = False
+
+    def __enter__(self) -> "StopSignals":
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, self._handler)
+            self._outer, StopSignals._active = StopSignals._active, self
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            # the process is about to exit after a stop: a late signal must not turn the exit
+            # status into "killed by SIGINT" (Python re-raises an unhandled KeyboardInterrupt so)
+            signal.signal(s, signal.SIG_IGN if self.final and self.received is not None else h)
+        self._old.clear()
+        if StopSignals._active is self:
+            StopSignals._active = self._outer
+
+    @staticmethod
+    def exception(signum: int) -> KeyboardInterrupt:
+        return Terminated("terminated") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+    def _handler(self, signum: int, _frame) -> None:
+        if self.received is not None:
+            if not self._noted:
+                self._noted = True
+                print(f"{self.prog}: {signal.Signals(signum).name} ignored: already stopping, closing "
+                      f"the outputs (SIGKILL would abandon them)", file=sys.stderr, flush=True)
+            return
+        if self.depth > 0:
+            self.pending = self.pending or signum
+            return
+        self.received = signum
+        raise self.exception(signum)
+
+    def release(self) -> None:
+        """End of a deferred block: raise a held signal now."""
+        if self.depth == 0 and self.pending is not None and self.received is None:
+            self.received, self.pending = self.pending, None
+            raise self.exception(self.received)
+
+
+@contextmanager
+def deferred_signals():
+    """Hold SIGINT/SIGTERM off for the block (closing a bag, writing its metadata): a signal
+    arriving inside is delivered when the block ends. With an active :class:`StopSignals` it
+    raises then; without one (library use, main thread) the handlers in place before the block
+    get the held signal (a Ctrl-C raises KeyboardInterrupt after the block; a SIGTERM with the
+    default action ends the process). Off the main thread the block just runs."""
+    stop = StopSignals._active
+    if stop is not None:
+        stop.depth += 1
+        try:
+            yield
+        finally:
+            stop.depth -= 1
+        stop.release()
+        return
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        for s in dict.fromkeys(got):
+            h = old[s]
+            if callable(h):
+                h(s, None)
+            elif h == signal.SIG_DFL:
+                os.kill(os.getpid(), s)
+
+
+# ---- output paths ----------------------------------------------------------------------------
+#: OSError numbers of a write that cannot succeed (not a bug, not the input)
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES,
+                          errno.EPERM, errno.ENOTDIR, errno.EISDIR, errno.EEXIST})
+
+
+def write_failure(exc: BaseException) -> str | None:
+    """One line for an exception raised while writing outputs, None if it is not a write
+    failure: ``OSError`` of ``WRITE_ERRNOS`` (disk full ``ENOSPC``, file size limit ``EFBIG``,
+    read-only, I/O error …) and SQLite's "database or disk is full" / "disk I/O error"."""
+    if isinstance(exc, OutputError):
+        return str(exc)
+    if isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS:
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        return f"{where}{exc.strerror or exc}"
+    if isinstance(exc, sqlite3.Error):
+        text = str(exc)
+        if any(w in text for w in ("full", "disk", "I/O", "readonly", "unable to open")):
+            return f"SQLite: {text}"
+    cause = exc.__cause__ or exc.__context__
+    if cause is not None and cause is not exc:
+        inner = write_failure(cause)
+        if inner is not None:
+            return inner
+    return None
+
+
+def _nearest_existing(path: Path) -> Path:
+    p = path
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def _probe_folder(folder: Path, flag: str, path: Path) -> None:
+    """A folder can take new files: make and remove a temporary file there."""
+    if not folder.is_dir():
+        raise OutputError(f"{flag} {path}: {folder} is a file, not a folder")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".gyro-write-probe-", dir=folder)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as e:
+        raise OutputError(f"{flag} {path}: cannot write in {folder}: {e.strerror or e}") from None
+
+
+def check_output_path(path, flag: str = "--out", *, new: bool = False,
+                      files: tuple[str, ...] = (), siblings: tuple = ()) -> None:
+    """Refuse an output path that cannot be written, before anything runs (OutputError, one line).
+
+    ``path``: the output folder (``new``: it must not exist, e.g. a bag); ``files``: names the
+    command will write inside it (they must not be folders); ``siblings``: further paths it will
+    write next to it (``OUT.summary.json``): not folders, writable if they exist. The nearest
+    existing folder on the way is probed by creating and removing a temporary file (read-only
+    file systems, permissions, a path under a file)."""
+    path = Path(path)
+    if new and (path.exists() or path.is_symlink()):
+        raise OutputError(f"{flag} {path}: exists already; choose another (nothing is overwritten)")
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{flag} {path}: is a file, not a folder")
+    _probe_folder(_nearest_existing(path), flag, path)
+    for name in files:
+        if (path / name).is_dir():
+            raise OutputError(f"{flag} {path}: {path / name} is a folder; the command writes a file there")
+    for s in map(Path, siblings):
+        if s.is_dir():
+            raise OutputError(f"{flag} {path}: {s} is a folder; the command writes a file there")
+        if s.exists() and not os.access(s, os.W_OK):
+            raise OutputError(f"{flag} {path}: {s} exists and cannot be overwritten")

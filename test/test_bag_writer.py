@@ -2,7 +2,7 @@
 metadata field by field, MCAP byte for byte), and keeps them readable through faults: SIGKILL
 and SIGTERM lose at most the last commit chunk, a second Ctrl-C during close() still leaves
 metadata, a full disk (RLIMIT_FSIZE) closes the part written with metadata and a one-line
-OutputWriteError; unwritable output paths are refused before a run."""
+OutputError; unwritable output paths are refused before a run."""
 from __future__ import annotations
 
 import os
@@ -20,10 +20,11 @@ import numpy as np
 import pytest
 import yaml
 
-from gyro_platform.errors import OutputWriteError
+from gyro_platform.errors import OutputError
 from gyro_platform.io import bag_storage as bs
 from gyro_platform.io import messages as m
-from gyro_platform.io.bag_writer import OutputBag, check_writable, default_qos, signals_deferred
+from gyro_platform.io.bag_writer import OutputBag, default_qos
+from gyro_platform.errors import check_output_path, deferred_signals
 from gyro_platform.io.blocks import RowChunk
 from gyro_platform.io.encode import encode_outputs
 
@@ -218,7 +219,7 @@ CHILD = textwrap.dedent("""
     import numpy as np
     sys.path.insert(0, {root!r})
     from gyro_platform.io import bag_writer as bw
-    from gyro_platform.errors import OutputWriteError
+    from gyro_platform.errors import OutputError
     sys.path.insert(0, {test!r})
     from test_bag_writer import imu_raws
     from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
@@ -239,7 +240,7 @@ CHILD = textwrap.dedent("""
         print("closing", flush=True)
         bag.close()
         print("closed", flush=True)
-    except OutputWriteError as e:
+    except OutputError as e:
         print("ERROR", e, flush=True)
         sys.exit(1)
     except KeyboardInterrupt:
@@ -325,10 +326,10 @@ def test_second_ctrl_c_keeps_metadata(tmp_path, storage, where):
     assert [stamp_of(r) for _, _, r in rows] == list(range(len(rows)))
 
 
-def test_signals_deferred_delivers_after_the_block():
+def test_deferred_signals_delivers_after_the_block():
     hits = []
     with pytest.raises(KeyboardInterrupt):
-        with signals_deferred():
+        with deferred_signals():
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.05)
             hits.append("block finished")
@@ -361,29 +362,29 @@ def test_full_disk_closes_what_was_written(tmp_path, storage):
     assert n <= int(lines[-2])
 
 
-def test_check_writable(tmp_path):
+def test_check_output_path(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
     (tmp_path / "out.summary.json").mkdir()
-    check_writable([tmp_path / "a" / "b.json"], [tmp_path / "new" / "bag"])      # fine
-    with pytest.raises(OutputWriteError, match="is a file"):
-        check_writable(new_dirs=[f / "bag"])
-    with pytest.raises(OutputWriteError, match="is a directory"):
-        check_writable([tmp_path / "out.summary.json"])
-    with pytest.raises(OutputWriteError, match="exists already"):
-        check_writable(new_dirs=[f])
-    with pytest.raises(OutputWriteError, match="cannot create files in /proc"):
-        check_writable(new_dirs=["/proc/gyro_platform_out"])   # a file system that takes no files
+    check_output_path(tmp_path / "new" / "bag", new=True, siblings=(tmp_path / "a" / "b.json",))      # fine
+    with pytest.raises(OutputError, match="is a file"):
+        check_output_path(f / "bag", new=True)
+    with pytest.raises(OutputError, match="is a folder"):
+        check_output_path(tmp_path / "out", new=True, siblings=(tmp_path / "out.summary.json",))
+    with pytest.raises(OutputError, match="exists already"):
+        check_output_path(f, new=True)
+    with pytest.raises(OutputError, match="cannot write in /proc"):
+        check_output_path("/proc/gyro_platform_out", new=True)   # a file system that takes no files
 
 
 def test_writes_after_failure_or_close_are_refused(tmp_path):
     bag = OutputBag(tmp_path / "o", "sqlite3")
     bag.add_output("/imu", m.IMU)
     bag.close()
-    with pytest.raises(OutputWriteError, match="closed"):
+    with pytest.raises(OutputError, match="closed"):
         bag.write_many("/imu", [1], imu_raws(1))
-    with pytest.raises(OutputWriteError, match="exists"):
-        check_writable(new_dirs=[tmp_path / "o"])
+    with pytest.raises(OutputError, match="exists"):
+        check_output_path(tmp_path / "o", new=True)
     shutil.rmtree(tmp_path / "o")
 
 
@@ -407,7 +408,7 @@ def test_mcap_full_disk_cuts_chunks_until_the_summary_fits(tmp_path, monkeypatch
     bag.add_output("/imu", m.IMU)
     raws = imu_raws(20_000)
     per_chunk = None
-    with pytest.raises(OutputWriteError, match=r"o: cannot write the output bag: \[Errno 28\].*closed with the"):
+    with pytest.raises(OutputError, match=r"o: cannot write the output bag: \[Errno 28\].*closed with the"):
         for a in range(0, 20_000, 500):
             bag.write_many("/imu", np.arange(a, a + 500, dtype=np.int64), raws[a:a + 500])
             st = bag.writer.storage

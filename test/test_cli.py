@@ -196,7 +196,7 @@ def test_header_time_on_zero_stamps_is_an_error_naming_the_fix(tmp_path, capsys)
     code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", "--time-source", "header"])
     cap = capsys.readouterr()
     line = one_line_error(cap.err, "replay")
-    assert code == cli.EXIT_USAGE and "zero_stamp" in line and "--time-source receive" in line
+    assert code == cli.EXIT_DATA and "zero_stamp" in line and "--time-source receive" in line
     s = json.loads(rp.sidecar_paths(out)[0].read_text())
     assert s["counts"]["accepted"] == 0 and s["counts"]["dropped_by_reason"] == {"zero_stamp": 51}
     assert s["warnings"] == [line.split("error: ", 1)[1]]
@@ -522,3 +522,121 @@ def test_namespaces_that_are_valid_pass():
         assert rp.NAMESPACE_RE.fullmatch(ns), ns
     for ns in ("a b", "a//b", "9a", "a__b", "a-b"):
         assert not rp.NAMESPACE_RE.fullmatch(ns), ns
+
+
+# ---- issue 17: values refused up front, no usable input, exit codes -----------------------------
+@pytest.mark.parametrize("args,words", [
+    (["--output-rate", "-5"], "--output-rate -5.0: must be a finite rate"),
+    (["--output-rate", "nan"], "--output-rate nan: must be a finite rate"),
+    (["--diagnostics-rate", "nan"], "--diagnostics-rate nan"),
+    (["--max-gap", "inf"], "--max-gap: max_gap = inf"),
+    (["--reset-on-jump-back", "nan"], "--reset-on-jump-back: reset_on_jump_back = nan"),
+    (["--namespace", "bad name!"], "--namespace 'bad name!': not a ROS namespace"),
+    (["--namespace", "a//b"], "not a ROS namespace"),
+    (["--namespace", "a" * 230], "--namespace: too long"),
+    (["--output-rate=--"], "argument --output-rate: expected one float value"),
+    (["--mount", "imu=a,b,c"], "--mount: mounting"),
+])
+def test_more_bad_replay_values_are_exit_2_naming_the_flag(args, words, tmp_path, capsys):
+    bag = small_bag(tmp_path / "b")
+    out = tmp_path / "o"
+    try:
+        code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", *args])
+    except SystemExit as e:           # argparse's own refusal
+        code = e.code
+    assert code == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and words in err, err
+    assert not out.exists() and not rp.sidecar_paths(out)[0].exists()
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--duration", "1e12"], "--duration: 1e+12 makes the run too big to start"),
+    (["--duration", "inf"], "--duration must be a finite number > 0"),
+    (["--max-step", "1e-12"], "--max-step: 1e-12 makes the run too big to start"),
+    (["--max-step", "nan"], "max_step"),
+])
+def test_runs_too_big_to_run_are_refused_with_an_estimate(args, words, capsys):
+    assert cli.main(["run", "default", "--no-files", *args]) == cli.EXIT_USAGE
+    line = one_line_error(capsys.readouterr().err, "run")
+    assert words in line, line
+    if "too big" in line:
+        assert re.search(r"GiB of memory \(bound 8 GiB\), ≥ .+ of CPU \(bound 1e\+09 steps\)", line), line
+
+
+@pytest.mark.parametrize("extra,words", [
+    ("params: {servo_kp: true}\n", "params.servo_kp: expected a number, got a boolean True"),
+    ("params: {bias_torque: [[0, 0], [0, 0, 1.0e-7]]}\n", "params.bias_torque[0]: expected a number, got a list"),
+    ("sample_rate: 1.0e+9\n", "sample_rate: 1e+09 makes the run too big to start"),
+    ("max_step: 1.0e-12\n", "max_step: 1e-12 makes the run too big to start"),
+    ("rtol: 1.0e-300\n", "rtol: must be ≥ 1e-14"),
+])
+def test_scene_values_that_cannot_be_meant_are_refused(extra, words, tmp_path, capsys):
+    p = tmp_path / "s.yaml"
+    p.write_text("duration: 60\nmotion: {type: constant, omega: [0, 0, 0.01]}\n" + extra)
+    assert cli.main(["run", str(p), "--no-files"]) == cli.EXIT_USAGE
+    assert words in one_line_error(capsys.readouterr().err, "run")
+    big = tmp_path / "d.yaml"
+    big.write_text("duration: 1.0e+12\nmotion: {type: constant, omega: [0, 0, 0.01]}\n")
+    assert cli.main(["run", str(big), "--no-files"]) == cli.EXIT_USAGE
+    line = one_line_error(capsys.readouterr().err, "run")
+    assert "duration: 1e+12 makes the run too big to start: ~1e+14 samples, 1e+13 outputs" in line
+
+
+def test_a_topic_without_messages_is_exit_3_not_0(tmp_path, capsys):
+    from test_replay import T
+
+    bag = write_bag(tmp_path / "e", [], extra=[("/other", "std_msgs/msg/String",
+                                                [(T0, T["std_msgs/msg/String"](data="x"))])])
+    out = tmp_path / "o"
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot"]) == cli.EXIT_DATA
+    line = one_line_error(capsys.readouterr().err, "replay")
+    assert "topic /imu has no messages: no outputs" in line
+    s = json.loads(rp.sidecar_paths(out)[0].read_text())
+    assert s["counts"]["out"] == 0 and s["output"]["messages_by_topic"]["/other"] == 1   # the copy is written
+
+
+def test_every_sample_dropped_is_exit_3_for_replay_and_run(tmp_path, capsys):
+    """Every rate over --max-rate: no output; replay and run both exit 3 with the hint."""
+    n = 50
+    bag = write_bag(tmp_path / "over", [(T0 + i * S // 50, imu_msg(T0 + i * S // 50, (40.0, 0.0, 0.0)))
+                                        for i in range(n)])
+    (c1, e1), (c2, e2) = run_and_replay(tmp_path, bag, capsys)
+    assert c1 == c2 == cli.EXIT_DATA
+    for line in (one_line_error(e1, "run"), one_line_error(e2, "replay")):
+        assert "none of the 50 input messages was accepted (50 dropped as over_rate)" in line, line
+
+
+def test_exit_codes_are_distinct_and_documented_in_help(capsys):
+    from gyro_platform import errors
+
+    codes = [errors.EXIT_OK, errors.EXIT_FAILED, errors.EXIT_USAGE, errors.EXIT_DATA, errors.EXIT_WRITE,
+             errors.EXIT_INTERRUPTED, errors.EXIT_TERMINATED]
+    assert len(set(codes)) == len(codes) == len(errors.EXIT_CODES) and set(codes) == set(errors.EXIT_CODES)
+    assert errors.EXIT_INTERRUPTED == 128 + 2 and errors.EXIT_TERMINATED == 128 + 15
+
+
+def test_signals_inside_a_deferred_block_arrive_after_it():
+    """In process: a SIGTERM during ``deferred_signals`` is held until the block ends, then
+    raised as ``Terminated`` (a KeyboardInterrupt); a second signal after the stop raises nothing."""
+    import signal as sg
+
+    from gyro_platform.errors import StopSignals, Terminated, deferred_signals
+
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers live in the main thread only")
+    done = []
+    with StopSignals("test") as stop:
+        assert sg.getsignal(sg.SIGTERM) == stop._handler      # never SIGTERM the test runner itself
+        with pytest.raises(Terminated):
+            with deferred_signals():
+                os.kill(os.getpid(), sg.SIGTERM)
+                for _ in range(1000):       # the handler runs between bytecodes: give it some
+                    done.append(1)
+                done.append("closed")
+        assert done[-1] == "closed" and stop.received == sg.SIGTERM
+        os.kill(os.getpid(), sg.SIGINT)     # already stopping: noted, not raised
+        sum(range(1000))
+    assert sg.getsignal(sg.SIGINT) is sg.default_int_handler

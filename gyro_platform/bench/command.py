@@ -16,6 +16,8 @@ import json
 import sys
 from pathlib import Path
 
+from ..errors import EXIT_USAGE, OutputError, check_output_path
+
 from .accuracy import accuracy
 from .consumer import consumer
 from .hard import hard
@@ -34,26 +36,30 @@ def add_arguments(p) -> None:
                    help="short runs (consumer: 10 s bags, husky's first 30 s; peer: 2 s scenes; accuracy: 60 s "
                         "ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
-    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median quoted)")
+    p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
     p.add_argument("--runs", type=int, default=8, help="sweep: Monte Carlo runs per worker count (default 8)")
     p.add_argument("--no-whole-command", action="store_true",
                    help="consumer: skip the subprocess runs of the whole replay command (start-up included)")
 
 
+MAX_REPEATS = 1000
+
+
+def _error(text: str) -> int:
+    print(f"gyro-platform bench: error: {text}", file=sys.stderr)
+    return EXIT_USAGE
+
+
 def run(args) -> int:
-    """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0)."""
+    """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0;
+    2 a bad flag or an unwritable ``--out``, refused before any run)."""
     out = Path(args.out)
-    if not 1 <= args.repeats <= 1000:
-        print(f"gyro-platform bench: error: --repeats must be between 1 and 1000, got {args.repeats}", file=sys.stderr)
-        return 2
-    try:                 # refuse an unwritable --out now, not after minutes of benchmarking
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write_test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as e:
-        print(f"gyro-platform bench: error: cannot write the results to {out}: {e.strerror or e}", file=sys.stderr)
-        return 2
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        return _error(f"--repeats must be between 1 and {MAX_REPEATS}, got {args.repeats}")
+    try:
+        check_output_path(out, "--out")
+    except OutputError as e:
+        return _error(str(e))
     if args.what in ("default", "consumer"):
         consumer(out, quick=args.quick, repeats=args.repeats, whole_command=not args.no_whole_command)
     if args.what in ("default", "peer"):
@@ -71,8 +77,7 @@ def run(args) -> int:
         from ..sweep.scaling import scaling, table
 
         if not 1 <= args.runs <= 10_000:
-            print(f"gyro-platform bench: error: --runs must be between 1 and 10000, got {args.runs}")
-            return 2
+            return _error(f"--runs must be between 1 and 10000, got {args.runs}")
         rows = scaling(out, runs=args.runs)
         print(table(rows), end="")
         return 0 if all(r["identical_to_1_worker"] for r in rows) else 1

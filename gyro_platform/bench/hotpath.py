@@ -21,9 +21,16 @@ from .bench_scenes import ship_scene
 __all__ = ["hotpath", "effects_cost"]
 
 
+def _check_repeats(repeats: int) -> None:
+    """A median needs at least one timing (0 repeats would quote NaN)."""
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats must be an integer >= 1, got {repeats!r}")
+
+
 def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
     """CPU µs per sample (compiled batch, 1 kHz, 20 s ship motion) with each effect on alone
     on top of the minimum (rotor gyroscopic + servo), per fidelity."""
+    _check_repeats(repeats)
     sc = ship_scene(20.0)
     rows = []
     base = {"rotor_gyroscopic", "servo"}
@@ -48,6 +55,7 @@ def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
 def hotpath(repeats: int = 5) -> dict:
     """µs per sample: Python ``push`` (what the ROS node does per message) and compiled
     ``push_many``, stabilised default effects, 1 kHz."""
+    _check_repeats(repeats)
     sc = ship_scene(10.0)
     res = {}
     for fid, integ in (("full", "etd2"), ("linear", "etd2"), ("linear", "rk4"), ("full", "rk4")):

@@ -20,25 +20,21 @@ What survives a fault (issue 17):
   Ctrl-C is taken after it);
 * a full disk (``ENOSPC``, ``EFBIG``, sqlite3 "database or disk is full") while writing or
   closing: the bag is cut back to the last complete chunk, closed with index and metadata
-  counting what it holds, and :class:`~gyro_platform.errors.OutputWriteError` names the file
-  and the error. :func:`check_writable` checks output paths before a run starts.
+  counting what it holds, and :class:`~gyro_platform.errors.OutputError` names the file
+  and the error. Output paths are checked before a run by :func:`gyro_platform.errors.check_output_path`.
 """
 from __future__ import annotations
 
 import atexit
 import os
-import signal
 import sqlite3
 import sys
-import tempfile
-import threading
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from ..errors import OutputWriteError
+from ..errors import OutputError, deferred_signals
 from . import messages as msgs
 from .bag_paths import rosbags_api
 from .bag_storage import writer_class
@@ -53,39 +49,6 @@ def default_qos() -> list:
                 QosLiveliness.AUTOMATIC, zero, False)]
 
 
-# ---- path checks ---------------------------------------------------------------------------
-def check_writable(files: Iterable[str | Path] = (), new_dirs: Iterable[str | Path] = ()) -> None:
-    """Check before a run that outputs can be created: ``files`` (written or replaced, e.g. a
-    summary) must not be directories; ``new_dirs`` (e.g. an output bag) must not exist; the
-    nearest existing ancestor of each must be a directory in which a file can be created
-    (probed, so read-only file systems and permissions are caught whoever runs).
-    Raises :class:`OutputWriteError` naming the path and the reason."""
-    for p in map(Path, files):
-        if p.is_dir():
-            raise OutputWriteError(f"{p}: is a directory; cannot write the file there")
-        if p.exists() and not os.access(p, os.W_OK):
-            raise OutputWriteError(f"{p}: exists and is not writable")
-        _check_parent(p)
-    for p in map(Path, new_dirs):
-        if p.exists():
-            raise OutputWriteError(f"{p}: exists already (nothing is overwritten)")
-        _check_parent(p)
-
-
-def _check_parent(p: Path) -> None:
-    anc = p.absolute().parent
-    while not anc.exists():
-        anc = anc.parent
-    if not anc.is_dir():
-        raise OutputWriteError(f"{p}: {anc} is a file, not a directory")
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".gyro_platform_probe_", dir=anc)
-    except OSError as e:
-        raise OutputWriteError(f"{p}: cannot create files in {anc}: {_err(e)}") from None
-    os.close(fd)
-    os.unlink(probe)
-
-
 def _err(e: BaseException) -> str:
     """One-line text of an OSError / sqlite3 error (``[Errno 28] No space left on device``)."""
     if isinstance(e, OSError) and e.errno is not None:
@@ -97,39 +60,11 @@ def _err(e: BaseException) -> str:
 WRITE_ERRORS = (OSError, sqlite3.Error)
 
 
-@contextmanager
-def signals_deferred() -> Iterator[None]:
-    """SIGINT and SIGTERM held back while the block runs, then handed to the handlers that
-    were in place (a Ctrl-C raises KeyboardInterrupt after the block; a SIGTERM with the
-    default action then ends the process). Only the main thread can do this; elsewhere the
-    block just runs."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    got: list[int] = []
-
-    def hold(signum: int, frame: Any) -> None:
-        got.append(signum)
-
-    old = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        for s in dict.fromkeys(got):
-            h = old[s]
-            if callable(h):
-                h(s, None)
-            elif h == signal.SIG_DFL:
-                os.kill(os.getpid(), s)
-
-
 # ---- the output bag --------------------------------------------------------------------------
 class OutputBag:
     """rosbag2 version-9 writer that copies input connections and adds the output topics.
 
-    Writes raise :class:`OutputWriteError` (the bag is then already closed, readable, with
+    Writes raise :class:`OutputError` (the bag is then already closed, readable, with
     what it held before the failure)."""
 
     def __init__(self, path: Path, storage: str):
@@ -142,7 +77,7 @@ class OutputBag:
         try:
             self.writer.open()
         except WRITE_ERRORS as e:
-            raise OutputWriteError(f"{self.path}: cannot create the output bag: {_err(e)}") from None
+            raise OutputError(f"{self.path}: cannot create the output bag: {_err(e)}") from None
         self._copies: dict[int, Any] = {}     # input connection id -> output connection
         self._by_key: dict[tuple, Any] = {}
         self._outs: dict[str, Any] = {}
@@ -277,7 +212,7 @@ class OutputBag:
 
     def _storage(self) -> Any:
         if self.closed or self.writer.storage is None:
-            raise OutputWriteError(f"{self.path}: the output bag is closed" + (f" ({self.error})" if self.error else ""))
+            raise OutputError(f"{self.path}: the output bag is closed" + (f" ({self.error})" if self.error else ""))
         return self.writer.storage
 
     def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
@@ -285,7 +220,7 @@ class OutputBag:
         self._guard(lambda: self.writer.write_rows(cids, ts, raws))
 
     def _guard(self, fn: Any) -> Any:
-        """Run a write; on a write error close the bag with what it holds, raise OutputWriteError."""
+        """Run a write; on a write error close the bag with what it holds, raise OutputError."""
         try:
             return fn()
         except WRITE_ERRORS as e:
@@ -300,7 +235,7 @@ class OutputBag:
             kept = f"closed with the {sum(self.writer.counts.values())} messages written before"
         except WRITE_ERRORS as e2:
             kept = f"left without index ({_err(e2)})"
-        raise OutputWriteError(f"{self.path}: cannot write the output bag: {self.error}; {kept}") from None
+        raise OutputError(f"{self.path}: cannot write the output bag: {self.error}; {kept}") from None
 
     def _close_after_failure(self) -> None:
         if self.closed:
@@ -310,7 +245,7 @@ class OutputBag:
         st = w.storage
         if st is None:       # the storage was closed; only metadata.yaml failed
             raise OSError(self.error)
-        with signals_deferred():
+        with deferred_signals():
             st.drop_pending()
             w.counts_from_storage()
             while True:
@@ -326,10 +261,10 @@ class OutputBag:
     def close(self) -> None:
         """Commit, write index and metadata (the bag is then readable; the counts are those of
         what the file holds). SIGINT/SIGTERM wait until it is done. A write error: the bag is
-        cut back to what it held and closed, then :class:`OutputWriteError`."""
+        cut back to what it held and closed, then :class:`OutputError`."""
         if self.closed:
             return
-        with signals_deferred():
+        with deferred_signals():
             try:
                 self.writer.storage.settle()
                 self.writer.counts_from_storage()

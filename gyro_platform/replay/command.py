@@ -10,9 +10,13 @@
   0``: every accepted sample); ``/diagnostics`` at 1 Hz of receive time. Next to it
   ``OUT_BAG.summary.json`` and ``OUT_BAG.png``.
 * Exit status (``gyro_platform.errors.EXIT_CODES``): 0 ok; 2 cannot start (a path that is no
-  rosbag2 bag, no input topic, a bad option: one line, nothing written); 3 the input is damaged
-  (the readable part is processed, the output bag is closed and readable, the summary names
-  the error); 130 interrupted. Results go to stdout, progress and errors to stderr.
+  rosbag2 bag, no input topic, a bad option, an output path that cannot be written: one line,
+  nothing written); 3 the input is damaged (the readable part is processed, the output bag is
+  closed and readable, the summary names the error) or gave no output (empty topic, every
+  sample dropped or refused); 4 the output could not be written (disk full, file size limit:
+  one line, what was written is closed); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
+  the output bag is closed and readable, the summary's ``error`` says ``interrupted`` /
+  ``terminated``. Results go to stdout, progress and errors to stderr.
 """
 from __future__ import annotations
 
@@ -22,14 +26,19 @@ import re
 import sys
 from typing import Any
 
-from ..errors import (EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, BagPathError, BagReadError,
-                      ReplayError)
+from ..errors import (EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, EXIT_WRITE,
+                      BagPathError, BagReadError, OutputError, ReplayError, check_output_path, write_failure)
 from ..io.gate import GateConfig
 from ..io.messages import Mounting
-from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, ReplayConfig, replay
+from ..pipeline import no_sample_hint
+from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, ReplayConfig, replay, sidecar_paths
 
 #: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
+#: (rmw_validate_namespace, plus the design article's rule against repeated underscores)
 NAMESPACE_RE = re.compile(r"/?(?:(?!.*__)[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*/?)?")
+#: rmw's RMW_TOPIC_MAX_NAME_LENGTH (255 less 8 reserved for the DDS prefixes): the longest
+#: fully qualified topic name, here namespace + output topic
+TOPIC_MAX_NAME_LENGTH = 247
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -85,12 +94,18 @@ def print_results(summary: dict[str, Any], out_bag: Any, file: Any = None) -> No
 
 def config_from_args(args: argparse.Namespace) -> ReplayConfig:
     """ReplayConfig from parsed arguments (loads the scene if given)."""
-    frames = dict(Mounting.parse_spec(s) for s in args.mount)
+    try:
+        frames = dict(Mounting.parse_spec(s) for s in args.mount)
+    except ValueError as e:
+        raise ReplayError(f"--mount: {e}") from None
+    try:
+        gate = GateConfig(max_gap=args.max_gap, on_gap=args.on_gap, reset_on_jump_back=args.reset_on_jump_back,
+                          max_rate=args.max_rate, time_source=args.time_source)
+    except ValueError as e:     # "max_gap = inf s; must be > 0": name the flag
+        raise ReplayError(f"--{str(e).split(' ', 1)[0].replace('_', '-')}: {e}") from None
     cfg = ReplayConfig(
         topic=args.topic, storage=args.storage, diagnostics_rate=args.diagnostics_rate,
-        mounting=Mounting(frames, unknown_frame=args.unknown_frame),
-        gate=GateConfig(max_gap=args.max_gap, on_gap=args.on_gap, reset_on_jump_back=args.reset_on_jump_back,
-                        max_rate=args.max_rate, time_source=args.time_source),
+        mounting=Mounting(frames, unknown_frame=args.unknown_frame), gate=gate,
         namespace=args.namespace, plot=not args.no_plot, progress=not args.quiet)
     if args.scene:
         from ..scenes.schema import load_scene
@@ -105,37 +120,82 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         cfg.output_rate = args.output_rate if args.output_rate > 0 else None
     if not (math.isfinite(cfg.diagnostics_rate) and cfg.diagnostics_rate > 0):
         raise ReplayError(f"--diagnostics-rate {cfg.diagnostics_rate}: must be a finite rate > 0 Hz")
-    if not NAMESPACE_RE.fullmatch(cfg.namespace):
-        raise ReplayError(f"--namespace {cfg.namespace!r}: not a ROS namespace (tokens of letters, digits and "
-                          f"'_' separated by '/', not starting with a digit)")
+    check_namespace(cfg.namespace)
     return cfg
+
+
+def check_namespace(namespace: str) -> None:
+    """ReplayError unless ``namespace`` is a ROS 2 namespace whose output topics stay within
+    rmw's topic name length."""
+    if not NAMESPACE_RE.fullmatch(namespace):
+        raise ReplayError(f"--namespace {namespace!r}: not a ROS namespace (tokens of letters, digits and "
+                          f"'_' separated by '/', not starting with a digit, no '__')")
+    from ..io.messages import output_topics
+
+    longest = max(output_topics(namespace), key=len)
+    if len(longest) > TOPIC_MAX_NAME_LENGTH:
+        raise ReplayError(f"--namespace: too long: output topic {longest[:40]}… has {len(longest)} characters, "
+                          f"ROS 2 allows {TOPIC_MAX_NAME_LENGTH}")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """OutputError (one line) when ``--out`` or its sidecar files cannot be written."""
+    summary, plot = sidecar_paths(args.out)
+    check_output_path(args.out, "--out", new=True, siblings=(summary,) if args.no_plot else (summary, plot))
 
 
 def run(args: argparse.Namespace) -> int:
     """``gyro-platform replay``: exit 0 ok, 2 cannot start (bad argument, not a bag, no input
-    topic), 3 input damaged (partial output written), 130 interrupted. Results go to stdout,
+    topic, unwritable output), 3 input damaged (partial output written) or no output, 4 the
+    output could not be written, 130 interrupted, 143 terminated. Results go to stdout,
     progress, warnings and errors to stderr."""
+    def error(text: str) -> None:
+        print(f"gyro-platform replay: error: {text}", file=sys.stderr)
+
     try:
         cfg = config_from_args(args)
+        check_outputs(args)
         summary = replay(args.in_bag, args.out, cfg)
     except BagPathError as e:
-        print(f"gyro-platform replay: error: {e}", file=sys.stderr)
+        error(str(e))
         return EXIT_USAGE
     except BagReadError as e:    # rosbags and the salvage reader both failed: corrupt data
-        print(f"gyro-platform replay: error: {e}", file=sys.stderr)
+        error(str(e))
         return EXIT_DATA
-    except (ReplayError, ValueError) as e:
-        print(f"gyro-platform replay: error: {e}", file=sys.stderr)
+    except (ReplayError, OutputError) as e:
+        error(str(e))
         return EXIT_USAGE
+    except Exception as e:       # noqa: BLE001 - a write failure during the run, or a bad value
+        why = write_failure(e)
+        if why is not None:
+            error(f"cannot write the output: {why}; what was written is closed")
+            return EXIT_WRITE
+        if isinstance(e, ValueError):
+            error(str(e))
+            return EXIT_USAGE
+        raise
     print_results(summary, args.out)
-    if summary["counts"]["in"] and not summary["counts"]["accepted"] and not summary["error"]:
-        print(f"gyro-platform replay: error: {summary['warnings'][0]}", file=sys.stderr)
-        return EXIT_USAGE
+    no_output = not_usable(summary)
+    if no_output and not summary["error"]:
+        error(no_output)
+        return EXIT_DATA
+    if summary["error"] in ("interrupted", "terminated"):
+        print(f"gyro-platform replay: {summary['error']}; the output bag is closed and readable", file=sys.stderr)
+        return EXIT_INTERRUPTED if summary["error"] == "interrupted" else EXIT_TERMINATED
     if summary["error"]:
-        if summary["error"] == "interrupted":
-            print("gyro-platform replay: interrupted; the output bag is closed and readable", file=sys.stderr)
-            return EXIT_INTERRUPTED
-        print(f"gyro-platform replay: error: {summary['error']}; output bag closed and readable "
-              f"({summary['output']['messages']} messages)", file=sys.stderr)
+        error(f"{summary['error']}; output bag closed and readable ({summary['output']['messages']} messages)")
         return EXIT_DATA
     return EXIT_OK
+
+
+def not_usable(summary: dict[str, Any]) -> str | None:
+    """Why a finished replay gave no output at all (one line), None if it gave some."""
+    c = summary["counts"]
+    if c["out"]:
+        return None
+    if not c["in"]:
+        return f"topic {summary['input']['topic']} has no messages: no outputs"
+    if not c["accepted"]:
+        return no_sample_hint(c["dropped_by_reason"], c["in"])
+    return (f"{c['accepted']} of {c['in']} input samples accepted but no output: the simulator refused them "
+            f"({c['simulator']}); see the summary's simulator errors")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BagReadError, ReplayError, SimulationError
+from ..errors import BagReadError, ReplayError, SimulationError, deferred_signals, stop_reason
 from ..io import messages as msgs
 from ..io.bag_reader import InputBag
 from ..io.bag_writer import OutputBag
@@ -95,7 +95,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             run = _Run(bag, out, sim, cfg)
             run.loop()
         finally:
-            out.close()       # index + metadata written: the bag is readable whatever happened
+            with deferred_signals():   # a signal now would cut the metadata: held until closed
+                out.close()       # index + metadata written: the bag is readable whatever happened
     finally:
         bag.close()
     summary = run.summary(in_bag, out_bag, time.perf_counter() - wall0)
@@ -164,9 +165,9 @@ class _Run:
                 progress.update()
         except BagReadError as e:
             self.error = str(e)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:     # Ctrl-C, or SIGTERM (errors.Terminated)
             self.interrupted = True
-            self.error = "interrupted"
+            self.error = stop_reason(e)
         finally:
             progress.close()
 

@@ -20,7 +20,9 @@
   localhost unicast discovery and logs what the ROS side must set (``dds.default_discovery``).
 * Both transports warm up (:func:`warm_up`: the numba kernels compiled or loaded) before they
   subscribe and log ``ready``.
-* SIGINT / SIGTERM stop the node cleanly (final diagnostics, DDS entities deleted); exit 0.
+* SIGINT / SIGTERM stop the node cleanly (final diagnostics, DDS entities deleted); exit 0 (a
+  node's normal stop). A signal during the warm-up, before the node is ready, ends it like any
+  command (``errors.StopSignals``: 130 / 143, the DDS entities deleted).
   Exit 2 on a bad parameter or argument, 1 when the transport cannot start.
 """
 from __future__ import annotations
@@ -33,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 TRANSPORTS = ("auto", "ros", "dds")
 
 

@@ -1,15 +1,17 @@
 """``gyro-platform run SCENE [--out DIR] [--duration S] [--integrator NAME] [--max-step S]
 [--no-files]``: run a scene (a YAML file or a shipped scene's name), print the summary table and
 the expectation results. Exit status: 0 every expectation passes; 1 one fails or is not
-evaluable, or the simulation failed; 2 bad scene, argument or bag path; 3 damaged bag (the
-readable part is run and written)."""
+evaluable, or the simulation failed; 2 bad scene, argument, bag path or output folder (checked
+before the run), or a run beyond the size bounds (``schema.run_budget``); 3 damaged bag (the
+readable part is run and written) or a bag that gave no usable sample; 4 the results could not
+be written (disk full); 130/143 Ctrl-C/SIGTERM (no results are written)."""
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-from ..errors import (EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, BagPathError, BagReadError, ReplayError,
-                      SimulationError)
+from ..errors import (EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, EXIT_WRITE, BagPathError, BagReadError,
+                      OutputError, ReplayError, SimulationError, check_output_path, write_failure)
 from ..io.recording import print_summary_table
 from .runner import run_scene
 from .schema import ScenarioError, load_scene
@@ -35,6 +37,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-files", action="store_true", help="write no CSV/JSON/PNG")
 
 
+#: the files ``run`` writes into ``--out``
+RESULT_FILES = ("outputs.csv", "summary.json", "plot.png")
+
+
 def _error(message: str) -> None:
     print(f"gyro-platform run: error: {message}", file=sys.stderr)
 
@@ -52,21 +58,33 @@ def run(args) -> int:
         _error(str(e))
         return EXIT_USAGE
     out = None if args.no_files else Path(args.out) if args.out else Path("results") / scene.name
+    if out is not None:
+        try:
+            check_output_path(out, "--out", files=RESULT_FILES)
+        except OutputError as e:
+            _error(str(e))
+            return EXIT_USAGE
     print(f"scene {scene.name}: {scene.description}".rstrip(": "))
     try:
         _, summary, results = run_scene(scene, out_dir=out)
-    except (BagPathError, ReplayError, ScenarioError) as e:
+    except (BagPathError, ReplayError) as e:
         _error(f"scene '{scene.name}': {e}")
         return EXIT_USAGE
+    except ScenarioError as e:          # raised by a run only when the bag gave no usable sample
+        _error(str(e))
+        return EXIT_DATA
     except BagReadError as e:
         _error(f"scene '{scene.name}': {e}")
         return EXIT_DATA
     except SimulationError as e:
         _error(f"scene '{scene.name}': simulation failed: {e}")
         return EXIT_FAILED
-    except OSError as e:
-        _error(f"cannot write the results to {out}: {e.strerror or e}")
-        return EXIT_USAGE
+    except Exception as e:              # noqa: BLE001 - disk full, file size limit while writing
+        why = write_failure(e)
+        if why is None:
+            raise
+        _error(f"cannot write the results to {out}: {why}")
+        return EXIT_WRITE
     print_summary_table(summary)
     if summary.get("max_error_norm") is not None:
         print(f"integrator {summary['integrator']}: largest local error estimate "

@@ -24,7 +24,7 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
     max_step: 1.0e-3          # s, largest internal step                     (default 1e-3)
     rtol: 1.0e-6              # local error tolerance every integrator is held to (default 1e-6)
     atol: 1.0e-9              # absolute part, state units rad, rad/s (default 1e-9)
-    duration: 60              # s simulated (required, > 0)
+    duration: 60              # s simulated (required, > 0; see "Run size" below)
     test_duration: 20         # s; the shortest run for which the expectations still hold —
                               # the test suite runs the scene this long    (optional, ≤ duration)
     sample_rate: 100          # Hz of the input samples (default 100; not allowed with bag)
@@ -32,6 +32,14 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
     fit_start: 0              # s after the start where the least-squares drift fits begin
     motion: {type: ..., ...}  # the vehicle motion, see below (required)
     expect: [...]             # checks on the run's summary, see below (default none)
+
+Run size: a synthetic scene is refused before it starts when its estimate exceeds
+``MAX_MEMORY_BYTES`` (8 GiB: ``BYTES_PER_SAMPLE`` per input sample, ``BYTES_PER_OUTPUT`` per
+recorded output) or ``MAX_STEPS`` (1e9 internal steps: at least ``duration / max_step`` and one
+per sample, ~``SECONDS_PER_STEP`` each); the error names the key (``duration``, ``sample_rate``
+or ``max_step``) and gives the estimate (:func:`run_budget`). Parameter overrides are numbers or
+flat lists of numbers (``true``, nested lists and strings that are no number are refused);
+``rtol`` ≥ 1e-14 (below, float64 rounding cannot meet it).
 
 Motions (angles in degrees where the key says ``_deg``, else SI; body axes FLU, navigation
 axes ENU; see ``motions`` for the exact kinematics)::
@@ -92,6 +100,7 @@ import numpy as np
 import yaml
 
 from . import motions as mo
+from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, RunBudget, oversize, run_budget
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..physics.params import ParameterError, PlatformParams
@@ -125,6 +134,18 @@ TOP_KEYS = ("name", "description", "mode", "fidelity", "effects", "params", "int
 
 class ScenarioError(ValueError):
     """A scene file is invalid; the message names the file and the key path."""
+
+
+def check_budget(source: str, duration: float, sample_rate: float | None, output_rate: float, max_step: float,
+                 keys: dict[str, str] | None = None) -> None:
+    """ScenarioError naming the key that makes a synthetic run too big (:func:`budget.oversize`);
+    ``keys`` renames them for flags (``{"duration": "--duration"}``). A bag's length bounds its run."""
+    if sample_rate is None:
+        return
+    problem = oversize(duration, sample_rate, output_rate, max_step)
+    if problem is not None:
+        key, text = problem
+        raise ScenarioError(f"scene '{source}': {(keys or {}).get(key, key)}: {text}")
 
 
 # ---- validation helpers -----------------------------------------------------------------
@@ -194,6 +215,13 @@ class _V:
                     self.fail(f"{path}[{i}]", f"must be ≥ {lo:g}, got {x:g}")
             return arr
         return np.full(n, self.number(v, path, lo=lo))
+
+
+def _param_value(v: _V, val: Any, path: str) -> Any:
+    """A parameter override: a number or a flat list of numbers (no booleans, no nesting)."""
+    if isinstance(val, (list, tuple)):
+        return [v.number(x, f"{path}[{i}]") for i, x in enumerate(val)]
+    return v.number(val, path)
 
 
 def _join(path: str, key: str) -> str:
@@ -324,6 +352,8 @@ class Scene:
         if self.fit_start >= duration:
             raise ScenarioError(f"scene '{self.name}': --duration {duration:g} s must exceed fit_start "
                                 f"({self.fit_start:g} s)")
+        check_budget(self.name, duration, self.sample_rate, self.output_rate, self.max_step,
+                     {"duration": "--duration"})
         return replace(self, duration=float(duration), test_duration=self.expect_duration)
 
     def with_integrator(self, integrator: str | None = None, max_step: float | None = None) -> "Scene":
@@ -339,6 +369,7 @@ class Scene:
             opts = self.options.with_(integrator=name, max_step=step)
         except OptionsError as e:
             raise ScenarioError(f"scene '{self.name}': {e}") from None
+        check_budget(self.name, self.duration, self.sample_rate, self.output_rate, step, {"max_step": "--max-step"})
         return replace(self, integrator=name, max_step=step, options=opts)
 
 
@@ -455,6 +486,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     overrides = d.get("params", {}) or {}
     known = tuple(f.name for f in dc_fields(PlatformParams))
     v.mapping(overrides, "params", known)
+    overrides = {k: _param_value(v, val, f"params.{k}") for k, val in overrides.items()}
     try:
         params = PlatformParams.from_dict(overrides)
     except ParameterError as e:
@@ -469,6 +501,8 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     for k in ("rtol", "atol"):
         if k in d:
             kw[k] = v.number(d[k], k, lo=0.0, hi=1.0, lo_open=True)
+    if kw.get("rtol", MIN_RTOL) < MIN_RTOL:
+        v.fail("rtol", f"must be ≥ {MIN_RTOL:g} (float64 rounding cannot meet less), got {kw['rtol']:g}")
     try:
         options = ModelOptions.make(mode, fidelity, effects, **kw)
     except OptionsError as e:
@@ -495,6 +529,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
             v.fail("output_rate", f"must be ≤ sample_rate ({sample_rate:g} Hz), got {output_rate:g}")
         if sample_rate * duration < 1.0:
             v.fail("sample_rate", f"gives fewer than 2 samples over {duration:g} s")
+    check_budget(source, duration, sample_rate, output_rate, max_step)
 
     raw_expect = d.get("expect", []) or []
     if not isinstance(raw_expect, list):
@@ -678,4 +713,5 @@ def scene_info(scene: Scene) -> dict:
 
 
 __all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene", "find_scene",
-           "scene_dirs", "scene_names", "scene_from_dict", "scene_info"]
+           "scene_dirs", "scene_names", "scene_from_dict", "scene_info", "RunBudget", "run_budget", "check_budget",
+           "MAX_MEMORY_BYTES", "MAX_STEPS"]

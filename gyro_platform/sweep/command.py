@@ -9,8 +9,8 @@ is missing.
 
 Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
 ``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them); 2 a bad
-sweep file, flag or output folder; 130 interrupted (Ctrl-C or SIGTERM; the table holds the runs
-finished so far).
+sweep file, flag or output folder; 130 interrupted (Ctrl-C), 143 terminated (SIGTERM): the table
+holds the runs finished so far.
 """
 from __future__ import annotations
 
@@ -29,12 +29,10 @@ from .plots import budget_stats, plot_budget
 from .runs import execute_run, lost_record
 from .spec import SweepSpec, SweepSpecError, load_sweep
 from .store import ResultStore, StoreError, atomic_write
+from ..errors import (EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError, StopSignals,
+                      check_output_path, stop_reason)
 
-EXIT_OK, EXIT_RUNS_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-
-
-class Interrupted(Exception):
-    """Ctrl-C or SIGTERM while the sweep runs."""
+EXIT_RUNS_FAILED = 1
 
 
 @dataclass
@@ -43,6 +41,7 @@ class SweepResult:
     executed: int = 0
     skipped: int = 0
     interrupted: bool = False
+    stop: str | None = None         # "interrupted" (Ctrl-C) or "terminated" (SIGTERM)
     wall_s: float = 0.0
     counts: dict[str, int] = field(default_factory=dict)
 
@@ -96,8 +95,8 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
                 store.put(rec)
                 res.executed += 1
                 say(f"run {rec['run']}: {rec['status']}" + (f" ({rec['message']})" if rec.get("message") else ""))
-        except (KeyboardInterrupt, Interrupted):
-            res.interrupted = True
+        except KeyboardInterrupt as e:      # Ctrl-C, or SIGTERM (errors.Terminated)
+            res.interrupted, res.stop = True, stop_reason(e)
             for f in futures:
                 f.cancel()
         finally:
@@ -153,10 +152,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="write no plot")
 
 
-def _raise_interrupted(signum, frame):
-    raise Interrupted(signal.Signals(signum).name)
-
-
 def run(args) -> int:
     prog = "gyro-platform sweep: error"
     if args.workers is not None and not 1 <= args.workers <= 4096:
@@ -171,22 +166,25 @@ def run(args) -> int:
         print(f"{prog}: {e}", file=sys.stderr)
         return EXIT_USAGE
     out = Path(args.out) if args.out else Path("results") / "sweeps" / Path(args.spec).stem
-    old = signal.signal(signal.SIGTERM, _raise_interrupted)
     try:
-        res = run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
-                        progress=lambda s: print(s, file=sys.stderr, flush=True))
-    except StoreError as e:
+        check_output_path(out, "--out", files=("sweep.json", "summary.json"))
+    except OutputError as e:
         print(f"{prog}: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except OSError as e:  # e.g. the scheduler address cannot be reached
-        print(f"{prog}: {e}", file=sys.stderr)
-        return EXIT_USAGE
-    finally:
-        signal.signal(signal.SIGTERM, old)
-    summary = finish(spec, out, res, plots=not args.no_plots)
+    with StopSignals("gyro-platform sweep"):      # SIGTERM: the same orderly stop as Ctrl-C
+        try:
+            res = run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
+                            progress=lambda s: print(s, file=sys.stderr, flush=True))
+        except StoreError as e:
+            print(f"{prog}: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        except OSError as e:  # e.g. the scheduler address cannot be reached
+            print(f"{prog}: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        summary = finish(spec, out, res, plots=not args.no_plots)
     print_summary(summary)
     if res.interrupted:
-        print(f"gyro-platform sweep: interrupted; {res.executed} run(s) finished now, run the same command to go on",
+        print(f"gyro-platform sweep: {res.stop}; {res.executed} run(s) finished now, run the same command to go on",
               file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if res.stop == "terminated" else EXIT_INTERRUPTED
     return EXIT_RUNS_FAILED if res.counts.get("failed", 0) + res.counts.get("lost", 0) else EXIT_OK
