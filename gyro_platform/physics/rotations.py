@@ -149,3 +149,26 @@ def euler_xyz_rates(angles, omega) -> np.ndarray:
     so the result is always finite for finite input."""
     A = euler_xyz_axes(angles)
     return np.linalg.lstsq(A, np.asarray(omega, float), rcond=1e-12)[0]
+
+
+#: |cos b| below which ``euler_xyz_rates_into`` treats the X-Y-Z chain as singular (the
+#: rcond = 1e-12 of ``euler_xyz_rates``' least squares, relative to |A| ~ 1)
+EULER_SINGULAR_COS = 1e-12
+
+
+@njit(cache=True)
+def euler_xyz_rates_into(angles, omega, out):
+    """Compiled ``euler_xyz_rates``: out = rates (rad/s) of the intrinsic X-Y-Z angles for the
+    relative angular velocity ``omega`` (rad/s, child axes), by the closed-form inverse of
+    ``euler_xyz_axes``; at the singularity (|cos b| < EULER_SINGULAR_COS) the minimum-norm
+    least-squares solution, so the result is finite for finite input."""
+    b, c = angles[1], angles[2]
+    cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+    w0, w1, w2 = omega[0], omega[1], omega[2]
+    out[1] = sc * w0 + cc * w1
+    if abs(cb) >= EULER_SINGULAR_COS:
+        out[0] = (cc * w0 - sc * w1) / cb
+        out[2] = w2 - sb * out[0]
+    else:
+        out[0] = sb * w2 / (1.0 + sb * sb)
+        out[2] = w2 / (1.0 + sb * sb)
