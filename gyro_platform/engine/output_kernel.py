@@ -22,10 +22,11 @@ from numba import njit
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
 from ..physics.options import NEEDS_SPECIFIC_FORCE
-from ..physics.rotations import euler_xyz, euler_xyz_rates_into, matrix_rotvec, quat_to_matrix_at, rotvec_matrix
+from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
+                                 rotvec_matrix_into)
 from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, P_L, P_WIN, PRECESSION,
                               PlatformSystem, platform_rhs)
-from ..physics.tree import kinematics, newton_euler, rotor_torques
+from ..physics.tree import kinematics_rw, newton_euler, rotor_torques
 from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE,
                       C_NSTEPS, C_OM, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, COLUMN_NAMES, N_COL, OutputBlock,
                       Outputs, outputs_of_row)
@@ -37,6 +38,8 @@ OK, RHS_FAILED, NON_FINITE = 0, 1, 2
 # offsets in the float constants CF: rotor momenta for the outputs (true L, or 0 without
 # rotor_gyroscopic), rotor C, A, speeds, tree axes (nb, 3), inertias (nb, 3, 3), spin axes (nr, 3)
 F_L, F_C, F_A, F_SPEED, F_AXIS = 0, 3, 6, 9, 12
+# rows of the small-vector work X and the 3×3 work MM of one instant
+N_X, N_MM = 21, 6
 # int constants OI: fidelity, needs specific force, nb, nr, rotor hosts (nr)
 I_FID, I_NEEDS_F, I_NB, I_NR, I_HOST = 0, 1, 2, 3, 4
 
@@ -98,7 +101,7 @@ def _rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, 
 
 @njit(cache=True, error_model="numpy")
 def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f,
-             M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, E):
+             M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E):
     """Outputs of one instant into ``out`` (N_COL,). Returns OK, or RHS_FAILED with the failing
     right-hand side's (t, y) in ``E`` (E[0] = t, E[1:] = y)."""
     fid = OI[I_FID]
@@ -161,24 +164,25 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
             v[off + i] = yd[i]
             acc[off + i] = (ydp[i] - ydm[i]) / (2 * eps)
     qd = v[nv - 5:nv]
-    # --- frames: X rows are 3-vectors, RR[0..3] (reused) 3×3 matrices ---------------------------
+    # --- frames: X rows are 3-vectors, MM 3×3 matrices ----------------------------------------
     wB = seg[5:8]
     fB = seg[11:14]
-    R_IB = RR[0]
-    R_IP = RR[1]
+    R_IB = MM[0]
+    R_IP = MM[1]
     R_PB = mats[4, :3, :3]
-    T1 = RR[2]
-    T2 = RR[3]
-    quat_to_matrix_at(y, lay[LAY_QIB], RR, 0)
+    T1 = MM[2]
+    T2 = MM[3]
+    R_IC = MM[4]
+    quat_to_matrix_at(y, lay[LAY_QIB], MM, 0)
     if stab:
-        quat_to_matrix_at(y, lay[LAY_QIP], RR, 1)
+        quat_to_matrix_at(y, lay[LAY_QIP], MM, 1)
     else:
         for i in range(3):              # R_IP = R_IB R_BP, R_BP = R_PBᵀ
             for j in range(3):
                 R_IP[i, j] = R_IB[i, 0] * R_PB[j, 0] + R_IB[i, 1] * R_PB[j, 1] + R_IB[i, 2] * R_PB[j, 2]
     for i in range(3):
         X[0, i] = wIN[i] * t_rel
-    R_IC = rotvec_matrix(X[0])
+    rotvec_matrix_into(X[0], R_IC)
     Om = X[1]                           # platform rate (platform axes)
     w0 = X[2]
     wd0 = X[3]
@@ -209,12 +213,12 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
         for i in range(3):
             tau_ext[b, i] = 0.0
     if OI[I_NEEDS_F]:
-        kinematics(parent, jtype, axis, qidx, vidx, stab, y, v, Om, R, w, J)
+        kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, Om, R, w)
         _mv(R_IB, fB, X[4])
         _mtv(R_IP, X[4], X[6])          # f in platform axes
         fx.body_specific_force(R, parent, X[6], fb)
         fx.g_sensitive_torques(k, on[fx.UNBALANCE], on[fx.ANISO], rhost, raxis, fb, tau_ext)
-    kinematics(parent, jtype, axis, qidx, vidx, stab, y, v, w0, R, w, J)
+    kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, w0, R, w)
     newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, Lout, v, acc, wd0, R, w,
                  True, True, tau_ext, wd, f)
     rotor_torques(rhost, raxis, CF[F_C:F_C + 3], CF[F_A:F_A + 3], Lout, w, wd, rtau)
@@ -234,7 +238,8 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
     # --- drift, mount, servo -------------------------------------------------------------------
     if stab:
         _mtm(R_IC, R_IP, T1)            # R_CP
-        d = matrix_rotvec(T1)
+        d = X[17]
+        matrix_rotvec_into(T1, d)
         _mtv(T1, wIN, X[4])
         for i in range(3):
             out[C_DRIFT + i] = d[i]
@@ -247,7 +252,8 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
                 out[C_SERVO + ax] = fx.servo_axis(k, y[gi], qd[gi], y[iz + ax])[0]
         _mtm(R_IB, R_IP, T2)            # R_BP (actual)
         _mm(R_PB, T2, T1)
-        mount = euler_xyz(T1)
+        mount = X[16]
+        euler_xyz_into(T1, mount)
         _mv(R_IB, wB, X[4])
         _mtv(R_IP, X[4], X[6])
         for i in range(3):
@@ -257,13 +263,14 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
             out[C_MOUNT + i] = mount[i]
             out[C_MRATE + i] = X[7, i]
     else:
-        _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, X, out)
+        _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out)
         for i in range(3):
             out[C_MOUNT + i] = 0.0
             out[C_MRATE + i] = 0.0
             out[C_SERVO + i] = 0.0
     # --- the rest --------------------------------------------------------------------------
-    d = matrix_rotvec(R_IP)
+    d = X[17]
+    matrix_rotvec_into(R_IP, d)
     th = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
     if th < 1e-300:
         out[C_QUAT], out[C_QUAT + 1], out[C_QUAT + 2], out[C_QUAT + 3] = 0.0, 0.0, 0.0, 1.0
@@ -288,11 +295,12 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
 
 
 @njit(cache=True, error_model="numpy")
-def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, X, out):
+def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, G, X, out):
     """Carried mode: drift (rad) and drift rate (rad/s) of the gyros' own inertial reference, the
     triad spanned by the spin axes of rotors 6 (x) and 11 (y), relative to where it started.
-    Uses ``R``, ``w`` of the tree kinematics (rows 8..15 of X are work)."""
+    Uses ``R``, ``w`` of the tree kinematics; T1, T2, G (3×3) and rows 8..15, 17..20 of X are work."""
     e6, e11, w5, w10, yv, z, xd, ydv = X[8], X[9], X[10], X[11], X[12], X[13], X[14], X[15]
+    d, zd, s, wig = X[17], X[18], X[19], X[20]
     _mm(R[1], R[2], T1)                 # R_P5
     _mm(R[4], R[5], T2)                 # R_P10
     _mv(T1, raxis[0], e6)               # spin axes of rotors 6 and 11, platform axes
@@ -310,22 +318,18 @@ def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, X, out):
     for i in range(3):                  # G_P = R_PG: columns x, y, z
         T2[i, 0], T2[i, 1], T2[i, 2] = x[i], yv[i], z[i]
     _mtm(R_IC, R_IP, T1)                # R_CP
-    G = np.empty((3, 3))
     _mm(T1, T2, G)                      # R_CG
-    d = matrix_rotvec(G)
+    matrix_rotvec_into(G, d)
     # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ḃ = ω_b × b)
     _cross_into(w5, e6, xd)
     _cross_into(w10, e11, ydv)
-    zd = np.empty(3)
-    s = np.empty(3)
     _cross_into(xd, yv, zd)
     _cross_into(x, ydv, s)
     for i in range(3):
         zd[i] += s[i]
-    wig = np.zeros(3)
     _cross_into(x, xd, s)
     for i in range(3):
-        wig[i] += s[i]
+        wig[i] = s[i]
     _cross_into(yv, ydv, s)
     for i in range(3):
         wig[i] += s[i]
@@ -351,26 +355,65 @@ def _first_bad(out):
     return -1
 
 
+@njit(cache=True)
+def work_size(n, nb, nv, nr):
+    """Floats of the work buffer ``output_rows`` carves its arrays from."""
+    return 5 * n + 2 * 8 + nb * 9 + 5 * nb * 3 + nb * 3 * nv + 2 * nv * nv + 2 * nv + 8 + 5 + 4 * 9 + 9 * 3 \
+        + 5 * 8 + nr * 3 + N_X * 3 + N_MM * 9
+
+
 @njit(cache=True, error_model="numpy")
-def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E):
+def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
     """Outputs of K instants (t (K,) s, t_rel (K,) s, n_steps (K,), states Y (K, n), input
-    segments SEG (K, 14)) into OUT (K, N_COL). Returns (done, code, detail): the instants
-    ``[0, done)`` are written and finite; code OK, RHS_FAILED (the model refused the state of
-    instant ``done``; its (t, y) in E) or NON_FINITE (column ``detail`` of instant ``done``)."""
+    segments SEG (K, 14)) into OUT (K, N_COL); WK: work (``work_size`` floats). Returns
+    (done, code, detail): the instants ``[0, done)`` are written and finite; code OK,
+    RHS_FAILED (the model refused the state of instant ``done``; its (t, y) in E) or
+    NON_FINITE (column ``detail`` of instant ``done``)."""
     K = Y.shape[0]
     n = Y.shape[1]
     nb = OI[I_NB]
     nr = OI[I_NR]
     nv = I[0, LAY_NV]
-    yd, yp, ym, ydp, ydm = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    v, acc = np.zeros(8), np.zeros(8)
-    R, w, wd, J = np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros((nb, 3, nv))
-    f, M, c, tau_ext, fb = np.zeros((nb, 3)), np.zeros((nv, nv)), np.zeros(nv), np.zeros((nb, 3)), np.zeros((nb, 3))
-    chol, F, a, Q = np.zeros((nv, nv)), np.zeros(nv), np.zeros(8), np.zeros(5)
-    RR, V, W, rtau, X = np.zeros((4, 3, 3)), np.zeros((9, 3)), np.zeros((5, 8)), np.zeros((nr, 3)), np.zeros((16, 3))
+    o = 0
+    yd = WK[o:o + n]
+    yp = WK[o + n:o + 2 * n]
+    ym = WK[o + 2 * n:o + 3 * n]
+    ydp = WK[o + 3 * n:o + 4 * n]
+    ydm = WK[o + 4 * n:o + 5 * n]
+    o += 5 * n
+    v = WK[o:o + 8]
+    acc = WK[o + 8:o + 16]
+    o += 16
+    R = WK[o:o + 9 * nb].reshape((nb, 3, 3))
+    o += 9 * nb
+    w = WK[o:o + 3 * nb].reshape((nb, 3))
+    wd = WK[o + 3 * nb:o + 6 * nb].reshape((nb, 3))
+    f = WK[o + 6 * nb:o + 9 * nb].reshape((nb, 3))
+    fb = WK[o + 9 * nb:o + 12 * nb].reshape((nb, 3))
+    tau_ext = WK[o + 12 * nb:o + 15 * nb].reshape((nb, 3))
+    o += 15 * nb
+    J = WK[o:o + 3 * nb * nv].reshape((nb, 3, nv))
+    o += 3 * nb * nv
+    M = WK[o:o + nv * nv].reshape((nv, nv))
+    chol = WK[o + nv * nv:o + 2 * nv * nv].reshape((nv, nv))
+    o += 2 * nv * nv
+    c = WK[o:o + nv]
+    F = WK[o + nv:o + 2 * nv]
+    o += 2 * nv
+    a = WK[o:o + 8]
+    Q = WK[o + 8:o + 13]
+    o += 13
+    RR = WK[o:o + 36].reshape((4, 3, 3))
+    V = WK[o + 36:o + 63].reshape((9, 3))
+    W = WK[o + 63:o + 103].reshape((5, 8))
+    o += 103
+    rtau = WK[o:o + 3 * nr].reshape((nr, 3))
+    o += 3 * nr
+    X = WK[o:o + 3 * N_X].reshape((N_X, 3))
+    MM = WK[o + 3 * N_X:o + 3 * N_X + 9 * N_MM].reshape((N_MM, 3, 3))
     for kk in range(K):
         st = _instant(T[kk], TR[kk], NS[kk], Y[kk], SEG[kk], OUT[kk], I, P, mats, CF, OI, yd, yp, ym, ydp, ydm,
-                      v, acc, R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, E)
+                      v, acc, R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E)
         if st != OK:
             return kk, st, 0
         j = _first_bad(OUT[kk])
@@ -380,27 +423,13 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E):
 
 
 @njit(cache=True, error_model="numpy")
-def output_row(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, E):
+def output_row(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, E, WK):
     """``output_rows`` for one instant (scalars t, t_rel, n_steps; y (n,), seg (14,), out
-    (N_COL,)). Returns (code, detail)."""
-    n = y.shape[0]
-    nb = OI[I_NB]
-    nr = OI[I_NR]
-    nv = I[0, LAY_NV]
-    yd, yp, ym, ydp, ydm = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    v, acc = np.zeros(8), np.zeros(8)
-    R, w, wd, J = np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros((nb, 3, nv))
-    f, M, c, tau_ext, fb = np.zeros((nb, 3)), np.zeros((nv, nv)), np.zeros(nv), np.zeros((nb, 3)), np.zeros((nb, 3))
-    chol, F, a, Q = np.zeros((nv, nv)), np.zeros(nv), np.zeros(8), np.zeros(5)
-    RR, V, W, rtau, X = np.zeros((4, 3, 3)), np.zeros((9, 3)), np.zeros((5, 8)), np.zeros((nr, 3)), np.zeros((16, 3))
-    st = _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm,
-                  v, acc, R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, E)
-    if st != OK:
-        return st, 0
-    j = _first_bad(out)
-    if j >= 0:
-        return NON_FINITE, j
-    return OK, 0
+    (N_COL,)). Returns (done, code, detail)."""
+    T = np.empty(3)
+    T[0], T[1], T[2] = t, t_rel, n_steps
+    return output_rows(T[0:1], T[1:2], T[2:3], y.reshape((1, y.shape[0])), seg.reshape((1, seg.shape[0])),
+                       out.reshape((1, out.shape[0])), I, P, mats, CF, OI, E, WK)
 
 
 # ---- Python side ------------------------------------------------------------------------------
@@ -425,6 +454,7 @@ class OutputKernel:
         self.OI = np.array([system.fid, int(needs_f), tree.nb, len(tree.rotor_host), *tree.rotor_host],
                            dtype=np.int64)
         self.E = np.zeros(1 + system.layout.n)
+        self.WK = np.zeros(work_size(system.layout.n, tree.nb, tree.nv, len(tree.rotor_host)))
 
     def row(self, t: float, t_rel: float, n_steps: float, y: np.ndarray, seg: np.ndarray) -> Outputs:
         """Outputs at one instant: time t (s), t_rel (s since the first sample), accepted
@@ -436,7 +466,8 @@ class OutputKernel:
     def _row_into(self, out, t, t_rel, n_steps, y, seg) -> None:
         s = self.system
         try:
-            code, detail = output_row(t, t_rel, n_steps, y, seg, out, s.I, s.P, s.mats, self.CF, self.OI, self.E)
+            _, code, detail = output_row(t, t_rel, n_steps, y, seg, out, s.I, s.P, s.mats, self.CF, self.OI,
+                                         self.E, self.WK)
         except ArithmeticError as e:       # inside a model kernel (python error model)
             raise self._numeric(e, t) from e
         if code != OK:
@@ -456,7 +487,8 @@ class OutputKernel:
                              f"y {Y.shape} (n = {s.layout.n}), seg {SEG.shape} do not fit")
         OUT = np.empty((K, N_COL))
         try:
-            done, code, detail = output_rows(T, TR, NS, Y, SEG, OUT, s.I, s.P, s.mats, self.CF, self.OI, self.E)
+            done, code, detail = output_rows(T, TR, NS, Y, SEG, OUT, s.I, s.P, s.mats, self.CF, self.OI, self.E,
+                                             self.WK)
         except ArithmeticError:
             # a model kernel raised: find the instant one by one (rare path)
             for k in range(K):

@@ -64,12 +64,14 @@ def quat_matrix(q) -> np.ndarray:
 
 
 @njit(cache=True)
-def rotvec_matrix(v) -> np.ndarray:
-    """Rotation matrix of the rotation vector v (rad), Rodrigues."""
+def rotvec_matrix_into(v, R):
+    """R = rotation matrix of the rotation vector v (rad), Rodrigues (no allocation)."""
     th = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    R = np.eye(3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = 1.0 if i == j else 0.0
     if th < 1e-300:
-        return R
+        return
     kx, ky, kz = v[0] / th, v[1] / th, v[2] / th
     s, c = math.sin(th), 1.0 - math.cos(th)
     R[0, 0] += c * (-ky * ky - kz * kz)
@@ -81,13 +83,20 @@ def rotvec_matrix(v) -> np.ndarray:
     R[2, 0] += -s * ky + c * kx * kz
     R[1, 2] += -s * kx + c * ky * kz
     R[2, 1] += s * kx + c * ky * kz
+
+
+@njit(cache=True)
+def rotvec_matrix(v) -> np.ndarray:
+    """Rotation matrix of the rotation vector v (rad), Rodrigues."""
+    R = np.empty((3, 3))
+    rotvec_matrix_into(v, R)
     return R
 
 
 @njit(cache=True)
-def matrix_rotvec(R) -> np.ndarray:
-    """Rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for small
-    and large angles alike)."""
+def matrix_rotvec_into(R, out):
+    """out = rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for
+    small and large angles alike; no allocation)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     if tr > 0.0:
         s = math.sqrt(tr + 1.0) * 2.0
@@ -104,11 +113,19 @@ def matrix_rotvec(R) -> np.ndarray:
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     n = math.sqrt(x * x + y * y + z * z)
-    out = np.zeros(3)
+    out[0], out[1], out[2] = 0.0, 0.0, 0.0
     if n < 1e-300:
-        return out
+        return
     ang = 2.0 * math.atan2(n, w) / n
     out[0], out[1], out[2] = x * ang, y * ang, z * ang
+
+
+@njit(cache=True)
+def matrix_rotvec(R) -> np.ndarray:
+    """Rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for small
+    and large angles alike)."""
+    out = np.zeros(3)
+    matrix_rotvec_into(R, out)
     return out
 
 
@@ -122,12 +139,18 @@ def matrix_quat(R) -> np.ndarray:
 
 
 @njit(cache=True)
-def euler_xyz(R) -> np.ndarray:
-    """Intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c): the mount's roll, pitch, yaw."""
-    out = np.empty(3)
+def euler_xyz_into(R, out):
+    """out = intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c) (no allocation)."""
     out[1] = math.asin(max(-1.0, min(1.0, R[0, 2])))
     out[0] = math.atan2(-R[1, 2], R[2, 2])
     out[2] = math.atan2(-R[0, 1], R[0, 0])
+
+
+@njit(cache=True)
+def euler_xyz(R) -> np.ndarray:
+    """Intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c): the mount's roll, pitch, yaw."""
+    out = np.empty(3)
+    euler_xyz_into(R, out)
     return out
 
 
