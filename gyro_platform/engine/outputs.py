@@ -116,25 +116,36 @@ COLUMN_NAMES: tuple[str, ...] = _column_names()
 assert len(COLUMN_NAMES) == N_COL
 
 
+# slices of one row (built once: an Outputs is ~20 numpy views of its row)
+_SL_GIMBAL = tuple(slice(c, c + 5) for c in (C_ANG, C_RATE, C_AXIAL))
+_SL_VEC = tuple(slice(C_VEC + 3 * i, C_VEC + 3 * i + 3) for i in range(N_VEC))
+_SL_BEAR = _SL_VEC[8:]
+_SL_QUAT = slice(C_QUAT, C_STATUS)
+
+
 def outputs_of_row(row: np.ndarray, stabilised: bool, status_keys: tuple[str, ...] = STATUS_NAMES,
                    extra: dict[str, float] | None = None) -> Outputs:
     """``Outputs`` whose arrays are views of ``row`` (N_COL,) (pass a row the caller gives away).
     ``stabilised``: the mount and servo fields exist (else None)."""
-    ang, rate, axial = row[C_ANG:C_VEC].reshape(3, 5)
-    om, drift, drate, motor, mount, mrate, servo, rotor, *bear = row[C_VEC:C_QUAT].reshape(N_VEC, 3)
+    get = row.__getitem__
+    ang, rate, axial = map(get, _SL_GIMBAL)
+    sv = _SL_VEC
     if status_keys is STATUS_NAMES:
-        m, g, n = row[C_STATUS:N_COL].tolist()
-        status = {"gimbal_lock_margin": m, "max_gimbal_angle": g, "n_steps": n}
+        status = {"gimbal_lock_margin": row.item(C_MARGIN), "max_gimbal_angle": row.item(C_MAXANG),
+                  "n_steps": row.item(C_NSTEPS)}
     else:
-        status = {k: (float(row[C_STATUS + STATUS_NAMES.index(k)]) if k in STATUS_NAMES else extra[k])
+        status = {k: (row.item(C_STATUS + STATUS_NAMES.index(k)) if k in STATUS_NAMES else extra[k])
                   for k in status_keys}
-    if not stabilised:
+    if stabilised:
+        mount, mrate, servo = get(sv[4]), get(sv[5]), get(sv[6])
+    else:
         mount = mrate = servo = None
-    return Outputs(t=float(row[C_T]), gimbal_angles=ang, gimbal_rates=rate, gimbal_axial_torques=axial,
-                   platform_rate=om, platform_attitude=row[C_QUAT:C_STATUS], drift_angle=drift,
-                   drift_rate=drate, bearing_torques=dict(zip(BEARING_NAMES, bear)), motor_torques=motor,
-                   mount_angles=mount, mount_rates=mrate, servo_torque=servo,
-                   rotor_rates=None if rotor[0] != rotor[0] else rotor, status=status)
+    rotor = row.item(C_ROTOR)
+    return Outputs(t=row.item(C_T), gimbal_angles=ang, gimbal_rates=rate, gimbal_axial_torques=axial,
+                   platform_rate=get(sv[0]), platform_attitude=get(_SL_QUAT), drift_angle=get(sv[1]),
+                   drift_rate=get(sv[2]), bearing_torques=dict(zip(BEARING_NAMES, map(get, _SL_BEAR))),
+                   motor_torques=get(sv[3]), mount_angles=mount, mount_rates=mrate, servo_torque=servo,
+                   rotor_rates=None if rotor != rotor else get(sv[7]), status=status)
 
 
 class OutputBlock:

@@ -129,6 +129,7 @@ class Simulator:
         self.y = old.y.copy()
         self.t_start = old.t_start
         self.t_rel = old.t_rel
+        self.system.seg[:] = old.system.seg        # the input interval the outputs use
         self._last = old._last
         self.n_samples = old.n_samples
         self.n_steps = old.n_steps
