@@ -324,6 +324,9 @@ def test_block_instants_are_exactly_outputs(mode, fid):
     np.testing.assert_array_equal(OutputBlock.concat(parts).rows, block.rows)
     assert_identical(parts[1][2], outs[6])
     assert len(block[3:3]) == 0 and block[3:3].as_rows() == []
+    empty = OutputBlock.stack([], stabilised=mode == "stabilised")
+    assert len(empty) == 0 and (empty.mount_angles is None) == (mode == "carried")
+    assert len(sim._outputs_at(Snapshots.empty(sim.layout.n))) == 0
     with pytest.raises(IndexError):
         block[15]
 

@@ -219,11 +219,12 @@ class OutputBlock:
         return OutputBlock(np.zeros((0, N_COL)), stabilised)
 
     @staticmethod
-    def stack(outs: list[Outputs]) -> "OutputBlock":
+    def stack(outs: list[Outputs], stabilised: bool | None = None) -> "OutputBlock":
         """The block of ``outs`` (all of one mode: mount fields all set or all None, the same
-        status keys). ``stack(list(block))`` reproduces ``block``."""
+        status keys). ``stack(list(block))`` reproduces ``block``. An empty list gives an empty
+        block of mode ``stabilised`` (default carried: no mount fields)."""
         if not outs:
-            raise ValueError("OutputBlock.stack needs at least one Outputs (use OutputBlock.empty)")
+            return OutputBlock.empty(bool(stabilised))
         stab = outs[0].mount_angles is not None
         keys = tuple(outs[0].status)
         rows = np.full((len(outs), N_COL), np.nan)
