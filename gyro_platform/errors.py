@@ -35,6 +35,18 @@ class InputError(SimulationError):
     """An input sample cannot be used (non-finite, out of order, out of range)."""
 
 
+class NonFiniteOutputError(SimulationError):
+    """An output quantity came out NaN or infinite although the state is finite (e.g. bearing
+    torques overflowing under an absurd specific force). The message names the quantity and the
+    time; ``quantity`` (str), ``t`` (s) and, for a block of instants, ``block`` (the
+    ``OutputBlock`` of the instants before it) tell a program. Nothing non-finite is published."""
+
+    def __init__(self, message: str, quantity: str = "", t: float = float("nan")):
+        super().__init__(message)
+        self.quantity = quantity
+        self.t = t
+
+
 class ToleranceError(SimulationError):
     """The integrator cannot meet the asked tolerance (rtol/atol) within its step budget
     (``max_substeps``); the message names the time, the method, the estimate and the tolerance."""

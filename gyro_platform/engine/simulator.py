@@ -12,22 +12,22 @@ import math
 
 import numpy as np
 
-from ..physics import effects as fx
 from ..errors import GimbalLockError, InputError, SimulationError
 from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
-from ..physics.model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
+from ..physics.model import spin_momentum
 from ..physics.options import NEEDS_SPECIFIC_FORCE, ModelOptions
 from .batch import (COMPILED, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
                     J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
                     ST_ORDER, ST_TOLERANCE, Engine)
-from .outputs import Outputs
+from .output_kernel import OutputKernel
+from .outputs import OutputBlock, Outputs
 from .checks import as_time as _time, as_vec3 as _vec3, check_block
-from .snapshots import SEG_N, Snapshots, first_segment, stack_outputs as _stack
+from .snapshots import SEG_N, Snapshots, first_segment
 from ..physics.params import NAV1, PlatformParams
-from ..physics.system import PRECESSION, PlatformSystem
-from ..physics.rotations import euler_xyz, euler_xyz_rates, matrix_quat, matrix_rotvec, quat_matrix, rotvec_matrix
-from ..physics.tree import TreeWork, tree_inverse_dynamics
+from ..physics.system import PlatformSystem
+from ..physics.rotations import quat_matrix, rotvec_matrix
+from ..physics.tree import TreeWork, kinematics, mass_matrix
 
 #: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
 #: step (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
@@ -126,9 +126,7 @@ class Simulator:
         self._stepper = stepper
         self.engine = Engine(self.system, stepper if stepper.name in COMPILED else None)
         self._compiled = compiled and self.engine.method is not None
-        # full tree (with the true rotor momenta) for bearing torques at output instants
-        self._out_tree = self.system.tree
-        self._out_work = TreeWork(self._out_tree)
+        self._outk = OutputKernel(self.system)    # outputs (compiled)
         self._ydot = np.zeros(self.layout.n)
         self.reset()
 
@@ -445,24 +443,6 @@ class Simulator:
         return Snapshots(np.array([self.t]), np.array([self.t_rel]), self.y.copy()[None, :],
                          self.system.seg.copy()[None, :], np.array([self.n_steps], np.int64))
 
-    def _outputs_at(self, snaps: Snapshots):
-        """Outputs at the snapshots (fallback until the compiled output code: each instant set
-        as the current one, ``outputs()``, then the current instant restored)."""
-        if len(snaps) == 0 and self.t_start is None:
-            return _stack([])
-        saved = (self.y.copy(), self.t_rel, self.system.seg.copy(), self.n_steps)
-        outs = []
-        try:
-            for k in range(len(snaps)):
-                self.y[:] = snaps.y[k]
-                self.t_rel = float(snaps.t_rel[k])
-                self.system.seg[:] = snaps.seg[k]
-                self.n_steps = int(snaps.n_steps[k])
-                outs.append(self.outputs())
-        finally:
-            self.y[:], self.t_rel, self.system.seg[:], self.n_steps = saved
-        return _stack(outs)
-
     def push_many(self, t, omega, specific_force=None, output_every: int = 0) -> list[Outputs]:
         """Push many samples at once (arrays: t (N,) s, omega (N, 3) rad/s, specific_force
         (N, 3) m/s² or None); returns the outputs after every ``output_every``-th sample (0:
@@ -499,6 +479,8 @@ class Simulator:
 
     # ---- derived quantities ------------------------------------------------------------
     def gimbal_rates(self, y: np.ndarray | None = None) -> np.ndarray:
+        """Gimbal rates (5,) rad/s of state y (default: the current one; precession: from the
+        model at the current input)."""
         y = self.y if y is None else y
         st = self.layout
         if st.qd is not None:
@@ -509,16 +491,13 @@ class Simulator:
         self.system.rhs_into(t_rel, y, self._ydot)
         return self._ydot
 
-    def _input_now(self):
-        s = self._last
-        f = s.specific_force if s.specific_force is not None else np.zeros(3)
-        return s.omega, f
-
     def platform_rate(self) -> np.ndarray:
+        """Platform rate (3,) rad/s, platform axes: the state's (stabilised) or the vehicle
+        input turned into platform axes (carried)."""
         st = self.layout
         if st.Om is not None:
             return self.y[st.Om].copy()
-        return self.system.R_PB @ self._last.omega
+        return self.system.R_PB @ self.system.seg[5:8]
 
     def attitude_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(R_IB, R_IP) rotation matrices (vehicle → inertial, platform → inertial)."""
@@ -535,8 +514,8 @@ class Simulator:
         """T2 = ½ ẋᵀ A* ẋ (J) and the total angular momentum |p_Ω| (N m s, stabilised), the
         torque-free invariants of spec 4.5 (full fidelity)."""
         st = self.layout
-        tree, wk = self._out_tree, self._out_work
-        from ..physics.tree import kinematics, mass_matrix
+        tree = self.system.tree
+        wk = TreeWork(tree)
         v = self.y[st.v]
         w0 = np.zeros(3) if self.system.stabilised else self.platform_rate()
         kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
@@ -545,7 +524,6 @@ class Simulator:
         mass_matrix(wk.J, tree.inertia, M)
         out = {"T2": 0.5 * float(v @ M @ v)}
         if self.system.stabilised:
-            from ..physics.model import spin_momentum
             h = np.zeros(3)
             spin_momentum(self.system.L, self.y[st.q], np.zeros(5), h, np.zeros(3))
             p = (M @ v)[:3] + h
@@ -553,130 +531,17 @@ class Simulator:
             out["p_inertial"] = self.attitude_matrices()[1] @ p
         return out
 
-    def _accelerations(self) -> tuple[np.ndarray, np.ndarray]:
-        """(v, a): generalised velocities and accelerations of the tree at the current state."""
-        st = self.layout
-        sys_ = self.system
-        yd = self._rhs(self.t_rel, self.y).copy()
-        if sys_.fid != PRECESSION:
-            return self.y[st.v].copy(), yd[st.v].copy()
-        # precession: q̇ from the model, q̈ by a central difference along the motion
-        eps = 1e-6
-        qd = yd[st.q].copy()
-        yp = self.y + eps * yd
-        ym = self.y - eps * yd
-        qd_plus = self._rhs(self.t_rel + eps, yp)[st.q].copy()
-        qdd = (qd_plus - self._rhs(self.t_rel - eps, ym)[st.q]) / (2 * eps)
-        if sys_.stabilised:
-            v = np.concatenate([self.y[st.Om], qd])
-            a = np.concatenate([yd[st.Om], qdd])
-        else:
-            v, a = qd, qdd
-        return v, a
-
     def outputs(self) -> Outputs:
-        """Outputs at the current time (see ``outputs.Outputs``)."""
+        """Outputs at the current time (see ``outputs.Outputs``), by the compiled output kernel
+        (``output_kernel``; the one-instant case of ``_outputs_at``). Raises
+        ``NonFiniteOutputError`` rather than return a NaN or Inf, and the model's
+        ``SimulationError`` for a state it refuses (precession at gimbal lock)."""
         if self._last is None:
             raise SimulationError("no sample pushed yet")
-        st = self.layout
-        sys_ = self.system
-        y = self.y
-        q = y[st.q].copy()
-        v, a = self._accelerations()
-        qd = v[-5:].copy()
-        wB, fB = self._input_now()
-        # applied axial gimbal torques (effects that act about the gimbal axes)
-        Q = np.zeros(5)
-        R_IB, R_IP = self.attitude_matrices()
-        R_IC = self.reference_matrix()
-        wc = R_IP.T @ (R_IC @ sys_.w_IN) if self.options.has("earth_rate") else np.zeros(3)
-        fx.gimbal_forces(sys_.on, sys_.k, sys_.L, q, qd, wc, Q)
-        # Newton–Euler with the full tree and true rotor momenta
-        tree, wk = self._out_tree, self._out_work
-        tau_ext = np.zeros((tree.nb, 3))
-        if self.needs_f:
-            from ..physics.tree import kinematics
-            fP = R_IP.T @ (R_IB @ fB)
-            kinematics(tree.parent, tree.jtype, tree.axis, tree.qidx, tree.vidx, tree.root_dynamic,
-                       q, v, self.platform_rate(), wk.R, wk.w, wk.J)
-            fb = np.zeros((tree.nb, 3))
-            fx.body_specific_force(wk.R, tree.parent, fP, fb)
-            fx.g_sensitive_torques(sys_.k, sys_.on[fx.UNBALANCE], sys_.on[fx.ANISO], tree.rotor_host,
-                                   tree.rotor_axis, fb, tau_ext)
-        if sys_.stabilised:
-            w0 = np.zeros(3)
-            wd0 = np.zeros(3)
-        else:
-            w0 = sys_.R_PB @ wB
-            seg = sys_.seg
-            wd0 = sys_.R_PB @ ((seg[5:8] - seg[2:5]) / seg[1]) if seg[1] > 0 else np.zeros(3)
-        L = sys_.L_true if self.options.has("rotor_gyroscopic") else np.zeros(3)
-        F, f, rtau = tree_inverse_dynamics(tree, wk, q, v, a, w0, wd0, L, tau_ext)
-        bearings: dict[str, np.ndarray] = {"support": f[0].copy()}
-        for i, name in enumerate(("gimbal4", "gimbal5", "gimbal7", "gimbal9", "gimbal10")):
-            b = BODY_OF_GIMBAL[i]
-            n = GIMBAL_AXES[i]
-            fi = f[b]
-            bearings[name] = fi - (n @ fi) * n
-        motor = np.zeros(3)
-        for r, name in enumerate(("rotor6", "rotor8", "rotor11")):
-            s = SPIN_AXES[r]
-            motor[r] = s @ rtau[r]
-            bearings[name] = rtau[r] - motor[r] * s
-        # drift
-        Om = self.platform_rate()
-        if sys_.stabilised:
-            R_CP = R_IC.T @ R_IP
-            drift = matrix_rotvec(R_CP)
-            drift_rate = Om - R_CP.T @ sys_.w_IN
-            servo = np.zeros(3)
-            if self.options.has("servo"):
-                yp = np.array([q[4], q[0], q[3]])
-                ydp = np.array([qd[4], qd[0], qd[3]])
-                fx.servo_torque(sys_.k, yp, ydp, y[st.z], servo)
-            mount = euler_xyz(sys_.R_PB @ (R_IB.T @ R_IP))
-            mount_rates = euler_xyz_rates(mount, Om - R_IP.T @ (R_IB @ wB))
-        else:
-            drift, drift_rate = self._gyro_reference_drift(R_IP, R_IC)
-            servo = None
-            mount = mount_rates = None
-        cos_inner = np.cos(q[[1, 2, 4]])
-        status = {
-            "gimbal_lock_margin": float(np.min(np.abs(cos_inner))),
-            "max_gimbal_angle": float(np.max(np.abs(q))),
-            "n_steps": float(self.n_steps),
-        }
-        return Outputs(
-            t=float(self.t), gimbal_angles=q, gimbal_rates=qd, gimbal_axial_torques=Q,
-            platform_rate=Om, platform_attitude=matrix_quat(R_IP), drift_angle=drift,
-            drift_rate=drift_rate, bearing_torques=bearings, motor_torques=motor,
-            mount_angles=mount, mount_rates=mount_rates, servo_torque=servo, status=status,
-            rotor_rates=np.asarray(self.params.rotor_speed, dtype=float))
+        return self._outk.row(self.t_start + self.t_rel, self.t_rel, self.n_steps, self.y, self.system.seg)
 
-    def _gyro_reference_drift(self, R_IP: np.ndarray, R_IC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Carried mode: drift of the gyros' own inertial reference, the triad spanned by the
-        spin axes of rotors 6 (x) and 11 (y), relative to where it started (rad, rad/s)."""
-        wk = self._out_work
-        R = wk.R
-        R_P5 = R[1] @ R[2]
-        R_P10 = R[4] @ R[5]
-        e6 = R_P5 @ SPIN_AXES[0]
-        e11 = R_P10 @ SPIN_AXES[2]
-        # spin-axis rates in platform axes relative to inertial: ė = (ω_h × e) seen from I
-        w5 = R_P5 @ wk.w[2]
-        w10 = R_P10 @ wk.w[5]
-        x = e6
-        yv = e11 - (e11 @ x) * x
-        yv /= np.linalg.norm(yv)
-        z = np.cross(x, yv)
-        G_P = np.column_stack([x, yv, z])          # R_PG
-        R_CG = R_IC.T @ R_IP @ G_P
-        drift = matrix_rotvec(R_CG)
-        # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ḃ_inertial = ω_b × b)
-        xd = np.cross(w5, e6)
-        yd = np.cross(w10, e11)
-        zd = np.cross(xd, yv) + np.cross(x, yd)
-        w_IG_P = 0.5 * (np.cross(x, xd) + np.cross(yv, yd) + np.cross(z, zd))
-        w_IG_G = G_P.T @ w_IG_P
-        rate = w_IG_G - R_CG.T @ self.system.w_IN
-        return drift, rate
+    def _outputs_at(self, snaps: Snapshots) -> OutputBlock:
+        """Outputs at the instants of ``snaps`` in one compiled call. A failure at an instant
+        raises (``NonFiniteOutputError``, the model's ``SimulationError``) with ``.block``: the
+        outputs of the instants before it."""
+        return self._outk.block(snaps.t, snaps.t_rel, snaps.n_steps, snaps.y, snaps.seg)

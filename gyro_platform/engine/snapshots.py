@@ -22,7 +22,7 @@ import numpy as np
 
 from ..physics.system import SEG_N
 
-__all__ = ["Snapshots", "SEG_N", "first_segment", "OutputList", "stack_outputs"]
+__all__ = ["Snapshots", "SEG_N", "first_segment"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,23 +67,3 @@ def first_segment(seg: np.ndarray, w: np.ndarray, f: np.ndarray | None) -> None:
     else:
         seg[8:11] = f
         seg[11:14] = f
-
-
-class OutputList:
-    """Stand-in for ``outputs.OutputBlock`` while that is not there: ``len``, ``block[i]``."""
-
-    def __init__(self, outs: list) -> None:
-        self.outputs = outs
-
-    def __len__(self) -> int:
-        return len(self.outputs)
-
-    def __getitem__(self, i: int):
-        return self.outputs[i]
-
-
-def stack_outputs(outs: list):
-    """``OutputBlock.stack(outs)`` (``OutputList`` until ``outputs.OutputBlock`` exists)."""
-    from . import outputs
-    block = getattr(outputs, "OutputBlock", None)
-    return block.stack(outs) if block is not None else OutputList(outs)

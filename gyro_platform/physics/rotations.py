@@ -64,12 +64,14 @@ def quat_matrix(q) -> np.ndarray:
 
 
 @njit(cache=True)
-def rotvec_matrix(v) -> np.ndarray:
-    """Rotation matrix of the rotation vector v (rad), Rodrigues."""
+def rotvec_matrix_into(v, R):
+    """R = rotation matrix of the rotation vector v (rad), Rodrigues (no allocation)."""
     th = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    R = np.eye(3)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = 1.0 if i == j else 0.0
     if th < 1e-300:
-        return R
+        return
     kx, ky, kz = v[0] / th, v[1] / th, v[2] / th
     s, c = math.sin(th), 1.0 - math.cos(th)
     R[0, 0] += c * (-ky * ky - kz * kz)
@@ -81,13 +83,20 @@ def rotvec_matrix(v) -> np.ndarray:
     R[2, 0] += -s * ky + c * kx * kz
     R[1, 2] += -s * kx + c * ky * kz
     R[2, 1] += s * kx + c * ky * kz
+
+
+@njit(cache=True)
+def rotvec_matrix(v) -> np.ndarray:
+    """Rotation matrix of the rotation vector v (rad), Rodrigues."""
+    R = np.empty((3, 3))
+    rotvec_matrix_into(v, R)
     return R
 
 
 @njit(cache=True)
-def matrix_rotvec(R) -> np.ndarray:
-    """Rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for small
-    and large angles alike)."""
+def matrix_rotvec_into(R, out):
+    """out = rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for
+    small and large angles alike; no allocation)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     if tr > 0.0:
         s = math.sqrt(tr + 1.0) * 2.0
@@ -104,11 +113,19 @@ def matrix_rotvec(R) -> np.ndarray:
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     n = math.sqrt(x * x + y * y + z * z)
-    out = np.zeros(3)
+    out[0], out[1], out[2] = 0.0, 0.0, 0.0
     if n < 1e-300:
-        return out
+        return
     ang = 2.0 * math.atan2(n, w) / n
     out[0], out[1], out[2] = x * ang, y * ang, z * ang
+
+
+@njit(cache=True)
+def matrix_rotvec(R) -> np.ndarray:
+    """Rotation vector (rad) of the rotation matrix R, via the quaternion (accurate for small
+    and large angles alike)."""
+    out = np.zeros(3)
+    matrix_rotvec_into(R, out)
     return out
 
 
@@ -122,12 +139,18 @@ def matrix_quat(R) -> np.ndarray:
 
 
 @njit(cache=True)
-def euler_xyz(R) -> np.ndarray:
-    """Intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c): the mount's roll, pitch, yaw."""
-    out = np.empty(3)
+def euler_xyz_into(R, out):
+    """out = intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c) (no allocation)."""
     out[1] = math.asin(max(-1.0, min(1.0, R[0, 2])))
     out[0] = math.atan2(-R[1, 2], R[2, 2])
     out[2] = math.atan2(-R[0, 1], R[0, 0])
+
+
+@njit(cache=True)
+def euler_xyz(R) -> np.ndarray:
+    """Intrinsic X-Y-Z angles (rad) with R = Rx(a) Ry(b) Rz(c): the mount's roll, pitch, yaw."""
+    out = np.empty(3)
+    euler_xyz_into(R, out)
     return out
 
 
@@ -149,3 +172,26 @@ def euler_xyz_rates(angles, omega) -> np.ndarray:
     so the result is always finite for finite input."""
     A = euler_xyz_axes(angles)
     return np.linalg.lstsq(A, np.asarray(omega, float), rcond=1e-12)[0]
+
+
+#: |cos b| below which ``euler_xyz_rates_into`` treats the X-Y-Z chain as singular (the
+#: rcond = 1e-12 of ``euler_xyz_rates``' least squares, relative to |A| ~ 1)
+EULER_SINGULAR_COS = 1e-12
+
+
+@njit(cache=True)
+def euler_xyz_rates_into(angles, omega, out):
+    """Compiled ``euler_xyz_rates``: out = rates (rad/s) of the intrinsic X-Y-Z angles for the
+    relative angular velocity ``omega`` (rad/s, child axes), by the closed-form inverse of
+    ``euler_xyz_axes``; at the singularity (|cos b| < EULER_SINGULAR_COS) the minimum-norm
+    least-squares solution, so the result is finite for finite input."""
+    b, c = angles[1], angles[2]
+    cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+    w0, w1, w2 = omega[0], omega[1], omega[2]
+    out[1] = sc * w0 + cc * w1
+    if abs(cb) >= EULER_SINGULAR_COS:
+        out[0] = (cc * w0 - sc * w1) / cb
+        out[2] = w2 - sb * out[0]
+    else:
+        out[0] = sb * w2 / (1.0 + sb * sb)
+        out[2] = w2 / (1.0 + sb * sb)

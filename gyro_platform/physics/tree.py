@@ -140,6 +140,34 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
 
 
 @njit(cache=True)
+def kinematics_rw(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w):
+    """``kinematics`` without the velocity Jacobians and without allocation: rotations ``R``
+    and body rates ``w`` only (the same arithmetic), for inverse dynamics at output instants."""
+    nb = parent.shape[0]
+    for k in range(3):
+        R[0, k, 0] = 0.0
+        R[0, k, 1] = 0.0
+        R[0, k, 2] = 0.0
+        R[0, k, k] = 1.0
+        w[0, k] = v[k] if root_dynamic else w0[k]
+    for i in range(1, nb):
+        p = parent[i]
+        if jtype[i] == REVOLUTE:
+            rot_axis(axis[i], q[qidx[i]], R[i])
+        else:
+            for a in range(3):
+                for b in range(3):
+                    R[i, a, b] = 1.0 if a == b else 0.0
+        rate = v[vidx[i]]
+        t0 = R[i, 0, 0] * w[p, 0] + R[i, 1, 0] * w[p, 1] + R[i, 2, 0] * w[p, 2]
+        t1 = R[i, 0, 1] * w[p, 0] + R[i, 1, 1] * w[p, 1] + R[i, 2, 1] * w[p, 2]
+        t2 = R[i, 0, 2] * w[p, 0] + R[i, 1, 2] * w[p, 1] + R[i, 2, 2] * w[p, 2]
+        w[i, 0] = t0 + rate * axis[i, 0]
+        w[i, 1] = t1 + rate * axis[i, 1]
+        w[i, 2] = t2 + rate * axis[i, 2]
+
+
+@njit(cache=True)
 def mass_matrix(J, inertia, M):
     """M = Σ_i J_iᵀ I_i J_i (the frozen-rotor mass matrix A*, kg m²)."""
     nb = J.shape[0]
