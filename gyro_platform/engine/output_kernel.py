@@ -511,8 +511,8 @@ class OutputKernel:
         if code == NON_FINITE:
             name = COLUMN_NAMES[detail]
             raise NonFiniteOutputError(
-                f"output {name} is {out[detail]!r} at t = {t!r} s (the state is finite; an input or "
-                "effect drives the model beyond floating point there): not published", name, float(t))
+                f"output {name} is {float(out[detail])} at t = {float(t)!r} s (an input or effect drives the "
+                "model beyond floating point there): not published", name, float(t))
         # the model refused the state it was evaluated at: let it say why (same message as stepping)
         sys_ = self.system
         saved, n_rhs = sys_.seg.copy(), sys_.n_rhs

@@ -106,8 +106,16 @@ def _column_names() -> tuple[str, ...]:
     """Human name of every column (errors name the quantity by it)."""
     names = ["t"] + [f"{q}[{n}]" for q in ("gimbal_angles", "gimbal_rates", "gimbal_axial_torques")
                      for n in GIMBAL_NAMES]
+    per_rotor = ("rotor6", "rotor8", "rotor11")
     for v in VEC_NAMES:
-        names += [(f"bearing_torques[{v}]" if v in BEARING_NAMES else v) + f".{ax}" for ax in "xyz"]
+        if v in BEARING_NAMES:
+            names += [f"bearing_torques[{v}].{ax}" for ax in "xyz"]
+        elif v in ("motor_torques", "rotor_rates"):
+            names += [f"{v}[{r}]" for r in per_rotor]
+        elif v in ("mount_angles", "mount_rates"):
+            names += [f"{v}[{m}]" for m in MOUNT_NAMES]
+        else:
+            names += [f"{v}.{ax}" for ax in "xyz"]
     names += [f"platform_attitude.{c}" for c in "xyzw"] + [f"status[{s}]" for s in STATUS_NAMES]
     return tuple(names)
 
