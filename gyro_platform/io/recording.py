@@ -64,31 +64,42 @@ EXTRA_COLUMNS = {"vehicle_omega": ("vehicle_rate", AXES, "_rad_s"), "vehicle_att
 
 def csv_row(o: Outputs) -> dict[str, float]:
     """One output instant as ``column -> value`` with the units in the names (``CSV_COLUMNS``)."""
-    row: dict[str, float] = {"t_s": float(o.t)}
-    for i, g in enumerate(GIMBAL_NAMES):
-        row[g + "_rad"] = float(o.gimbal_angles[i])
-        row[g + "_rate_rad_s"] = float(o.gimbal_rates[i])
-        row[g + "_axial_torque_N_m"] = float(o.gimbal_axial_torques[i])
+    one = lambda v: None if v is None else np.asarray(v, dtype=float)[None]  # noqa: E731
+    cols = _columns(lambda name: one(getattr(o, name)), lambda b: one(o.bearing_torques.get(b)),
+                    {k: [v] for k, v in o.status.items()}, np.array([float(o.t)]))
+    return {k: float(v[0]) for k, v in cols.items()}
+
+
+def block_columns(block: Any) -> dict[str, np.ndarray]:
+    """Every instant of an ``OutputBlock`` as columns (K,): the names and order of :func:`csv_row`."""
+    return _columns(lambda name: getattr(block, name), lambda b: block.bearing_torques[:, BEARING_NAMES.index(b)],
+                    block.status, np.asarray(block.t, dtype=float))
+
+
+def _columns(field: Any, bearing: Any, status: dict, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Columns from ``field(name)`` / ``bearing(name)`` arrays (K, n) (None: absent) and ``status``."""
+    cols: dict[str, np.ndarray] = {"t_s": t}
 
     def vec(stem: str, names: tuple[str, ...], suffix: str, v: Any) -> None:
         if v is not None:
             for i, n in enumerate(names):
-                row[f"{stem}_{n}{suffix}"] = float(v[i])
+                cols[f"{stem}_{n}{suffix}" if stem else n + suffix] = v[:, i]
 
-    vec("platform_rate", AXES, "_rad_s", o.platform_rate)
-    vec("platform_attitude", QUAT, "", o.platform_attitude)
-    vec("drift_angle", AXES, "_rad", o.drift_angle)
-    vec("drift_rate", AXES, "_rad_s", o.drift_rate)
+    q, qd, tq = field("gimbal_angles"), field("gimbal_rates"), field("gimbal_axial_torques")
+    for i, g in enumerate(GIMBAL_NAMES):
+        cols[g + "_rad"], cols[g + "_rate_rad_s"], cols[g + "_axial_torque_N_m"] = q[:, i], qd[:, i], tq[:, i]
+    vec("platform_rate", AXES, "_rad_s", field("platform_rate"))
+    vec("platform_attitude", QUAT, "", field("platform_attitude"))
+    vec("drift_angle", AXES, "_rad", field("drift_angle"))
+    vec("drift_rate", AXES, "_rad_s", field("drift_rate"))
     for b in BEARING_NAMES:
-        vec(b + "_torque", AXES, "_N_m", o.bearing_torques.get(b))
-    vec("motor_torque", ROTORS, "_N_m", o.motor_torques)
-    if o.mount_angles is not None:
-        for i, n in enumerate(MOUNT_NAMES):
-            row[n + "_rad"] = float(o.mount_angles[i])
-    vec("servo_torque", AXES, "_N_m", o.servo_torque)
-    for k, v in o.status.items():
-        row[k + STATUS_SUFFIX.get(k, "")] = float(v)
-    return row
+        vec(b + "_torque", AXES, "_N_m", bearing(b))
+    vec("motor_torque", ROTORS, "_N_m", field("motor_torques"))
+    vec("", MOUNT_NAMES, "_rad", field("mount_angles"))
+    vec("servo_torque", AXES, "_N_m", field("servo_torque"))
+    for k, v in status.items():
+        cols[k + STATUS_SUFFIX.get(k, "")] = np.asarray(v, dtype=float)
+    return cols
 
 
 def columns_markdown() -> str:

@@ -42,6 +42,36 @@ class Stats:
             self._fit.add(out.t, np.asarray(out.drift_angle, float))
         self.last = out
 
+    def add_block(self, block: Any, new_segment: bool) -> None:
+        """K outputs of an ``OutputBlock`` at once (vectorised; ``new_segment``: the first of
+        them starts a new segment); the same ranges and counts as K calls of :meth:`add`."""
+        from ..io.recording import block_columns
+
+        k = len(block)
+        if k == 0:
+            return
+        self.n += k
+        for name, v in block_columns(block).items():
+            ok = np.isfinite(v)
+            bad = k - int(np.count_nonzero(ok))
+            if bad:
+                self.non_finite[name] = self.non_finite.get(name, 0) + bad
+                v = v[ok]
+                if v.size == 0:
+                    continue
+            lo, hi = float(v.min()), float(v.max())
+            if name not in self.lo or lo < self.lo[name]:
+                self.lo[name] = lo
+            if name not in self.hi or hi > self.hi[name]:
+                self.hi[name] = hi
+        if new_segment or self.last is None:
+            self._fit = LineFit()
+        d = np.asarray(block.drift_angle, dtype=float)
+        ok = np.all(np.isfinite(d), axis=1)
+        if ok.any():
+            self._fit.add_many(np.asarray(block.t, dtype=float)[ok], d[ok])
+        self.last = _Last(float(block.t[-1]), d[-1].copy())
+
     def ranges(self) -> dict[str, list[float]]:
         return {k: [self.lo[k], self.hi[k]] for k in self.lo}
 
@@ -82,11 +112,30 @@ class LineFit:
         self.sty += x * y
         self.span = x
 
+    def add_many(self, t: np.ndarray, y: np.ndarray) -> None:
+        """Points t (K,), y (K, k) at once."""
+        if self.n == 0:
+            self.t0, self.sy, self.sty = float(t[0]), np.zeros(y.shape[1]), np.zeros(y.shape[1])
+        x = t - self.t0
+        self.n += len(t)
+        self.st += float(x.sum())
+        self.stt += float(x @ x)
+        self.sy += y.sum(axis=0)
+        self.sty += x @ y
+        self.span = float(x[-1])
+
     def slope(self) -> np.ndarray | None:
         den = self.n * self.stt - self.st ** 2
         if self.n < 2 or den <= 1e-300:
             return None
         return (self.n * self.sty - self.st * self.sy) / den
+
+
+class _Last:
+    """The last output's time and drift angle (what :meth:`Stats.drift` reads)."""
+
+    def __init__(self, t: float, drift_angle: np.ndarray):
+        self.t, self.drift_angle = t, drift_angle
 
 
 class PlotSeries:
@@ -104,3 +153,23 @@ class PlotSeries:
         self.i += 1
 
 
+
+    def add_block(self, block: Any) -> None:
+        """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each (only the
+        kept ones are built as ``Outputs``)."""
+        k, j = len(block), 0
+        while j < k:
+            # next kept index >= j: i + (j - i0) with (i0 + m) % stride == 0
+            first = j + (-self.i) % self.stride
+            room = self.cap - len(self.items)
+            take = range(first, k, self.stride)[:room]
+            self.items.extend(block[int(m)] for m in take)
+            if len(self.items) >= self.cap:
+                stop = int(take[-1]) + 1            # halve after the item that filled it
+                self.i += stop - j
+                j = stop
+                self.items = self.items[::2]
+                self.stride *= 2
+            else:
+                self.i += k - j
+                j = k
