@@ -265,6 +265,9 @@ class Pipeline:
         self.slot: int | None = None        # output grid slot of the last output
         self.new_segment = True             # no output since the last (re)start
         self.errors: list[str] = []         # simulator failures (at most MAX_ERRORS)
+        self.duration: float | None = None  # s: stop at the first sample this long after the first one
+        self.t_first: float | None = None   # s: sample time of the first accepted sample
+        self.stopped = False                # the duration was reached (run_block only)
 
     def feed(self, msg: Any, receive_ns: int | None) -> Step:
         """A decoded input message (Imu/Twist/TwistStamped) received at ``receive_ns``."""
@@ -330,6 +333,14 @@ class Pipeline:
         gb = offer_block(self.gate, rb, np.asarray(receive_ns, dtype=np.int64))
         res = BlockResult(gb, np.full(len(gb), O_DROPPED, np.int8), [], [])
         acc = np.flatnonzero(gb.action != DROP)
+        if self.duration is not None and acc.size:
+            if self.t_first is None:
+                self.t_first = float(gb.t[acc[0]])
+            over = np.flatnonzero(gb.t[acc] > self.t_first + self.duration + 1e-9)
+            if over.size:                           # the rest is neither simulated nor counted
+                self.stopped = True
+                res.outcome[acc[over[0]]:] = -1
+                acc = acc[:over[0]]
         if acc.size:
             starts = np.flatnonzero(gb.action[acc] == RESET)
             bounds = np.unique(np.concatenate([[0], starts, [acc.size]]))
@@ -423,7 +434,7 @@ class Pipeline:
         """Add a block's outcomes to ``outcomes`` (new keys in the order the per-message path
         would have added them)."""
         events = []
-        for code in np.unique(res.outcome):
+        for code in np.unique(res.outcome[res.outcome >= 0]):
             hit = res.outcome == code
             events.append((float(np.argmax(hit)), OUTCOMES[code], int(np.count_nonzero(hit))))
         if res.output_failed:

@@ -169,6 +169,11 @@ class Recorder:
             self._extra[k].append(np.atleast_1d(np.asarray(v, dtype=float)).copy())
         self._cache.clear()
 
+    def extend(self, block: Any, **extra: np.ndarray) -> None:
+        """Record the K instants of an ``OutputBlock``; ``extra`` arrays (K, n)."""
+        for i in range(len(block)):
+            self.append(block[i], **{k: v[i] for k, v in extra.items()})
+
     def __len__(self) -> int:
         return len(self._outs)
 
@@ -242,11 +247,11 @@ class Recorder:
             out[k] = self.field(k)
         return out
 
-    def rows(self) -> list[dict[str, float]]:
-        """One flat row per instant: :func:`csv_row` plus the extra series (``EXTRA_COLUMNS``
-        names them; any other extra ``k`` gives columns ``k_0, k_1, …``)."""
+    def rows(self, start: int = 0) -> list[dict[str, float]]:
+        """One flat row per instant from ``start`` on: :func:`csv_row` plus the extra series
+        (``EXTRA_COLUMNS`` names them; any other extra ``k`` gives columns ``k_0, k_1, …``)."""
         rows = []
-        for i, o in enumerate(self._outs):
+        for i, o in enumerate(self._outs[start:], start):
             r = csv_row(o)
             for k, v in self._extra.items():
                 stem, names, suffix = EXTRA_COLUMNS.get(k, (k, tuple(map(str, range(len(v[i])))), ""))
@@ -259,20 +264,9 @@ class Recorder:
     def write_csv(self, path) -> Path:
         """All instants as CSV: a header of column names with their units (``CSV_COLUMNS``),
         then one row per instant (``repr`` of each float: round-trips exactly)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        rows = self.rows()
-        cols: list[str] = []
-        for r in rows:
-            for k in r:
-                if k not in cols:
-                    cols.append(k)
-        with path.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=cols)
-            w.writeheader()
-            for r in rows:
-                w.writerow({k: repr(v) for k, v in r.items()})
-        return path
+        with CsvWriter(path) as w:
+            w.write(self.rows())
+        return Path(path)
 
     def write_json(self, path, extra: dict | None = None) -> Path:
         """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
@@ -430,6 +424,77 @@ class Recorder:
             a.grid(True, alpha=0.3)
         fig.suptitle(textwrap.fill(title or "gyro_platform outputs", 100))
         return fig
+
+
+class CsvWriter:
+    """``outputs.csv`` written as the run goes: :meth:`write` appends whole rows and flushes,
+    so an interrupt, a kill or a full disk leaves a file that ends on a whole row. A failed
+    write (OSError: disk full, file too large …) cuts the file back to the last whole row and
+    raises ``OSError`` naming the file; the header (column names with units, ``CSV_COLUMNS``)
+    is the keys of the first rows (every row has the same columns). Values: ``repr`` of each
+    float (round-trips exactly)."""
+
+    def __init__(self, path: Any):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = self.path.open("w", newline="")
+        self.cols: list[str] | None = None
+        self.rows_written = 0
+        self._good = 0                  # file size after the last whole row
+
+    def write(self, rows: list[dict[str, float]]) -> None:
+        """Append ``rows`` (dicts column -> float) and flush."""
+        if not rows:
+            return
+        import io
+
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        if self.cols is None:
+            self.cols = list(rows[0])
+            w.writerow(self.cols)
+        for r in rows:
+            if len(r) != len(self.cols) or r.keys() != set(self.cols):
+                raise ValueError(f"{self.path}: row columns differ from the header: {sorted(set(r) ^ set(self.cols))}")
+            w.writerow([repr(r[k]) for k in self.cols])
+        try:
+            self._fh.write(buf.getvalue())
+            self._fh.flush()
+        except BaseException as e:      # disk full, file size limit, a second Ctrl-C …
+            self._cut()
+            if isinstance(e, OSError):
+                raise OSError(e.errno, f"{e.strerror or e} (writing {self.path}; it ends on row "
+                                       f"{self.rows_written})") from None
+            raise
+        self._good = self._fh.tell()
+        self.rows_written += len(rows)
+
+    def _cut(self) -> None:
+        """Back to the last whole row (a truncate needs no free space)."""
+        import os
+
+        try:
+            os.ftruncate(self._fh.fileno(), self._good)
+        except OSError:
+            pass
+        try:
+            self._fh.close()
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            try:
+                self._fh.close()
+            except OSError:
+                self._cut()
+                raise
+
+    def __enter__(self) -> "CsvWriter":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
 
 def _jsonable(x: Any) -> Any:
