@@ -287,16 +287,20 @@ def test_plot_series_blocks_keep_the_same_items(cap, sizes):
 def test_signal_stops_at_a_chunk_boundary_with_consistent_counts(tmp_path, sig):
     rows = faulty_stream(30.0)
     bag = write_bag(tmp_path / "in", rows, "sqlite3")
+    # an expensive model (rk4, 100 substeps per 1 ms sample) keeps the replay running for a while
+    scene = tmp_path / "slow.yaml"
+    scene.write_text("name: slow\nmode: stabilised\nintegrator: rk4\nmax_step: 1.0e-5\nduration: 30.0\n"
+                     "sample_rate: 100.0\noutput_rate: 100.0\nmotion: {type: constant, omega: [0.0, 0.0, 0.1]}\n")
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "gyro_platform", "replay", str(bag), "--out", str(out),
-                             "--quiet", "--no-plot", "--output-rate", "100"], cwd=ROOT, env=env,
+                             "--quiet", "--no-plot", "--scene", str(scene)], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     summary = Path(str(out) + ".summary.json")
     deadline = time.monotonic() + 120
-    while not (out / "metadata.yaml").exists() and not any(out.glob("*")) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    time.sleep(0.3)
+    while not any(out.glob("*")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    time.sleep(2.0)                                                       # into the loop
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=300)
     if proc.returncode == 0:
