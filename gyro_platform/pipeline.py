@@ -17,8 +17,9 @@ Times: ns (int) on the input's time base; rates in Hz.
 """
 from __future__ import annotations
 
+import copy
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -238,6 +239,23 @@ class BlockResult:
         return sum(len(r.rows) for r in self.outputs)
 
 
+class _Refused(Exception):
+    """The simulator refused row ``row`` of a block (the gate must be told)."""
+
+    def __init__(self, row: int):
+        self.row = row
+
+
+def _concat_results(parts: list[tuple[int, BlockResult]]) -> BlockResult:
+    """One BlockResult of consecutive parts ``(first row, result)``."""
+    gbs = [r.gate for _, r in parts]
+    arrays = {f.name: np.concatenate([getattr(g, f.name) for g in gbs]) for f in fields(gbs[0])
+              if isinstance(getattr(gbs[0], f.name), np.ndarray)}
+    return BlockResult(replace(gbs[0], **arrays), np.concatenate([r.outcome for _, r in parts]),
+                       [replace(o, rows=o.rows + a) for a, r in parts for o in r.outputs],
+                       [i + a for a, r in parts for i in r.output_failed])
+
+
 @dataclass(frozen=True, slots=True)
 class Step:
     """What one input did: the gate's ``decision``, the simulator's ``outcome`` (see
@@ -268,6 +286,7 @@ class Pipeline:
         self.duration: float | None = None  # s: stop at the first sample this long after the first one
         self.t_first: float | None = None   # s: sample time of the first accepted sample
         self.stopped = False                # the duration was reached (run_block only)
+        self._refusable = False             # a refused row ends the block part (gate.refuse)
 
     def feed(self, msg: Any, receive_ns: int | None) -> Step:
         """A decoded input message (Imu/Twist/TwistStamped) received at ``receive_ns``."""
@@ -329,9 +348,42 @@ class Pipeline:
         """N decoded rows (a rotated RateBlock) received at ``receive_ns`` (int64 ns): one
         ``offer_block``, then one ``push_block`` per run of accepted rows (a RESET starts a run:
         new time base, new output grid segment) with the output indices of the grid; the same
-        decisions, outcomes and outputs as :meth:`feed` on each message (the reference)."""
-        gb = offer_block(self.gate, rb, np.asarray(receive_ns, dtype=np.int64))
-        res = BlockResult(gb, np.full(len(gb), O_DROPPED, np.int8), [], [])
+        decisions, outcomes and outputs as :meth:`feed` on each message (the reference).
+
+        A sample the simulator refuses (``rejected``) is handed back to the gate when it can
+        take it back (``TimeGate.refuse``): the gate is rewound to before the block, judges the
+        rows up to that one again, is told, and the rows after it are judged anew."""
+        rx = np.asarray(receive_ns, dtype=np.int64)
+        refuse = getattr(self.gate, "refuse", None)
+        parts: list[tuple[int, BlockResult]] = []
+        a, n = 0, len(rx)
+        while a < n or not parts:
+            part = rate_rows(rb, a, n)
+            saved = copy.deepcopy(self.gate) if refuse is not None else None
+            res = BlockResult(offer_block(self.gate, part, rx[a:]), np.full(n - a, O_DROPPED, np.int8), [], [])
+            try:
+                self._simulate(res, part, refuse is not None)
+            except _Refused as r:
+                j = r.row
+                vars(self.gate).update(vars(saved))   # rewind, judge rows 0..j again, then tell
+                res.gate = offer_block(self.gate, rate_rows(part, 0, j + 1), rx[a:a + j + 1])
+                refuse("the simulator refused the sample")
+                res.gate.action[j] = DROP
+                if "refused" in ALL_REASONS:
+                    res.gate.reason[j] = ALL_REASONS.index("refused")
+                res.outcome = res.outcome[:j + 1]
+                parts.append((a, res))
+                a += j + 1
+                continue
+            parts.append((a, res))
+            break
+        res = parts[0][1] if len(parts) == 1 else _concat_results(parts)
+        self._count(res)
+        return res
+
+    def _simulate(self, res: BlockResult, rb: Any, refusable: bool) -> None:
+        """The accepted rows of a gated block through the simulator, run by run."""
+        gb = res.gate
         acc = np.flatnonzero(gb.action != DROP)
         if self.duration is not None and acc.size:
             if self.t_first is None:
@@ -341,14 +393,12 @@ class Pipeline:
                 self.stopped = True
                 res.outcome[acc[over[0]]:] = -1
                 acc = acc[:over[0]]
+        self._refusable = refusable
         if acc.size:
             starts = np.flatnonzero(gb.action[acc] == RESET)
             bounds = np.unique(np.concatenate([[0], starts, [acc.size]]))
             for a, b in zip(bounds[:-1], bounds[1:]):
                 self._run(acc[a:b], rb, res)
-        self._count(res)
-        return res
-
 
     def _emits(self, stamps: np.ndarray, last: int | None) -> tuple[np.ndarray, np.ndarray | None]:
         """(emit (N,), grid slot after each row or None without a rate) for pushed rows."""
@@ -415,6 +465,8 @@ class Pipeline:
             sample = RateSample(float(gb.t[i]), rb.omega[i].copy(), rb.force[i].copy() if rb.has_force[i] else None)
             outcome = apply_decision(self.sim, Decision(action, ALL_REASONS[gb.reason[i]], sample, stamp))
             res.outcome[i] = OUTCOMES.index(outcome)
+            if outcome == "rejected" and self._refusable:
+                raise _Refused(i)
             if outcome in ("reset", "restarted"):
                 self.slot, self.new_segment = None, True
             if outcome == "restarted":
