@@ -40,7 +40,7 @@ from .io.messages import Mounting, Rejected
 # io.encode, write_many = OutputBag.write_many, copy_chunk = OutputBag.copy_chunk.
 from ._shims import (ACCEPT, ALL_REASONS, DROP, RESET, GateBlock, OutputBlock, RateBlock,  # noqa: F401
                      RowChunk, bag_chunks, copy_chunk, decode_rates, encode_outputs, offer_block,
-                     push_block, rotate_block, write_many)
+                     push_block, reading_of, rotate_block, write_many)
 
 #: outcomes of :func:`apply_decision` after which the simulator holds a new instant
 ADVANCED = ("pushed", "reset", "restarted")
@@ -365,8 +365,12 @@ class Pipeline:
                 self._simulate(res, part, refuse is not None)
             except _Refused as r:
                 j = r.row
-                vars(self.gate).update(vars(saved))   # rewind, judge rows 0..j again, then tell
+                # rewind, judge rows 0..j again (row j by the scalar offer, which refuse undoes)
+                vars(self.gate).update(vars(copy.deepcopy(saved)))
                 res.gate = offer_block(self.gate, rate_rows(part, 0, j + 1), rx[a:a + j + 1])
+                vars(self.gate).update(vars(saved))
+                offer_block(self.gate, rate_rows(part, 0, j), rx[a:a + j])
+                self.gate.offer(reading_of(part, j), int(rx[a + j]))
                 refuse("the simulator refused the sample")
                 res.gate.action[j] = DROP
                 if "refused" in ALL_REASONS:
