@@ -312,7 +312,10 @@ def encode_outputs(block: OutputBlock, stamps_ns: np.ndarray, namespace: str = "
 
 # ---- io/bag_writer.py (H4) -----------------------------------------------------------------
 def write_many(out: Any, out_conn: Any, ts: np.ndarray, raws: list) -> None:
-    """``OutputBag.write_many``: ``write_raw`` per row."""
+    """``OutputBag.write_many``: ``write_raw`` per row (``out_conn``: a connection or an
+    output topic's name)."""
+    if isinstance(out_conn, str):
+        out_conn = out._outs[out_conn]
     for t, raw in zip(ts, raws):
         out.write_raw(out_conn, int(t), raw)
 

@@ -317,3 +317,17 @@ def test_signal_stops_at_a_chunk_boundary_with_consistent_counts(tmp_path, sig):
     got = by_topic(out)                                                   # closed and readable
     assert len(got["/gimbal/joint_states"]) == c["out"] == s["output"]["outputs"]
     assert len(got["/imu"]) == c["in"] and len(got["/imu"]) + len(got["/odom_twist"]) == s["input"]["messages"]
+
+
+def test_nothing_simulated_is_said_in_the_summary(tmp_path):
+    """Every sample reaches the simulator without the specific force an effect needs: none
+    can be simulated; the summary says so (``no_usable_input``, a warning), no outputs."""
+    rows = [(T0 + i * S // 100, imu(T0 + i * S // 100, (0.0, 0.0, 0.1), cov_a=-1.0)) for i in range(50)]
+    bag = write_bag(tmp_path / "in", rows)
+    opts = ModelOptions(effects=frozenset(ModelOptions().effects) | {"mass_unbalance"})
+    res = both(bag, tmp_path, output_rate=None, options=opts)
+    s = res["chunked"][0]
+    assert s["no_usable_input"] is True and s["simulated"] == 0 and s["counts"]["out"] == 0
+    assert s["warnings"] and ("could be simulated" in s["warnings"][0] or "accepted" in s["warnings"][0])
+    assert "/gimbal/joint_states" not in res["chunked"][1]
+    assert_same(res)

@@ -227,7 +227,7 @@ class _Run:
         block = run.block
         ts = rx[run.rows]
         for topic, raws in encode_outputs(block, gb.stamp_ns[run.rows], self.cfg.namespace):
-            write_many(self.out, self.out._outs[topic], ts, raws)
+            write_many(self.out, topic, ts, raws)
         self.n_out += len(block)
         self.stats.add_block(block, run.new_segment)
         self.series.add_block(block)
