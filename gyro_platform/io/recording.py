@@ -266,7 +266,10 @@ class Recorder:
         then one row per instant (``repr`` of each float: round-trips exactly)."""
         with CsvWriter(path) as w:
             w.write(self.rows())
-        return Path(path)
+        if w.rows_written == 0:                 # no instant: an empty file
+            w.path.parent.mkdir(parents=True, exist_ok=True)
+            w.path.write_text("")
+        return w.path
 
     def write_json(self, path, extra: dict | None = None) -> Path:
         """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
@@ -430,14 +433,14 @@ class CsvWriter:
     """``outputs.csv`` written as the run goes: :meth:`write` appends whole rows and flushes,
     so an interrupt, a kill or a full disk leaves a file that ends on a whole row. A failed
     write (OSError: disk full, file too large …) cuts the file back to the last whole row and
-    raises ``OSError`` naming the file; the header (column names with units, ``CSV_COLUMNS``)
+    raises ``OSError`` naming the file; the file (and its folder) is made at the first rows;
+    the header (column names with units, ``CSV_COLUMNS``)
     is the keys of the first rows (every row has the same columns). Values: ``repr`` of each
     float (round-trips exactly)."""
 
     def __init__(self, path: Any):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = self.path.open("w", newline="")
+        self._fh: Any = None            # opened (folder made) at the first rows: nothing before
         self.cols: list[str] | None = None
         self.rows_written = 0
         self._good = 0                  # file size after the last whole row
@@ -447,6 +450,10 @@ class CsvWriter:
         if not rows:
             return
         import io
+
+        if self._fh is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = self.path.open("w", newline="")
 
         buf = io.StringIO()
         w = csv.writer(buf)
@@ -483,7 +490,7 @@ class CsvWriter:
             pass
 
     def close(self) -> None:
-        if not self._fh.closed:
+        if self._fh is not None and not self._fh.closed:
             try:
                 self._fh.close()
             except OSError:
