@@ -266,21 +266,42 @@ def test_line_fit_many_equals_streaming():
     assert b.slope() == pytest.approx([2.5, -1.0, 0.0], abs=0.01)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.integers(2, 9), st.lists(st.integers(0, 40), max_size=12))
 def test_plot_series_blocks_keep_the_same_items(cap, sizes):
-    class Block(list):
-        pass
+    """PlotSeries.add_block keeps the outputs K calls of add keep (thinned, bounded)."""
+    from gyro_platform._shims import OutputBlock
 
+    outs = _outputs(sum(sizes))
     a, b, n = PlotSeries(cap), PlotSeries(cap), 0
     for k in sizes:
-        blk = Block(range(n, n + k))
+        for o in outs[n:n + k]:
+            a.add(o)
+        if k:
+            b.add_block(OutputBlock.stack(outs[n:n + k]))
         n += k
-        for x in blk:
-            a.add(x)
-        b.add_block(blk)
-        assert (a.items, a.stride, a.i) == (b.items, b.stride, b.i)
+        assert (a.stride, a.i, len(a.items)) == (b.stride, b.i, len(b.items))
+        assert [o.t for o in b.outputs()] == [o.t for o in a.outputs()]
+        assert all(np.array_equal(x.bearing_torques["gimbal5"], y.bearing_torques["gimbal5"])
+                   and x.status == y.status for x, y in zip(a.outputs(), b.outputs()))
     assert len(b.items) < cap
+
+
+_OUTS: list = []
+
+
+def _outputs(n: int) -> list:
+    """n distinct outputs of a real simulator (cached)."""
+    from gyro_platform.engine.inputs import RateSample
+    from gyro_platform.engine.simulator import Simulator
+
+    if len(_OUTS) < n:
+        sim = Simulator()
+        _OUTS.clear()
+        for i in range(max(n, 500)):
+            sim.push(RateSample.of(i * 0.01, vehicle_rate(i * 0.01)))
+            _OUTS.append(sim.outputs())
+    return _OUTS[:n]
 
 
 # ---- interrupts: what is counted is what was simulated --------------------------------------

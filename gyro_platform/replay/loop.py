@@ -3,8 +3,10 @@
 Every input message is copied to the output bag (same record time); the input topic goes
 through :class:`~gyro_platform.pipeline.Pipeline` (gate → simulator → output grid) and the
 outputs are written with the receive time of the message that produced them; ``/diagnostics``
-runs on the receive clock. One message in memory at a time. Progress: ``tqdm`` on stderr, shown
-only on a terminal.
+runs on the receive clock. ``engine="chunked"`` (default): chunks of rows, one gate block and
+one ``push_block`` per run of accepted rows (``Pipeline.run_block``), one chunk in memory at a
+time; ``engine="per_message"``: the reference, one message at a time. Progress: ``tqdm`` on
+stderr, shown only on a terminal. SIGINT/SIGTERM end the loop at a chunk boundary.
 """
 from __future__ import annotations
 
@@ -84,6 +86,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
         if bag.salvaged:
             print(f"gyro-platform replay: warning: {in_bag}: {bag.damage}; salvaging the readable messages",
                   file=sys.stderr)
+        for w in getattr(bag, "warnings", []):      # skipped channels, foreign MCAP, other input types
+            print(f"gyro-platform replay: warning: {w}", file=sys.stderr)
         out_topics = msgs.output_topics(cfg.namespace)
         # /diagnostics is shared by every node (status names tell them apart): no clash there
         clash = sorted({c.topic for c in bag.connections
@@ -312,6 +316,8 @@ class _Run:
             "input": {"bag": str(in_bag), "storage": self.bag.storage, "topic": self.bag.topic,
                       "type": self.bag.msgtype, "messages": self.n_msgs, "topic_messages": self.n_in,
                       "salvaged": self.bag.salvaged, "damage": self.bag.damage,
+                      **{k: getattr(self.bag, k) for k in ("skipped_channels", "skipped_input", "foreign",
+                                                           "chunk_source", "warnings") if hasattr(self.bag, k)},
                       "time_source": snap["time_source"]},
             "output": {"bag": str(out_bag), "storage": self.out.storage, "version": 9,
                        "messages": sum(self.out.counts.values()), "messages_by_topic": dict(self.out.counts),
@@ -364,7 +370,7 @@ class _Run:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
             return None, {"unavailable": str(e)}
         rec = Recorder()
-        for o in self.series.items:
+        for o in self.series.outputs():
             rec.append(o)
         try:
             rec.plot(path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "

@@ -139,7 +139,9 @@ class _Last:
 
 
 class PlotSeries:
-    """At most ``cap`` outputs, evenly thinned (stride doubles when full): bounded memory."""
+    """At most ``cap`` outputs, evenly thinned (stride doubles when full): bounded memory.
+    ``items``: ``Outputs`` (:meth:`add`) or ``(block, row)`` of a thinned copy of an
+    ``OutputBlock`` (:meth:`add_block`); :meth:`outputs` gives them all as ``Outputs``."""
 
     def __init__(self, cap: int = PLOT_POINTS):
         self.cap, self.stride, self.i, self.items = cap, 1, 0, []
@@ -152,18 +154,16 @@ class PlotSeries:
                 self.stride *= 2
         self.i += 1
 
-
-
     def add_block(self, block: Any) -> None:
-        """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each (only the
-        kept ones are built as ``Outputs``)."""
+        """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each; the kept
+        rows are copied out of the block at once (one fancy index per field)."""
         k, j = len(block), 0
+        mark = object()
         while j < k:
-            # next kept index >= j: i + (j - i0) with (i0 + m) % stride == 0
-            first = j + (-self.i) % self.stride
+            first = j + (-self.i) % self.stride     # the next index whose count is a multiple of the stride
             room = self.cap - len(self.items)
             take = range(first, k, self.stride)[:room]
-            self.items.extend(block[int(m)] for m in take)
+            self.items.extend((mark, int(m)) for m in take)
             if len(self.items) >= self.cap:
                 stop = int(take[-1]) + 1            # halve after the item that filled it
                 self.i += stop - j
@@ -173,3 +173,26 @@ class PlotSeries:
             else:
                 self.i += k - j
                 j = k
+        pos = [n for n, it in enumerate(self.items) if type(it) is tuple and it[0] is mark]
+        if pos:
+            sub = take_rows(block, np.array([self.items[n][1] for n in pos], dtype=np.int64))
+            for r, n in enumerate(pos):
+                self.items[n] = (sub, r)
+
+    def outputs(self) -> list[Any]:
+        """The kept outputs as ``Outputs``, in order."""
+        return [it[0][it[1]] if type(it) is tuple else it for it in self.items]
+
+
+#: the per-instant array fields of an OutputBlock (first axis K; ``rotor_rates`` is not one)
+BLOCK_FIELDS = ("t", "gimbal_angles", "gimbal_rates", "gimbal_axial_torques", "platform_rate",
+                "platform_attitude", "drift_angle", "drift_rate", "bearing_torques", "motor_torques",
+                "mount_angles", "mount_rates", "servo_torque")
+
+
+def take_rows(block: Any, idx: np.ndarray) -> Any:
+    """Rows ``idx`` of an ``OutputBlock`` (a copy; the contract's fields)."""
+    from dataclasses import replace
+
+    arrays = {f: None if getattr(block, f) is None else np.asarray(getattr(block, f))[idx] for f in BLOCK_FIELDS}
+    return replace(block, **arrays, status={k: np.asarray(v)[idx] for k, v in block.status.items()})
