@@ -17,10 +17,13 @@ Times: ns (int) on the input's time base; rates in Hz.
 """
 from __future__ import annotations
 
+import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Iterable, Iterator
+
+import numpy as np
 
 from .engine.inputs import RateSample
 from .errors import InputError, SimulationError
@@ -28,6 +31,23 @@ from .io import messages as msgs
 from .io.bag_reader import InputBag
 from .io.gate import NS, Action, Decision, TimeGate
 from .io.messages import Mounting, Rejected
+
+# ---- the chunked path's pieces, from their rooms (one place to see them)
+from .engine.outputs import OutputBlock  # noqa: F401
+from .io.bag_writer import OutputBag
+from .io.decode import decode_rates
+from .io.gate import ALL_REASONS, DROP, RESET, reading_of
+
+offer_block = TimeGate.offer_block
+rotate_block = Mounting.rotate_block
+bag_chunks = InputBag.chunks
+write_many = OutputBag.write_many
+copy_chunk = OutputBag.copy_chunk
+
+
+def push_block(sim: Any, t: Any, omega: Any, force: Any, out_idx: Any) -> Any:
+    """``sim.push_block(t, omega, force, out_idx)`` (see ``Simulator.push_block``)."""
+    return sim.push_block(t, omega, force, out_idx)
 
 #: outcomes of :func:`apply_decision` after which the simulator holds a new instant
 ADVANCED = ("pushed", "reset", "restarted")
@@ -131,6 +151,80 @@ def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int) -> str:
 
 
 
+# ---- the chunked path: blocks of rows through gate, simulator and output grid ------------------
+#: per-row outcome codes of a block; the names are the keys of ``Pipeline.outcomes``
+OUTCOMES = ("dropped", "pushed", "reset", "rejected", "restarted")
+O_DROPPED, O_PUSHED, O_RESET, O_REJECTED, O_RESTARTED = range(len(OUTCOMES))
+_NO_SLOT = np.iinfo(np.int64).min
+MAX_ERRORS = 100                    # simulator error messages kept by a Pipeline
+
+
+def grid_indices(t_ns: np.ndarray, origin_ns: int, rate: float) -> np.ndarray:
+    """:func:`grid_index` of every stamp (int64; the same float operations, so the same slots)."""
+    d = (np.asarray(t_ns, dtype=np.int64) - np.int64(origin_ns)).astype(np.float64)
+    return np.floor(d * 1e-9 * rate + 1e-9).astype(np.int64)
+
+
+def new_slots(slots: np.ndarray, last: int | None) -> np.ndarray:
+    """Rows whose slot is beyond every slot before them (and ``last``, None = none): where a
+    grid on these slots emits (bool (N,))."""
+    run = np.maximum.accumulate(np.concatenate([[_NO_SLOT if last is None else last], slots]))
+    return slots > run[:-1]
+
+
+def rate_rows(rb: Any, a: int, b: int) -> Any:
+    """Rows ``a:b`` of a RateBlock (the contract's fields; ``detail`` renumbered)."""
+    if a == 0 and b == len(rb.stamp_ns):
+        return rb
+    cut = lambda v: None if v is None else v[a:b]  # noqa: E731
+    return replace(rb, stamp_ns=rb.stamp_ns[a:b], has_header=rb.has_header[a:b], frame_id=rb.frame_id[a:b],
+                   omega=rb.omega[a:b], force=rb.force[a:b], has_force=rb.has_force[a:b], reject=rb.reject[a:b],
+                   detail={r - a: d for r, d in rb.detail.items() if a <= r < b}, identity=cut(rb.identity))
+
+
+@dataclass
+class RunOutputs:
+    """Outputs of one run of a block: ``rows`` (K,) indices into the block's rows, ``block``
+    (K outputs), ``new_segment``: the first of them is the first output after a reset."""
+
+    rows: np.ndarray
+    block: Any
+    new_segment: bool
+
+
+@dataclass
+class BlockResult:
+    """What :meth:`Pipeline.run_block` did with N rows: the gate's decisions, the simulator's
+    outcome per row (index into :data:`OUTCOMES`), the outputs taken (in row order) and the
+    rows whose outputs failed (counted as ``output_failed``)."""
+
+    gate: Any
+    outcome: np.ndarray
+    outputs: list[RunOutputs]
+    output_failed: list[int]
+
+    @property
+    def n_outputs(self) -> int:
+        return sum(len(r.rows) for r in self.outputs)
+
+
+class _Refused(Exception):
+    """The simulator refused row ``row`` of a block (the gate must be told)."""
+
+    def __init__(self, row: int):
+        self.row = row
+
+
+def _concat_results(parts: list[tuple[int, BlockResult]]) -> BlockResult:
+    """One BlockResult of consecutive parts ``(first row, result)``."""
+    gbs = [r.gate for _, r in parts]
+    arrays = {f.name: np.concatenate([getattr(g, f.name) for g in gbs]) for f in fields(gbs[0])
+              if isinstance(getattr(gbs[0], f.name), np.ndarray)}
+    return BlockResult(replace(gbs[0], **arrays), np.concatenate([r.outcome for _, r in parts]),
+                       [replace(o, rows=o.rows + a) for a, r in parts for o in r.outputs],
+                       [i + a for a, r in parts for i in r.output_failed])
+
+
 @dataclass(slots=True)
 class Step:
     """What one input did: the gate's ``decision``, the simulator's ``outcome`` (see
@@ -156,6 +250,12 @@ class Pipeline:
         self.mounting = mounting or Mounting()
         self.outcomes: dict[str, int] = {}
         self.slot: int | None = None        # output grid slot of the last output
+        self.new_segment = True             # no output since the last (re)start
+        self.errors: list[str] = []         # simulator failures (at most MAX_ERRORS)
+        self.duration: float | None = None  # s: stop at the first sample this long after the first one
+        self.t_first: float | None = None   # s: sample time of the first accepted sample
+        self.stopped = False                # the duration was reached (run_block only)
+        self._refusable = False             # a refused row ends the block part (gate.refuse)
 
     def feed(self, msg: Any, receive_ns: int | None) -> Step:
         """A decoded input message (Imu/Twist/TwistStamped) received at ``receive_ns``."""
@@ -172,7 +272,7 @@ class Pipeline:
         if outcome == "rejected":       # the gate must not keep a time the simulator refused
             self.gate.refuse("the simulator refused the sample")
         if outcome in ("reset", "restarted"):
-            self.slot = None
+            self.slot, self.new_segment = None, True
         return Step(decision, outcome, outcome in ADVANCED and self.due(decision.stamp_ns))
 
     def due(self, stamp_ns: int) -> bool:
@@ -190,3 +290,186 @@ class Pipeline:
         """:meth:`feed` every ``(message, receive_ns)`` of ``stream``, one step per message."""
         for msg, receive_ns in stream:
             yield self.feed(msg, receive_ns)
+
+
+    # ---- the chunked path ------------------------------------------------------------------
+    def decode(self, bag: InputBag, chunk: Any) -> Iterator[tuple[np.ndarray, Any]]:
+        """The input rows of a RowChunk (``bag``'s input topic), decoded and rotated into base_link:
+        ``(rows into the chunk, RateBlock)`` per run of rows of one connection."""
+        conns = {c.id: c for c in bag.connections if bag.is_input(c)}
+        rows = np.flatnonzero(np.isin(chunk.conn_id, np.fromiter(conns, np.int64, len(conns))))
+        if rows.size == 0:
+            return
+        ids = chunk.conn_id[rows]
+        cuts = np.flatnonzero(ids[1:] != ids[:-1]) + 1
+        for part in np.split(rows, cuts):
+            conn = conns[int(chunk.conn_id[part[0]])]
+            rb = decode_rates(conn.msgtype, [chunk.raws[i] for i in part], bag.store_for(conn))
+            yield part, rotate_block(self.mounting, rb)
+
+
+    def run_chunk(self, bag: InputBag, chunk: Any) -> Iterator[tuple[np.ndarray, Any, BlockResult]]:
+        """A RowChunk's input rows through gate and simulator: ``(rows into the chunk, RateBlock,
+        BlockResult)`` per :meth:`decode` part (the receive times are the chunk's record times)."""
+        for rows, rb in self.decode(bag, chunk):
+            yield rows, rb, self.run_block(rb, chunk.ts[rows])
+
+
+    def run_block(self, rb: Any, receive_ns: np.ndarray) -> BlockResult:
+        """N decoded rows (a rotated RateBlock) received at ``receive_ns`` (int64 ns): one
+        ``offer_block``, then one ``push_block`` per run of accepted rows (a RESET starts a run:
+        new time base, new output grid segment) with the output indices of the grid; the same
+        decisions, outcomes and outputs as :meth:`feed` on each message (the reference).
+
+        A sample the simulator refuses (``rejected``) is handed back to the gate when it can
+        take it back (``TimeGate.refuse``): the gate is rewound to before the block, judges the
+        rows up to that one again, is told, and the rows after it are judged anew."""
+        rx = np.asarray(receive_ns, dtype=np.int64)
+        refuse = getattr(self.gate, "refuse", None)
+        parts: list[tuple[int, BlockResult]] = []
+        a, n = 0, len(rx)
+        while a < n or not parts:
+            part = rate_rows(rb, a, n)
+            saved = copy.deepcopy(self.gate) if refuse is not None else None
+            res = BlockResult(offer_block(self.gate, part, rx[a:]), np.full(n - a, O_DROPPED, np.int8), [], [])
+            try:
+                self._simulate(res, part, refuse is not None)
+            except _Refused as r:
+                j = r.row
+                # rewind, judge rows 0..j again (row j by the scalar offer, which refuse undoes)
+                vars(self.gate).update(vars(copy.deepcopy(saved)))
+                res.gate = offer_block(self.gate, rate_rows(part, 0, j + 1), rx[a:a + j + 1])
+                vars(self.gate).update(vars(saved))
+                offer_block(self.gate, rate_rows(part, 0, j), rx[a:a + j])
+                self.gate.offer(reading_of(part, j), int(rx[a + j]))
+                refuse("the simulator refused the sample")
+                res.gate.action[j] = DROP
+                if "refused" in ALL_REASONS:
+                    res.gate.reason[j] = ALL_REASONS.index("refused")
+                res.outcome = res.outcome[:j + 1]
+                parts.append((a, res))
+                a += j + 1
+                continue
+            parts.append((a, res))
+            break
+        res = parts[0][1] if len(parts) == 1 else _concat_results(parts)
+        self._count(res)
+        return res
+
+    def _simulate(self, res: BlockResult, rb: Any, refusable: bool) -> None:
+        """The accepted rows of a gated block through the simulator, run by run."""
+        gb = res.gate
+        acc = np.flatnonzero(gb.action != DROP)
+        if self.duration is not None and acc.size:
+            if self.t_first is None:
+                self.t_first = float(gb.t[acc[0]])
+            over = np.flatnonzero(gb.t[acc] > self.t_first + self.duration + 1e-9)
+            if over.size:                           # the rest is neither simulated nor counted
+                self.stopped = True
+                res.outcome[acc[over[0]]:] = -1
+                acc = acc[:over[0]]
+        self._refusable = refusable
+        if acc.size:
+            starts = np.flatnonzero(gb.action[acc] == RESET)
+            bounds = np.unique(np.concatenate([[0], starts, [acc.size]]))
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                self._run(acc[a:b], rb, res)
+
+    def _emits(self, stamps: np.ndarray, last: int | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """(emit (N,), grid slot after each row or None without a rate) for pushed rows."""
+        rate = self.output_rate
+        if rate is None or rate <= 0:
+            return np.ones(len(stamps), bool), None
+        s = grid_indices(stamps, self.gate.origin_ns or 0, rate)
+        emit = new_slots(s, last)
+        return emit, np.maximum.accumulate(np.concatenate([[_NO_SLOT if last is None else last], s]))[1:]
+
+
+    def _run(self, rows: np.ndarray, rb: Any, res: BlockResult) -> None:
+        """One run of accepted rows (only ``rows[0]`` may be a RESET) through ``push_block``;
+        a failing sample goes the per-message way (:func:`apply_decision`: reset, push again)."""
+        gb = res.gate
+        has_f = rb.has_force[rows]
+        if has_f.any() and not has_f.all():             # a force on some rows only: rare, per message
+            return self._scalar(rows, rb, res)
+        with_f = bool(has_f.all())
+        start = 0
+        while start < len(rows):
+            r = rows[start:]
+            first_reset = start == 0 and gb.action[r[0]] == RESET
+            if first_reset:
+                self.sim.reset()
+            emit, slots = self._emits(gb.stamp_ns[r], None if first_reset else self.slot)
+            out_idx = np.flatnonzero(emit)
+            try:
+                block = push_block(self.sim, gb.t[r], rb.omega[r], rb.force[r] if with_f else None, out_idx)
+                n_done, failed = len(r), None
+            except InputError:                          # refused before touching the state
+                return self._scalar(r, rb, res)
+            except SimulationError as e:
+                block, n_done, failed = e.block, e.n_done, e
+            if n_done:
+                res.outcome[r[:n_done]] = O_PUSHED
+                if first_reset:
+                    res.outcome[r[0]] = O_RESET
+                    self.slot, self.new_segment = None, True
+                if slots is not None:
+                    self.slot = int(slots[n_done - 1])
+            if len(block):
+                res.outputs.append(RunOutputs(r[out_idx[:len(block)]], block, self.new_segment))
+                self.new_segment = False
+            if failed is None:
+                return
+            if len(block) < np.count_nonzero(out_idx < n_done):   # the outputs at r[n_done - 1] failed
+                i = int(r[n_done - 1])
+                res.output_failed.append(i)
+                self._error(f"t={int(gb.stamp_ns[i])}: outputs failed: {failed}")
+                start += n_done
+            else:                                       # the integration to r[n_done] failed
+                self._scalar(r[n_done:n_done + 1], rb, res)
+                start += n_done + 1
+
+
+    def _scalar(self, rows: np.ndarray, rb: Any, res: BlockResult) -> None:
+        """Rows one by one as the per-message path does (apply_decision, due, outputs())."""
+        gb = res.gate
+        for i in rows:
+            i = int(i)
+            stamp = int(gb.stamp_ns[i])
+            action = Action.RESET if gb.action[i] == RESET else Action.ACCEPT
+            sample = RateSample(float(gb.t[i]), rb.omega[i].copy(), rb.force[i].copy() if rb.has_force[i] else None)
+            outcome = apply_decision(self.sim, Decision(action, ALL_REASONS[gb.reason[i]], sample, stamp))
+            res.outcome[i] = OUTCOMES.index(outcome)
+            if outcome == "rejected" and self._refusable:
+                raise _Refused(i)
+            if outcome in ("reset", "restarted"):
+                self.slot, self.new_segment = None, True
+            if outcome == "restarted":
+                self._error(f"t={stamp}: integration failed, simulator restarted")
+            if outcome in ADVANCED and self.due(stamp):
+                try:
+                    o = self.sim.outputs()
+                except SimulationError as e:
+                    res.output_failed.append(i)
+                    self._error(f"t={stamp}: outputs failed: {e}")
+                    continue
+                res.outputs.append(RunOutputs(np.array([i]), OutputBlock.stack([o]), self.new_segment))
+                self.new_segment = False
+
+
+    def _count(self, res: BlockResult) -> None:
+        """Add a block's outcomes to ``outcomes`` (new keys in the order the per-message path
+        would have added them)."""
+        events = []
+        for code in np.unique(res.outcome[res.outcome >= 0]):
+            hit = res.outcome == code
+            events.append((float(np.argmax(hit)), OUTCOMES[code], int(np.count_nonzero(hit))))
+        if res.output_failed:
+            events.append((res.output_failed[0] + 0.5, "output_failed", len(res.output_failed)))
+        for _, key, n in sorted(events):
+            self.outcomes[key] = self.outcomes.get(key, 0) + n
+
+
+    def _error(self, text: str) -> None:
+        if len(self.errors) < MAX_ERRORS:
+            self.errors.append(text)

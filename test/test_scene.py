@@ -392,3 +392,135 @@ def test_cli_run_exit_status_on_failed_expectation_and_bad_scene(tmp_path, capsy
     p.write_text(QUICK.replace("mode: carried", "mode: hovering"))
     assert cli.main(["run", str(p), "--no-files"]) == 2
     assert "mode: expected one of" in capsys.readouterr().err
+
+
+# ---- runs in chunks: the output grid after a loop, the CSV under interrupts and full disks ----
+def _looped_bag(path: Path) -> Path:
+    """2 s of 100 Hz Imu, then the recording loops (header stamps jump back 2 s) for 1.5 s more."""
+    from test_chunked import S, T0, imu, vehicle_rate, write_bag
+
+    rows, dt = [], S // 100
+    for i in range(350):
+        stamp = T0 + (i if i < 200 else i - 200) * dt
+        rows.append((T0 + i * dt, imu(stamp, vehicle_rate(i * 0.01))))
+    return write_bag(path, rows)
+
+
+def test_bag_scene_restarts_its_output_grid_after_a_loop_like_replay(tmp_path):
+    """A looped bag: after the jump back the scene's grid starts again (issue 17), the same
+    output instants as ``replay`` at the scene's output rate, plus the last sample."""
+    from gyro_platform import replay as rp
+    from gyro_platform.scenes.runner import run_scene
+
+    bag = _looped_bag(tmp_path / "loop")
+    d = copy.deepcopy(BASE)
+    d.update(duration=10.0, output_rate=5.0, effects=["defaults"], params={}, expect=[],
+             motion={"type": "bag", "path": str(bag), "topic": "/imu"})
+    d.pop("sample_rate")
+    rec, summary, _ = run_scene(load(d))
+    s = rp.replay(bag, tmp_path / "out", rp.ReplayConfig(output_rate=5.0, progress=False, plot=False))
+    assert s["counts"]["resets_by_reason"] == {"jump_back": 1} and summary["bag"]["reset"] == 1
+    # replay's instants: joint state stamps, as s since the first accepted stamp (the scene's t)
+    from test_chunked import by_topic
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    js = [store.deserialize_cdr(raw, "sensor_msgs/msg/JointState") for _, raw in by_topic(tmp_path / "out")["/gimbal/joint_states"]]
+    t_replay = [(x.header.stamp.sec * 10**9 + x.header.stamp.nanosec - s["gate"]["origin_ns"]) / 1e9 for x in js]
+    assert len(t_replay) == 10 + 8                      # 2 s and 1.5 s at 5 Hz
+    t_scene = rec.t.tolist()
+    assert t_scene[:-1] == pytest.approx(t_replay, abs=1e-12) and t_scene[-1] == pytest.approx(1.49)
+    assert summary["n_samples"] == 350
+
+
+SLOW = """
+name: slow
+mode: stabilised
+integrator: rk4
+max_step: 1.0e-5
+duration: 120.0
+sample_rate: 100.0
+output_rate: 100.0
+motion: {type: sinusoidal, roll: {amplitude_deg: 10.0, frequency_hz: 0.1}}
+"""
+
+
+def _read(path: Path) -> str:
+    with open(path, newline="") as fh:
+        return fh.read()
+
+
+def _lines_whole(text: str) -> list[list[str]]:
+    assert text.endswith("\r\n") or text == ""
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows and all(len(r) == len(rows[0]) for r in rows), "a cut row"
+    for r in rows[1:]:
+        [float(x) for x in r]
+    return rows
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_run_interrupted_leaves_a_csv_of_whole_rows_and_exits_130(tmp_path, sig):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    scene = tmp_path / "slow.yaml"
+    scene.write_text(SLOW)
+    out = tmp_path / "res"
+    proc = subprocess.Popen([sys.executable, "-m", "gyro_platform", "run", str(scene), "--out", str(out)], cwd=REPO,
+                            env={**os.environ, "PYTHONPATH": str(REPO)}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    csv_path = out / "outputs.csv"
+    deadline = time.monotonic() + 300
+    while proc.poll() is None and time.monotonic() < deadline and not (csv_path.exists() and csv_path.stat().st_size):
+        time.sleep(0.05)
+    proc.send_signal(getattr(signal, sig))
+    _, err = proc.communicate(timeout=600)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before the signal")
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "gyro-platform run: interrupted"
+    rows = _lines_whole(_read(csv_path))
+    # 3 chunks of <= 4096 samples: the signal after the first stops the run after the second
+    assert 1 < len(rows) < 12002 and rows[0][0] == "t_s"
+
+
+def test_run_on_a_full_disk_leaves_whole_rows_and_one_line(tmp_path):
+    """RLIMIT_FSIZE stands for a full disk: the CSV write that does not fit is cut back to
+    the last whole row, ``run`` says so in one line (an error exit, no traceback)."""
+    import os
+    import resource
+    import signal
+    import subprocess
+    import sys
+
+    from gyro_platform.scenes.runner import run_scene
+
+    d = copy.deepcopy(BASE)
+    d.update(duration=60.0, expect=[])
+    ref = tmp_path / "ref"
+    run_scene(load(d), out_dir=ref)                      # the whole CSV (2 chunks of 4096 samples)
+    full = _read(ref / "outputs.csv")
+    limit = int(len(full.encode()) * 0.8)
+    p = tmp_path / "s.yaml"
+    import yaml
+
+    p.write_text(yaml.safe_dump(d))
+
+    def fsize() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    out = tmp_path / "res"
+    proc = subprocess.run([sys.executable, "-m", "gyro_platform", "run", str(p), "--out", str(out)], cwd=REPO,
+                          env={**os.environ, "PYTHONPATH": str(REPO)},   # numba caches: those the parent used
+                          capture_output=True, text=True, preexec_fn=fsize, timeout=600)
+    assert proc.returncode not in (0, 130), proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot write the results" in lines[0] and "Traceback" not in proc.stderr, proc.stderr
+    got = _read(out / "outputs.csv")
+    rows = _lines_whole(got)
+    assert 1 < len(rows) < full.count("\n") and full.startswith(got)

@@ -189,7 +189,7 @@ def _ns_floor(seconds: float) -> int:
     return min(math.floor(seconds * NS), 2**62)
 
 
-def _row(rb: "RateBlock", i: int) -> Reading | Rejected:
+def reading_of(rb: "RateBlock", i: int) -> Reading | Rejected:
     """Row ``i`` of a block as the scalar gate's input (what reading_from_msg gives)."""
     stamp = int(rb.stamp_ns[i]) if rb.has_header[i] else None
     rj = int(rb.reject[i])
@@ -420,7 +420,7 @@ class TimeGate:
                 self._accept_run(rb, tn, i, j, action, reason, t, stamp)
                 i = j
                 continue
-            d1 = self._offer(_row(rb, i), None if rx_list is None else rx_list[i])
+            d1 = self._offer(reading_of(rb, i), None if rx_list is None else rx_list[i])
             action[i] = ACTION_CODE[d1.action]
             reason[i] = REASON_INDEX[d1.reason]
             if d1.sample is not None:

@@ -64,31 +64,42 @@ EXTRA_COLUMNS = {"vehicle_omega": ("vehicle_rate", AXES, "_rad_s"), "vehicle_att
 
 def csv_row(o: Outputs) -> dict[str, float]:
     """One output instant as ``column -> value`` with the units in the names (``CSV_COLUMNS``)."""
-    row: dict[str, float] = {"t_s": float(o.t)}
-    for i, g in enumerate(GIMBAL_NAMES):
-        row[g + "_rad"] = float(o.gimbal_angles[i])
-        row[g + "_rate_rad_s"] = float(o.gimbal_rates[i])
-        row[g + "_axial_torque_N_m"] = float(o.gimbal_axial_torques[i])
+    one = lambda v: None if v is None else np.asarray(v, dtype=float)[None]  # noqa: E731
+    cols = _columns(lambda name: one(getattr(o, name)), lambda b: one(o.bearing_torques.get(b)),
+                    {k: [v] for k, v in o.status.items()}, np.array([float(o.t)]))
+    return {k: float(v[0]) for k, v in cols.items()}
+
+
+def block_columns(block: Any) -> dict[str, np.ndarray]:
+    """Every instant of an ``OutputBlock`` as columns (K,): the names and order of :func:`csv_row`."""
+    return _columns(lambda name: getattr(block, name), lambda b: block.bearing_torques[:, BEARING_NAMES.index(b)],
+                    block.status, np.asarray(block.t, dtype=float))
+
+
+def _columns(field: Any, bearing: Any, status: dict, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Columns from ``field(name)`` / ``bearing(name)`` arrays (K, n) (None: absent) and ``status``."""
+    cols: dict[str, np.ndarray] = {"t_s": t}
 
     def vec(stem: str, names: tuple[str, ...], suffix: str, v: Any) -> None:
         if v is not None:
             for i, n in enumerate(names):
-                row[f"{stem}_{n}{suffix}"] = float(v[i])
+                cols[f"{stem}_{n}{suffix}" if stem else n + suffix] = v[:, i]
 
-    vec("platform_rate", AXES, "_rad_s", o.platform_rate)
-    vec("platform_attitude", QUAT, "", o.platform_attitude)
-    vec("drift_angle", AXES, "_rad", o.drift_angle)
-    vec("drift_rate", AXES, "_rad_s", o.drift_rate)
+    q, qd, tq = field("gimbal_angles"), field("gimbal_rates"), field("gimbal_axial_torques")
+    for i, g in enumerate(GIMBAL_NAMES):
+        cols[g + "_rad"], cols[g + "_rate_rad_s"], cols[g + "_axial_torque_N_m"] = q[:, i], qd[:, i], tq[:, i]
+    vec("platform_rate", AXES, "_rad_s", field("platform_rate"))
+    vec("platform_attitude", QUAT, "", field("platform_attitude"))
+    vec("drift_angle", AXES, "_rad", field("drift_angle"))
+    vec("drift_rate", AXES, "_rad_s", field("drift_rate"))
     for b in BEARING_NAMES:
-        vec(b + "_torque", AXES, "_N_m", o.bearing_torques.get(b))
-    vec("motor_torque", ROTORS, "_N_m", o.motor_torques)
-    if o.mount_angles is not None:
-        for i, n in enumerate(MOUNT_NAMES):
-            row[n + "_rad"] = float(o.mount_angles[i])
-    vec("servo_torque", AXES, "_N_m", o.servo_torque)
-    for k, v in o.status.items():
-        row[k + STATUS_SUFFIX.get(k, "")] = float(v)
-    return row
+        vec(b + "_torque", AXES, "_N_m", bearing(b))
+    vec("motor_torque", ROTORS, "_N_m", field("motor_torques"))
+    vec("", MOUNT_NAMES, "_rad", field("mount_angles"))
+    vec("servo_torque", AXES, "_N_m", field("servo_torque"))
+    for k, v in status.items():
+        cols[k + STATUS_SUFFIX.get(k, "")] = np.asarray(v, dtype=float)
+    return cols
 
 
 def columns_markdown() -> str:
@@ -157,6 +168,11 @@ class Recorder:
         for k, v in extra.items():
             self._extra[k].append(np.atleast_1d(np.asarray(v, dtype=float)).copy())
         self._cache.clear()
+
+    def extend(self, block: Any, **extra: np.ndarray) -> None:
+        """Record the K instants of an ``OutputBlock``; ``extra`` arrays (K, n)."""
+        for i in range(len(block)):
+            self.append(block[i], **{k: v[i] for k, v in extra.items()})
 
     def __len__(self) -> int:
         return len(self._outs)
@@ -231,11 +247,11 @@ class Recorder:
             out[k] = self.field(k)
         return out
 
-    def rows(self) -> list[dict[str, float]]:
-        """One flat row per instant: :func:`csv_row` plus the extra series (``EXTRA_COLUMNS``
-        names them; any other extra ``k`` gives columns ``k_0, k_1, …``)."""
+    def rows(self, start: int = 0) -> list[dict[str, float]]:
+        """One flat row per instant from ``start`` on: :func:`csv_row` plus the extra series
+        (``EXTRA_COLUMNS`` names them; any other extra ``k`` gives columns ``k_0, k_1, …``)."""
         rows = []
-        for i, o in enumerate(self._outs):
+        for i, o in enumerate(self._outs[start:], start):
             r = csv_row(o)
             for k, v in self._extra.items():
                 stem, names, suffix = EXTRA_COLUMNS.get(k, (k, tuple(map(str, range(len(v[i])))), ""))
@@ -248,20 +264,12 @@ class Recorder:
     def write_csv(self, path) -> Path:
         """All instants as CSV: a header of column names with their units (``CSV_COLUMNS``),
         then one row per instant (``repr`` of each float: round-trips exactly)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        rows = self.rows()
-        cols: list[str] = []
-        for r in rows:
-            for k in r:
-                if k not in cols:
-                    cols.append(k)
-        with path.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=cols)
-            w.writeheader()
-            for r in rows:
-                w.writerow({k: repr(v) for k, v in r.items()})
-        return path
+        with CsvWriter(path) as w:
+            w.write(self.rows())
+        if w.rows_written == 0:                 # no instant: an empty file
+            w.path.parent.mkdir(parents=True, exist_ok=True)
+            w.path.write_text("")
+        return w.path
 
     def write_json(self, path, extra: dict | None = None) -> Path:
         """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
@@ -419,6 +427,81 @@ class Recorder:
             a.grid(True, alpha=0.3)
         fig.suptitle(textwrap.fill(title or "gyro_platform outputs", 100))
         return fig
+
+
+class CsvWriter:
+    """``outputs.csv`` written as the run goes: :meth:`write` appends whole rows and flushes,
+    so an interrupt, a kill or a full disk leaves a file that ends on a whole row. A failed
+    write (OSError: disk full, file too large …) cuts the file back to the last whole row and
+    raises ``OSError`` naming the file; the file (and its folder) is made at the first rows;
+    the header (column names with units, ``CSV_COLUMNS``)
+    is the keys of the first rows (every row has the same columns). Values: ``repr`` of each
+    float (round-trips exactly)."""
+
+    def __init__(self, path: Any):
+        self.path = Path(path)
+        self._fh: Any = None            # opened (folder made) at the first rows: nothing before
+        self.cols: list[str] | None = None
+        self.rows_written = 0
+        self._good = 0                  # file size after the last whole row
+
+    def write(self, rows: list[dict[str, float]]) -> None:
+        """Append ``rows`` (dicts column -> float) and flush."""
+        if not rows:
+            return
+        import io
+
+        if self._fh is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = self.path.open("w", newline="")
+
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        if self.cols is None:
+            self.cols = list(rows[0])
+            w.writerow(self.cols)
+        for r in rows:
+            if len(r) != len(self.cols) or r.keys() != set(self.cols):
+                raise ValueError(f"{self.path}: row columns differ from the header: {sorted(set(r) ^ set(self.cols))}")
+            w.writerow([repr(r[k]) for k in self.cols])
+        try:
+            self._fh.write(buf.getvalue())
+            self._fh.flush()
+        except BaseException as e:      # disk full, file size limit, a second Ctrl-C …
+            self._cut()
+            if isinstance(e, OSError):
+                raise OSError(e.errno, f"{e.strerror or e} (writing {self.path}; it ends on row "
+                                       f"{self.rows_written})") from None
+            raise
+        self._good = self._fh.tell()
+        self.rows_written += len(rows)
+
+    def _cut(self) -> None:
+        """Back to the last whole row (a truncate needs no free space)."""
+        import os
+
+        try:
+            os.ftruncate(self._fh.fileno(), self._good)
+        except OSError:
+            pass
+        try:
+            self._fh.close()
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        if self._fh is not None and not self._fh.closed:
+            try:
+                self._fh.close()
+            except OSError:
+                self._cut()
+                raise
+
+    def __enter__(self) -> "CsvWriter":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
 
 def _jsonable(x: Any) -> Any:

@@ -3,8 +3,10 @@
 Every input message is copied to the output bag (same record time); the input topic goes
 through :class:`~gyro_platform.pipeline.Pipeline` (gate → simulator → output grid) and the
 outputs are written with the receive time of the message that produced them; ``/diagnostics``
-runs on the receive clock. One message in memory at a time. Progress: ``tqdm`` on stderr, shown
-only on a terminal.
+runs on the receive clock. ``engine="chunked"`` (default): chunks of rows, one gate block and
+one ``push_block`` per run of accepted rows (``Pipeline.run_block``), one chunk in memory at a
+time; ``engine="per_message"``: the reference, one message at a time. Progress: ``tqdm`` on
+stderr, shown only on a terminal. SIGINT/SIGTERM end the loop at a chunk boundary.
 """
 from __future__ import annotations
 
@@ -21,13 +23,16 @@ from ..errors import BagReadError, ReplayError, SimulationError, deferred_signal
 from ..io import messages as msgs
 from ..io.bag_reader import InputBag
 from ..io.bag_writer import OutputBag
+from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
-from ..pipeline import NS, Pipeline, grid_index, judge, no_sample_hint
+from ..pipeline import (ADVANCED, DROP, NS, Pipeline, bag_chunks, copy_chunk, grid_index,
+                        grid_indices, judge, new_slots, no_sample_hint, rate_rows, write_many)
 from .stats import PlotSeries, Stats
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
 DEFAULT_DIAGNOSTICS_RATE = 1.0  # Hz
+ENGINES = ("chunked", "per_message")
 
 
 @dataclass
@@ -45,6 +50,14 @@ class ReplayConfig:
     options: Any = None
     plot: bool = True
     progress: bool = True
+    engine: str = "chunked"          # or "per_message": the reference path, one message at a time
+    chunk_rows: int = 4096           # rows per chunk of the chunked path
+
+    def __post_init__(self) -> None:
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine = {self.engine!r}; allowed: {', '.join(ENGINES)}")
+        if not (isinstance(self.chunk_rows, int) and self.chunk_rows >= 1):
+            raise ValueError(f"chunk_rows = {self.chunk_rows!r}; must be an integer >= 1")
 
 
 def sidecar_paths(out_bag: Path) -> tuple[Path, Path]:
@@ -74,6 +87,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
         if bag.salvaged:
             print(f"gyro-platform replay: warning: {in_bag}: {bag.damage}; salvaging the readable messages",
                   file=sys.stderr)
+        for w in getattr(bag, "warnings", []):      # skipped channels, foreign MCAP, other input types
+            print(f"gyro-platform replay: warning: {w}", file=sys.stderr)
         out_topics = msgs.output_topics(cfg.namespace)
         # /diagnostics is shared by every node (status names tell them apart): no clash there
         clash = sorted({c.topic for c in bag.connections
@@ -95,7 +110,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             run = _Run(bag, out, sim, cfg)
             run.loop()
         finally:
-            with deferred_signals():   # a signal now would cut the metadata: held until closed
+            with deferred_signals():   # a signal now would cut the index + metadata: held until closed
                 out.close()       # index + metadata written: the bag is readable whatever happened
     finally:
         bag.close()
@@ -131,6 +146,7 @@ class _Run:
         self.stats = Stats()
         self.series = PlotSeries()
         self.outcomes = self.pipeline.outcomes      # apply_decision results + output_failed
+        self.sim_errors = self.pipeline.errors
         self.n_msgs = 0
         self.n_in = 0
         self.n_out = 0
@@ -138,55 +154,107 @@ class _Run:
         self.first_rx: int | None = None
         self.first_ts: int | None = None
         self.last_ts: int | None = None
-        self.last_out = None
-        self.new_segment = True
+        self.last_out: tuple[Any, int] | None = None     # (OutputBlock, index) or (Outputs, -1)
         self.error: str | None = None
-        self.interrupted = False
-        self.sim_errors: list[str] = []
+        self.interrupted: str | None = None             # "SIGINT" / "SIGTERM"
         self.identity_frames: list[str] = []
         self.diag_topic = msgs.resolve("/diagnostics")
 
     def loop(self) -> None:
+        """All messages of the bag, chunk by chunk (``engine="chunked"``) or one by one
+        (``"per_message"``, the reference). A signal stops at the next chunk/message boundary."""
         from tqdm import tqdm
 
         progress = tqdm(total=self.bag.message_count, desc="replay", unit="msg", file=sys.stderr,
                         disable=not (self.cfg.progress and sys.stderr.isatty()))
         try:
-            for conn, ts, raw in self.bag.messages():
-                self.n_msgs += 1
-                if self.first_ts is None:
-                    self.first_ts = ts
-                self.last_ts = ts
-                copy = self.out.copy_connection(conn, self.bag.store_for(conn))
-                if copy is not None:
-                    self.out.write_raw(copy, ts, raw)
-                if self.bag.is_input(conn):
-                    self._input(conn, ts, raw)
-                progress.update()
+            if self.cfg.engine == "per_message":
+                for conn, ts, raw in self.bag.messages():
+                    with deferred_signals():        # a signal stops between messages
+                        self._message(conn, ts, raw)
+                    progress.update()
+            else:
+                for chunk in bag_chunks(self.bag, self.cfg.chunk_rows):
+                    with deferred_signals():        # a signal stops between chunks: what is
+                        self._chunk(chunk)          # counted is what was simulated
+                    progress.update(len(chunk.ts))
         except BagReadError as e:
             self.error = str(e)
-        except KeyboardInterrupt as e:     # Ctrl-C, or SIGTERM (errors.Terminated)
-            self.interrupted = True
+        except KeyboardInterrupt as e:              # Ctrl-C, or SIGTERM (errors.Terminated)
+            self.interrupted = "SIGTERM" if stop_reason(e) == "terminated" else "SIGINT"
             self.error = stop_reason(e)
         finally:
             progress.close()
+
+    # ---- chunked path -----------------------------------------------------------------------
+    def _chunk(self, chunk: Any) -> None:
+        if self.first_ts is None:
+            self.first_ts = int(chunk.ts[0])
+        self.last_ts = int(chunk.ts[-1])
+        self.n_msgs += len(chunk.ts)
+        copy_chunk(self.out, chunk, self.bag)
+        for rows, rb in self.pipeline.decode(self.bag, chunk):
+            self._input_block(rb, chunk.ts[rows])
+
+    def _input_block(self, rb: Any, rx: np.ndarray) -> None:
+        """Input rows received at ``rx``: cut at the diagnostics instants (1 Hz of receive
+        time: the gate snapshot and the last output at that row), each part one block."""
+        n = len(rx)
+        self.n_in += n
+        if self.first_rx is None:
+            self.first_rx = int(rx[0])
+        dslot = grid_indices(rx, self.first_rx, self.cfg.diagnostics_rate)
+        diag = new_slots(dslot, self.diag_slot)
+        if diag.any():
+            self.diag_slot = int(dslot[diag][-1])
+        bounds = np.unique(np.concatenate([[0], np.flatnonzero(diag) + 1, [n]]))
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            part = rate_rows(rb, int(a), int(b))
+            res = self.pipeline.run_block(part, rx[a:b])
+            self._identity(part, res.gate)
+            for run in res.outputs:
+                self._write_block(run, res.gate, rx[a:b])
+            if diag[b - 1]:
+                self._diagnostics(int(rx[b - 1]))
+
+    def _identity(self, rb: Any, gb: Any) -> None:
+        if rb.identity is None or not rb.identity.any():
+            return
+        hit = np.flatnonzero(rb.identity & (gb.action != DROP))
+        for frame in dict.fromkeys(rb.frame_id[i] for i in hit):
+            self._identity_frame(frame)
+
+    def _write_block(self, run: Any, gb: Any, rx: np.ndarray) -> None:
+        block = run.block
+        ts = rx[run.rows]
+        for topic, raws in encode_outputs(block, gb.stamp_ns[run.rows], self.cfg.namespace):
+            write_many(self.out, topic, ts, raws)
+        self.n_out += len(block)
+        self.stats.add_block(block, run.new_segment)
+        self.series.add_block(block)
+        self.last_out = (block, len(block) - 1)
+
+    # ---- per-message path (the reference) -----------------------------------------------------
+    def _message(self, conn: Any, ts: int, raw: bytes) -> None:
+        self.n_msgs += 1
+        if self.first_ts is None:
+            self.first_ts = ts
+        self.last_ts = ts
+        copy = self.out.copy_connection(conn, self.bag.store_for(conn))
+        if copy is not None:
+            self.out.write_raw(copy, ts, raw)
+        if self.bag.is_input(conn):
+            self._input(conn, ts, raw)
 
     def _input(self, conn: Any, ts: int, raw: bytes) -> None:
         self.n_in += 1
         n_identity = self.gate.notes["identity_frame"]
         decision, msg = judge(self.bag, conn, raw, ts, self.cfg.mounting, self.gate)
         if self.gate.notes["identity_frame"] > n_identity:
-            frame = str(msg.header.frame_id)
-            if frame not in self.identity_frames:
-                self.identity_frames.append(frame)
-                print(f"gyro-platform replay: info: frame_id {frame!r} has no --mount; taken as "
-                      f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
-                      file=sys.stderr)
+            self._identity_frame(str(msg.header.frame_id))
         step = self.pipeline.apply(decision)
-        if step.outcome in ("reset", "restarted"):
-            self.new_segment = True
-        if step.outcome == "restarted" and len(self.sim_errors) < 100:
-            self.sim_errors.append(f"t={decision.stamp_ns}: integration failed, simulator restarted")
+        if step.outcome == "restarted":
+            self.pipeline._error(f"t={decision.stamp_ns}: integration failed, simulator restarted")
         if step.emit:
             self._emit(decision.stamp_ns, ts)
         # diagnostics on the receive clock, like a node's timer
@@ -195,29 +263,48 @@ class _Run:
         dslot = grid_index(ts, self.first_rx, self.cfg.diagnostics_rate)
         if self.diag_slot is None or dslot > self.diag_slot:
             self.diag_slot = dslot
-            self.out.write_msg(self.diag_topic, ts, msgs.diagnostic_array(
-                self.gate.snapshot(), self.last_out, self.types, ts, self._sim_figures()))
+            self._diagnostics(ts)
 
     def _emit(self, stamp: int, ts: int) -> None:
         try:
             o = self.sim.outputs()
         except SimulationError as e:
             self.outcomes["output_failed"] = self.outcomes.get("output_failed", 0) + 1
-            if len(self.sim_errors) < 100:
-                self.sim_errors.append(f"t={stamp}: outputs failed: {e}")
+            self.pipeline._error(f"t={stamp}: outputs failed: {e}")
             return
         for topic, m in msgs.output_messages(o, self.types, stamp, self.cfg.namespace):
             self.out.write_msg(topic, ts, m)
         self.n_out += 1
-        self.stats.add(o, self.new_segment)
-        self.new_segment = False
+        self.stats.add(o, self.pipeline.new_segment)
+        self.pipeline.new_segment = False
         self.series.add(o)
-        self.last_out = o
+        self.last_out = (o, -1)
+
+    # ---- shared -------------------------------------------------------------------------------
+    def _identity_frame(self, frame: str) -> None:
+        if frame not in self.identity_frames:
+            self.identity_frames.append(frame)
+            print(f"gyro-platform replay: info: frame_id {frame!r} has no --mount; taken as "
+                  f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
+                  file=sys.stderr)
+
+    def _diagnostics(self, ts: int) -> None:
+        last = None
+        if self.last_out is not None:
+            obj, i = self.last_out
+            last = obj if i < 0 else obj[i]
+        self.out.write_msg(self.diag_topic, ts, msgs.diagnostic_array(
+            self.gate.snapshot(), last, self.types, ts, self._sim_figures()))
 
     def _sim_figures(self) -> dict[str, Any]:
         return {"outputs": self.n_out, **{f"sim_{k}": v for k, v in self.outcomes.items()}}
 
     # ---- results --------------------------------------------------------------------------
+    @property
+    def simulated(self) -> int:
+        """Input samples the simulator integrated (pushed, after a reset, after a restart)."""
+        return sum(self.outcomes.get(k, 0) for k in ADVANCED)
+
     def summary(self, in_bag: Path, out_bag: Path, wall: float) -> dict[str, Any]:
         snap = self.gate.snapshot()
         duration = 0.0 if self.first_ts is None else (self.last_ts - self.first_ts) / NS
@@ -226,6 +313,8 @@ class _Run:
             "input": {"bag": str(in_bag), "storage": self.bag.storage, "topic": self.bag.topic,
                       "type": self.bag.msgtype, "messages": self.n_msgs, "topic_messages": self.n_in,
                       "salvaged": self.bag.salvaged, "damage": self.bag.damage,
+                      **{k: getattr(self.bag, k) for k in ("skipped_channels", "skipped_input", "foreign",
+                                                           "chunk_source", "warnings") if hasattr(self.bag, k)},
                       "time_source": snap["time_source"]},
             "output": {"bag": str(out_bag), "storage": self.out.storage, "version": 9,
                        "messages": sum(self.out.counts.values()), "messages_by_topic": dict(self.out.counts),
@@ -240,6 +329,10 @@ class _Run:
             "wall_time_s": wall,
             "real_time_factor": duration / wall if wall > 0 else None,
             "messages_per_s": self.n_msgs / wall if wall > 0 else None,
+            "simulated": self.simulated,
+            "no_usable_input": bool(self.n_in) and self.simulated == 0,
+            "engine": self.cfg.engine,
+            "interrupted_by": self.interrupted,
             "ranges": self.stats.ranges(),
             "non_finite_outputs": self.stats.non_finite,
             "drift": self.stats.drift(),
@@ -257,6 +350,9 @@ class _Run:
         res = []
         if self.n_in and not snap["accepted"]:
             res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in))
+        elif self.n_in and not self.simulated:
+            res.append(f"none of the {snap['accepted']} accepted samples could be simulated "
+                       f"(simulator: {dict(self.outcomes)}; errors: {self.sim_errors[:1]}): no outputs")
         elif self.n_in == 0 and self.error is None:
             res.append(f"topic {self.bag.topic} has no messages: no outputs")
         return res
@@ -271,7 +367,7 @@ class _Run:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
             return None, {"unavailable": str(e)}
         rec = Recorder()
-        for o in self.series.items:
+        for o in self.series.outputs():
             rec.append(o)
         try:
             rec.plot(path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "

@@ -42,6 +42,36 @@ class Stats:
             self._fit.add(out.t, np.asarray(out.drift_angle, float))
         self.last = out
 
+    def add_block(self, block: Any, new_segment: bool) -> None:
+        """K outputs of an ``OutputBlock`` at once (vectorised; ``new_segment``: the first of
+        them starts a new segment); the same ranges and counts as K calls of :meth:`add`."""
+        from ..io.recording import block_columns
+
+        k = len(block)
+        if k == 0:
+            return
+        self.n += k
+        for name, v in block_columns(block).items():
+            ok = np.isfinite(v)
+            bad = k - int(np.count_nonzero(ok))
+            if bad:
+                self.non_finite[name] = self.non_finite.get(name, 0) + bad
+                v = v[ok]
+                if v.size == 0:
+                    continue
+            lo, hi = float(v.min()), float(v.max())
+            if name not in self.lo or lo < self.lo[name]:
+                self.lo[name] = lo
+            if name not in self.hi or hi > self.hi[name]:
+                self.hi[name] = hi
+        if new_segment or self.last is None:
+            self._fit = LineFit()
+        d = np.asarray(block.drift_angle, dtype=float)
+        ok = np.all(np.isfinite(d), axis=1)
+        if ok.any():
+            self._fit.add_many(np.asarray(block.t, dtype=float)[ok], d[ok])
+        self.last = _Last(float(block.t[-1]), d[-1].copy())
+
     def ranges(self) -> dict[str, list[float]]:
         return {k: [self.lo[k], self.hi[k]] for k in self.lo}
 
@@ -82,6 +112,18 @@ class LineFit:
         self.sty += x * y
         self.span = x
 
+    def add_many(self, t: np.ndarray, y: np.ndarray) -> None:
+        """Points t (K,), y (K, k) at once."""
+        if self.n == 0:
+            self.t0, self.sy, self.sty = float(t[0]), np.zeros(y.shape[1]), np.zeros(y.shape[1])
+        x = t - self.t0
+        self.n += len(t)
+        self.st += float(x.sum())
+        self.stt += float(x @ x)
+        self.sy += y.sum(axis=0)
+        self.sty += x @ y
+        self.span = float(x[-1])
+
     def slope(self) -> np.ndarray | None:
         den = self.n * self.stt - self.st ** 2
         if self.n < 2 or den <= 1e-300:
@@ -89,8 +131,17 @@ class LineFit:
         return (self.n * self.sty - self.st * self.sy) / den
 
 
+class _Last:
+    """The last output's time and drift angle (what :meth:`Stats.drift` reads)."""
+
+    def __init__(self, t: float, drift_angle: np.ndarray):
+        self.t, self.drift_angle = t, drift_angle
+
+
 class PlotSeries:
-    """At most ``cap`` outputs, evenly thinned (stride doubles when full): bounded memory."""
+    """At most ``cap`` outputs, evenly thinned (stride doubles when full): bounded memory.
+    ``items``: ``Outputs`` (:meth:`add`) or ``(block, row)`` of a thinned copy of an
+    ``OutputBlock`` (:meth:`add_block`); :meth:`outputs` gives them all as ``Outputs``."""
 
     def __init__(self, cap: int = PLOT_POINTS):
         self.cap, self.stride, self.i, self.items = cap, 1, 0, []
@@ -103,4 +154,45 @@ class PlotSeries:
                 self.stride *= 2
         self.i += 1
 
+    def add_block(self, block: Any) -> None:
+        """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each; the kept
+        rows are copied out of the block at once (one fancy index per field)."""
+        k, j = len(block), 0
+        mark = object()
+        while j < k:
+            first = j + (-self.i) % self.stride     # the next index whose count is a multiple of the stride
+            room = self.cap - len(self.items)
+            take = range(first, k, self.stride)[:room]
+            self.items.extend((mark, int(m)) for m in take)
+            if len(self.items) >= self.cap:
+                stop = int(take[-1]) + 1            # halve after the item that filled it
+                self.i += stop - j
+                j = stop
+                self.items = self.items[::2]
+                self.stride *= 2
+            else:
+                self.i += k - j
+                j = k
+        pos = [n for n, it in enumerate(self.items) if type(it) is tuple and it[0] is mark]
+        if pos:
+            sub = take_rows(block, np.array([self.items[n][1] for n in pos], dtype=np.int64))
+            for r, n in enumerate(pos):
+                self.items[n] = (sub, r)
 
+    def outputs(self) -> list[Any]:
+        """The kept outputs as ``Outputs``, in order."""
+        return [it[0][it[1]] if type(it) is tuple else it for it in self.items]
+
+
+#: the per-instant array fields of an OutputBlock (first axis K; ``rotor_rates`` is not one)
+BLOCK_FIELDS = ("t", "gimbal_angles", "gimbal_rates", "gimbal_axial_torques", "platform_rate",
+                "platform_attitude", "drift_angle", "drift_rate", "bearing_torques", "motor_torques",
+                "mount_angles", "mount_rates", "servo_torque")
+
+
+def take_rows(block: Any, idx: np.ndarray) -> Any:
+    """Rows ``idx`` of an ``OutputBlock`` (a copy; the contract's fields)."""
+    from dataclasses import replace
+
+    arrays = {f: None if getattr(block, f) is None else np.asarray(getattr(block, f))[idx] for f in BLOCK_FIELDS}
+    return replace(block, **arrays, status={k: np.asarray(v)[idx] for k, v in block.status.items()})

@@ -1,105 +1,155 @@
 """Running a scene: its motion (synthetic, or a bag through the pipeline's gate) into the
-simulator, outputs recorded on the scene's output grid, expectations evaluated; ``outputs.csv``,
-``summary.json`` and ``plot.png`` written on request."""
+simulator in chunks (one ``push_block`` per chunk, outputs at the instants of the output grid),
+expectations evaluated; ``outputs.csv`` written as the run goes (whole rows, flushed per chunk),
+``summary.json`` and ``plot.png`` at the end, on request.
+
+Output grid: slot ``floor((t − t_first)·rate + 1e-9)`` of the scene's output rate; an output
+at the first sample of each new slot and always at the last sample. A bag motion goes through
+:class:`~gyro_platform.pipeline.Pipeline` exactly like ``replay``: its grid restarts after a
+reset (a gap, a looped bag jumping back). A signal (SIGINT/SIGTERM) stops at the next chunk:
+the CSV ends on a whole row and ``KeyboardInterrupt`` is raised (``run`` exits 130).
+"""
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
+from typing import Any, Iterator
 
-from ..errors import BagReadError
-from ..io.recording import Recorder
-from ..engine.inputs import RateSample
+import numpy as np
+
+from ..errors import BagReadError, SimulationError, deferred_signals
+from ..io.bag_reader import InputBag
 from ..io.gate import TimeGate
-from ..pipeline import ADVANCED, apply_decision, no_sample_hint, read_samples
+from ..io.recording import CsvWriter, Recorder
+from ..pipeline import (ADVANCED, OUTCOMES, Pipeline, bag_chunks, new_slots, no_sample_hint,
+                        push_block)
 from .schema import Check, ScenarioError, Scene, load_scene, scene_info
 
 __all__ = ["run_scene", "evaluate", "load_scene"]   # load_scene: for callers that load and run
 
+CHUNK = 4096                    # samples per push_block / rows per bag chunk
 
-def _synthetic_stream(scene: Scene):
-    """(t, omega, f, quaternion) per sample of a synthetic motion."""
+
+class _Feed:
+    """What a motion gave so far: samples simulated, the outcome counts (bag), the last
+    simulated sample's ``extra`` if it was not recorded, a read error after usable samples."""
+
+    def __init__(self) -> None:
+        self.n_in = 0
+        self.counts: dict[str, int] = {}
+        self.pending: dict[str, np.ndarray] | None = None
+        self.error: str | None = None
+        self.gate: TimeGate | None = None
+
+
+def _synthetic_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict]]:
+    """``(OutputBlock, extra)`` per chunk of a synthetic motion's samples."""
     gen = scene.motion.generator
     t, w, f = gen.arrays(scene.duration, scene.sample_rate)
+    n = t.size
+    if n == 0:
+        return
     quat = gen.quaternion(t)
-    for i in range(t.size):
-        yield RateSample(float(t[i]), w[i], f[i]), quat[i]
+    emit = new_slots(np.floor((t - t[0]) / (1.0 / scene.output_rate) + 1e-9).astype(np.int64), None)
+    emit[-1] = True                         # always record the last instant
+    for a in range(0, n, CHUNK):
+        b = min(a + CHUNK, n)
+        idx = np.flatnonzero(emit[a:b])
+        try:
+            block = push_block(sim, t[a:b], w[a:b], f[a:b], idx)
+        except SimulationError as e:        # the outputs before it are recorded, then it goes up
+            feed.n_in += e.n_done
+            if len(e.block):
+                yield e.block, {"vehicle_omega": w[a:b][idx[:len(e.block)]],
+                                "vehicle_attitude": quat[a:b][idx[:len(e.block)]]}
+            raise
+        feed.n_in += b - a
+        yield block, {"vehicle_omega": w[a:b][idx], "vehicle_attitude": quat[a:b][idx]}
+
+
+def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict]]:
+    """``(OutputBlock, extra)`` per run of a bag motion through :class:`Pipeline` (gate, resets,
+    the grid restarting after each reset), up to the scene's duration."""
+    feed.gate = gate = TimeGate()
+    pipe = Pipeline(sim, gate, scene.output_rate)
+    pipe.duration = scene.duration
+    kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
+    with InputBag(scene.motion.path, **kw) as bag:
+        chunks = bag_chunks(bag, CHUNK, input_only=True)
+        while not pipe.stopped:
+            try:
+                chunk = next(chunks)
+            except StopIteration:
+                break
+            except BagReadError as e:
+                if feed.n_in == 0:
+                    raise
+                feed.error = str(e)
+                break
+            for _, rb, res in pipe.run_chunk(bag, chunk):
+                advanced = np.isin(res.outcome, [OUTCOMES.index(k) for k in ADVANCED])
+                feed.n_in += int(np.count_nonzero(advanced))
+                last = int(np.flatnonzero(advanced)[-1]) if advanced.any() else None
+                emitted = set()
+                for run in res.outputs:
+                    emitted.update(run.rows.tolist()[-1:])
+                    yield run.block, {"vehicle_omega": rb.omega[run.rows]}
+                if last is not None:
+                    feed.pending = None if last in emitted else {"vehicle_omega": rb.omega[last].copy()}
+    feed.counts = {k: v for k, v in pipe.outcomes.items()}
 
 
 def run_scene(scene: Scene, out_dir=None):
     """Run ``scene`` with the real simulator.
 
     Returns ``(recorder, summary, results)`` where ``results`` is a list of
-    ``(check, passed, detail)``. With ``out_dir`` it writes ``outputs.csv``, ``summary.json``
-    and ``plot.png`` there. A bag is streamed through ``pipeline.read_samples`` and its gate
-    decisions (drops, resets) are applied with ``pipeline.apply_decision``; their counts are in
-    ``summary['bag']``.
+    ``(check, passed, detail)``. With ``out_dir`` it writes ``outputs.csv`` (as the run goes),
+    ``summary.json`` and ``plot.png`` there. A bag goes through :class:`Pipeline` (gate
+    decisions, drops, resets: counts in ``summary['bag']``).
     """
     from ..engine.simulator import Simulator
 
     sim = Simulator(params=scene.params, options=scene.options)
     rec = Recorder()
-    dt_out = 1.0 / scene.output_rate
-    t_first: float | None = None
-    next_out = 0.0
-    n_in = 0
-    bag_counts: dict[str, int] = {}
-    pending = None          # extras of the last pushed sample if it was not recorded
+    feed = _Feed()
     wall0 = time.perf_counter()
-
-    error = None            # a bag damaged after some readable samples
-    read_errors: type[Exception] | tuple = ()   # nothing to catch for a synthetic motion
-    if scene.motion.is_bag:
-        kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
-        gate = TimeGate()
-        source = read_samples(scene.motion.path, gate=gate, **kw)
-        read_errors = BagReadError
-    else:
-        source = _synthetic_stream(scene)
+    out = None if out_dir is None else Path(out_dir)
+    csv = None if out is None else CsvWriter(out / "outputs.csv")
+    blocks = (_bag_blocks if scene.motion.is_bag else _synthetic_blocks)(scene, sim, feed)
     try:
-        for item in _until_damage(source, read_errors, lambda: n_in):
-            if scene.motion.is_bag:
-                d = item.decision
-                if d.sample is not None and t_first is not None and d.sample.t > t_first + scene.duration + 1e-9:
+        while True:
+            with deferred_signals():             # a signal stops between blocks: whole CSV rows
+                item = next(blocks, None)
+                if item is None:
                     break
-                status = apply_decision(sim, d)
-                bag_counts[status] = bag_counts.get(status, 0) + 1
-                if status not in ADVANCED:
-                    continue
-                sample, quat = d.sample, None
-            else:
-                sample, quat = item
-                sim.push(sample)
-            if t_first is None:
-                t_first, next_out = sample.t, sample.t
-            n_in += 1
-            extra = {"vehicle_omega": sample.omega}
-            if quat is not None:
-                extra["vehicle_attitude"] = quat
-            if sample.t >= next_out - 1e-9 * dt_out:
-                rec.append(sim.outputs(), **extra)
-                pending = None
-                next_out = t_first + (math.floor((sample.t - t_first) / dt_out + 1e-9) + 1) * dt_out
-            else:
-                pending = extra
-    except _Damaged as e:
-        error = e.message
+                block, extra = item
+                rec.extend(block, **extra)
+                if csv is not None:
+                    csv.write(rec.rows(csv.rows_written))
+        with deferred_signals():
+            if feed.n_in and feed.pending is not None:   # always record the last instant
+                rec.append(sim.outputs(), **feed.pending)
+                if csv is not None:
+                    csv.write(rec.rows(csv.rows_written))
     finally:
-        close = getattr(source, "close", None)
-        if close is not None:
-            close()
-    if n_in == 0:
+        blocks.close()
+        if csv is not None:
+            csv.close()
+    if feed.n_in == 0:
         hint = ""
         if scene.motion.is_bag:
-            snap = gate.snapshot()
+            snap = feed.gate.snapshot()
             hint = ": " + no_sample_hint(snap["dropped_by_reason"], snap["received"])
         raise ScenarioError(f"scene '{scene.name}': the motion gave no usable samples{hint}")
-    if pending is not None:  # always record the last instant
-        rec.append(sim.outputs(), **pending)
     wall = time.perf_counter() - wall0
+    return rec, *_finish(scene, sim, rec, feed, out, wall)
 
+
+def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None, wall: float):
+    """Summary, expectations and the files after the CSV: ``(summary, results)``."""
+    error = feed.error
     summary = rec.summary(fit_start=scene.fit_start, mounting=scene.params.mounting)
-    summary = {"scene": scene.name, **summary, "n_samples": n_in,
+    summary = {"scene": scene.name, **summary, "n_samples": feed.n_in,
                "sample_rate": scene.sample_rate, "output_rate": scene.output_rate, "wall_time": wall}
     stats = sim.stats      # what the integrator achieved against the asked rtol/atol
     summary.update(integrator=stats["integrator"], max_error_estimate=stats["max_error_estimate"],
@@ -109,7 +159,7 @@ def run_scene(scene: Scene, out_dir=None):
                         "max_error_norm": "1 = the asked tolerance"}
     warnings = list(summary.pop("notes", []))
     if scene.motion.is_bag:
-        summary["bag"] = bag_counts
+        summary["bag"] = feed.counts
         covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
         if error is None and covered < scene.duration:
             warnings.append(f"the bag ends {summary.get('duration', 0.0):.6g} s after its first usable sample, "
@@ -119,10 +169,7 @@ def run_scene(scene: Scene, out_dir=None):
         summary["error"] = error
     summary["warnings"] = warnings
     results = evaluate(scene, summary)
-    if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        rec.write_csv(out / "outputs.csv")
+    if out is not None:
         rec.write_json(out / "summary.json", extra={
             "summary": summary,
             "scene": scene_info(scene),
@@ -131,28 +178,7 @@ def run_scene(scene: Scene, out_dir=None):
             "simulator": sim.stats,
         })
         rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
-    return rec, summary, results
-
-
-class _Damaged(Exception):
-    def __init__(self, message: str):
-        self.message = message
-
-
-def _until_damage(source, errors, n_done):
-    """Iterate ``source``; a read error (``errors``) after ``n_done() > 0`` usable samples ends
-    the iteration as ``_Damaged`` (the readable part is kept); before any, it propagates."""
-    it = iter(source)
-    while True:
-        try:
-            item = next(it)
-        except StopIteration:
-            return
-        except errors as e:
-            if n_done() == 0:
-                raise
-            raise _Damaged(str(e)) from None
-        yield item
+    return summary, results
 
 
 def evaluate(scene: Scene, summary: dict) -> list[tuple[Check, bool | None, str]]:
