@@ -185,14 +185,6 @@ class PlotSeries:
 
 
 #: the per-instant array fields of an OutputBlock (first axis K; ``rotor_rates`` is not one)
-BLOCK_FIELDS = ("t", "gimbal_angles", "gimbal_rates", "gimbal_axial_torques", "platform_rate",
-                "platform_attitude", "drift_angle", "drift_rate", "bearing_torques", "motor_torques",
-                "mount_angles", "mount_rates", "servo_torque")
-
-
 def take_rows(block: Any, idx: np.ndarray) -> Any:
-    """Rows ``idx`` of an ``OutputBlock`` (a copy; the contract's fields)."""
-    from dataclasses import replace
-
-    arrays = {f: None if getattr(block, f) is None else np.asarray(getattr(block, f))[idx] for f in BLOCK_FIELDS}
-    return replace(block, **arrays, status={k: np.asarray(v)[idx] for k, v in block.status.items()})
+    """Rows ``idx`` of an ``OutputBlock`` (a copy)."""
+    return block[np.asarray(idx, dtype=np.int64)]
