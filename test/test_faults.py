@@ -167,8 +167,6 @@ def test_sigkill_leaves_no_crash_for_the_next_reader(big, tmp_path):
     assert "Traceback" not in p.stderr and p.returncode in EXIT_CODES, p.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="writer's contract (issue 17, fast_contract OutputBag): commits bounded "
-                                       "in time/count on s3-writer")
 def test_sigkill_loses_at_most_the_last_commit_chunk(big, tmp_path):
     """After SIGKILL, seconds into the run, the output bag holds the input copied so far up to
     the writer's commit bound (at least one committed chunk of /imu)."""
@@ -205,8 +203,6 @@ def test_full_disk_during_replay_is_exit_4_with_one_line(big, tmp_path, storage)
     assert any(w in lines[0] for w in ("too large", "full", "I/O")), lines[0]
 
 
-@pytest.mark.xfail(strict=True, reason="writer's contract (issue 17): on a full disk close() leaves the part "
-                                       "written readable (metadata written) — s3-writer")
 def test_full_disk_during_replay_leaves_the_written_part_readable(big, tmp_path):
     out = tmp_path / "o"
     proc = start_replay(big["bags"]["sqlite3"], out, big["scene"], "--output-rate", "0",
@@ -226,8 +222,6 @@ def test_full_disk_during_run_is_exit_4(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("gyro-platform run: error: cannot write the results to "), p.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="CSV writer (io/recording.py, s3 writer/outputs owner): end the CSV on a "
-                                       "whole row when the disk fills")
 def test_full_disk_during_run_leaves_whole_csv_rows(tmp_path):
     subprocess.run([PY, "-m", "gyro_platform.cli", "run", "default", "--duration", "20", "--out", str(tmp_path / "r")],
                    env=ENV, capture_output=True, text=True, timeout=900, preexec_fn=_fsize_limit(100_000))

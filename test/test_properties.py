@@ -219,7 +219,6 @@ def _fresh_after(sim_cls, samples):
     return sim.outputs()
 
 
-@pytest.mark.xfail(strict=True, reason="engine fix on s3-engine")
 @SETTINGS
 @given(omega=_bad_vectors(), where=st.sampled_from(["omega", "force"]))
 def test_a_refused_sample_is_an_input_error_and_leaves_no_trace(omega, where):
@@ -244,7 +243,6 @@ def test_a_refused_sample_is_an_input_error_and_leaves_no_trace(omega, where):
     assert np.array_equal(got.platform_attitude, ref.platform_attitude)
 
 
-@pytest.mark.xfail(strict=True, reason="engine fix on s3-engine")
 @SETTINGS
 @given(n=st.integers(2, 8), swap=st.integers(0, 6), shape=st.sampled_from([(None, 3), (None, 2), (None, 4), (3,)]),
        started=st.booleans())

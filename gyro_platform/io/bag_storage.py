@@ -7,7 +7,8 @@
 * MCAP (``FastMcap``): rosbags' records byte for byte, the open chunk kept as a list of pieces,
   chunk and message index records built with numpy and written in one go when the chunk closes
   (1 MiB as rosbags); a failed write cuts the file back to the last complete chunk;
-* both commit at least every ``COMMIT_ROWS`` messages or ``COMMIT_SECONDS`` of wall time, and
+* both commit at least every ``COMMIT_ROWS`` messages, ``COMMIT_SECONDS`` of wall time or
+  ``COMMIT_BYTES`` (sqlite3; MCAP: its chunk size) of message data, and
   every append is all-or-nothing even when a Ctrl-C lands inside it;
 * YAML (``metadata.yaml``, QoS) through libyaml: the text ruamel writes for rosbags, up to
   line breaking, ~50x faster.
@@ -29,6 +30,9 @@ import numpy as np
 COMMIT_ROWS = 100_000
 #: … or this much wall time (s) since the last commit, whichever comes first
 COMMIT_SECONDS = 1.0
+#: … or (sqlite3) this many bytes of message data pending: a kill or a full disk loses at most
+#: this much of the newest data (the MCAP bound is its chunk size)
+COMMIT_BYTES = 2 ** 19
 #: MCAP chunk size at which rosbags' writer (and this one) closes a chunk (bytes)
 MCAP_CHUNK_BYTES = 2 ** 20
 
@@ -53,6 +57,7 @@ def storage_classes():
             self.cursor = self.conn.cursor()
             self.pending: list[tuple[np.ndarray, np.ndarray, Sequence[Any]]] = []
             self.n_pending = 0
+            self.bytes_pending = 0
             self.last_commit = time.monotonic()
             self.committed: dict[int, list[int]] = {}   # cid -> [count, first ts, last ts]
             self.dirty = False
@@ -63,18 +68,28 @@ def storage_classes():
         def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
             self.pending.append((cids, ts, raws))
             self.n_pending += len(raws)
-            if self.n_pending >= COMMIT_ROWS or time.monotonic() - self.last_commit >= COMMIT_SECONDS:
+            self.bytes_pending += sum(map(len, raws))
+            if (self.n_pending >= COMMIT_ROWS or self.bytes_pending >= COMMIT_BYTES
+                    or time.monotonic() - self.last_commit >= COMMIT_SECONDS):
                 self.commit()
 
         def commit(self) -> None:
-            """Write the pending rows in one transaction (rolled back on failure)."""
-            parts, self.pending, self.n_pending = self.pending, [], 0
+            """Write the pending rows in transactions of at most ``COMMIT_BYTES`` of data each
+            (a failed one is rolled back; the ones before it stay)."""
+            parts, self.pending, self.n_pending, self.bytes_pending = self.pending, [], 0, 0
             self.last_commit = time.monotonic()
             if not parts:
                 return
             cids = np.concatenate([p[0] for p in parts])
             ts = np.concatenate([p[1] for p in parts])
-            raws = [r for p in parts for r in p[2]] if len(parts) > 1 else parts[0][2]
+            raws = [r for p in parts for r in p[2]] if len(parts) > 1 else list(parts[0][2])
+            ends = np.cumsum(np.fromiter(map(len, raws), np.int64, len(raws)))
+            cuts = np.searchsorted(ends, np.arange(COMMIT_BYTES, int(ends[-1]), COMMIT_BYTES), side="right")
+            bounds = [0, *sorted(set(cuts.tolist()) - {0, len(raws)}), len(raws)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                self._transaction(cids[a:b], ts[a:b], raws[a:b])
+
+        def _transaction(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
             self.dirty = True        # stays set if anything below is cut short (error, Ctrl-C)
             try:
                 self.cursor.execute("BEGIN")

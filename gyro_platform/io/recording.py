@@ -449,23 +449,36 @@ class CsvWriter:
         """Append ``rows`` (dicts column -> float) and flush."""
         if not rows:
             return
-        import io
-
         if self._fh is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = self.path.open("w", newline="")
 
-        buf = io.StringIO()
-        w = csv.writer(buf)
         if self.cols is None:
             self.cols = list(rows[0])
-            w.writerow(self.cols)
-        for r in rows:
-            if len(r) != len(self.cols) or r.keys() != set(self.cols):
-                raise ValueError(f"{self.path}: row columns differ from the header: {sorted(set(r) ^ set(self.cols))}")
-            w.writerow([repr(r[k]) for k in self.cols])
+            self._put(self._lines([self.cols]), 0)
+        for a in range(0, len(rows), self.BATCH):      # small flushed batches: a failure keeps
+            part = rows[a:a + self.BATCH]              # every whole batch before it
+            for r in part:
+                if len(r) != len(self.cols) or r.keys() != set(self.cols):
+                    raise ValueError(f"{self.path}: row columns differ from the header: "
+                                     f"{sorted(set(r) ^ set(self.cols))}")
+            self._put(self._lines([[repr(r[k]) for k in self.cols] for r in part]), len(part))
+
+    #: rows per flushed write
+    BATCH = 64
+
+    @staticmethod
+    def _lines(rows: list[list[str]]) -> str:
+        import io
+
+        buf = io.StringIO()
+        csv.writer(buf).writerows(rows)
+        return buf.getvalue()
+
+    def _put(self, text: str, n_rows: int) -> None:
+        """Append ``text`` (whole rows) and flush; on failure cut back to the last whole row."""
         try:
-            self._fh.write(buf.getvalue())
+            self._fh.write(text)
             self._fh.flush()
         except BaseException as e:      # disk full, file size limit, a second Ctrl-C …
             self._cut()
@@ -474,7 +487,7 @@ class CsvWriter:
                                        f"{self.rows_written})") from None
             raise
         self._good = self._fh.tell()
-        self.rows_written += len(rows)
+        self.rows_written += n_rows
 
     def _cut(self) -> None:
         """Back to the last whole row (a truncate needs no free space)."""

@@ -155,6 +155,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
         check_outputs(args)
+    except (ReplayError, OutputError, ValueError) as e:      # refused before anything is written
+        error(str(e))
+        return EXIT_USAGE
+    try:
         summary = replay(args.in_bag, args.out, cfg)
     except BagPathError as e:
         error(str(e))
@@ -162,9 +166,12 @@ def run(args: argparse.Namespace) -> int:
     except BagReadError as e:    # rosbags and the salvage reader both failed: corrupt data
         error(str(e))
         return EXIT_DATA
-    except (ReplayError, OutputError) as e:
+    except ReplayError as e:
         error(str(e))
         return EXIT_USAGE
+    except OutputError as e:     # the output bag failed during the run (closed with what it held)
+        error(f"cannot write the output: {e}")
+        return EXIT_WRITE
     except Exception as e:       # noqa: BLE001 - a write failure during the run, or a bad value
         why = write_failure(e)
         if why is not None:
