@@ -103,7 +103,8 @@ def test_partial_outputs_byte_identical(kw):
     without servo torque (no servo topic, zero mount efforts), without rotor rates."""
     rng = np.random.default_rng(7)
     outs = random_outputs(rng, 5, True, **kw)
-    check(outs, rng.integers(0, 10**18, 5), "ns", "p/")
+    for out, stamp in zip(outs, rng.integers(0, 10**18, 5)):    # an OutputBlock always carries
+        check([out], [stamp], "ns", "p/", block=out)               # them: K = 1 Outputs each
 
 
 def test_missing_bearings_left_out():

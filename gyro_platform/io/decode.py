@@ -191,16 +191,22 @@ def _decode_one(msgtype: str, raw: Raw, store: Any, rb: RateBlock, i: int) -> No
         except (AttributeError, TypeError, ValueError) as e:
             rb.set_reject(i, "bad_message", f"malformed message: {e}")
         return
-    r = reading_from_msg(msg, _SENSOR_FRAME)
     header = getattr(msg, "header", None)
+    if header is not None:
+        try:
+            sec, nsec, frame = int(header.stamp.sec), int(header.stamp.nanosec), str(header.frame_id)
+        except (AttributeError, TypeError, ValueError):
+            pass
+        else:
+            if nsec >= 1_000_000_000:       # an invalid stamp, not a later time
+                rb.has_header[i], rb.stamp_ns[i], rb.frame_id[i] = True, sec * 1_000_000_000 + nsec, frame
+                _reject_bad_stamp(rb, i, nsec)
+                return
+    r = reading_from_msg(msg, _SENSOR_FRAME)
     if header is not None and r.stamp_ns is not None:
         rb.has_header[i] = True
         rb.stamp_ns[i] = r.stamp_ns
         rb.frame_id[i] = r.frame_id
-        nsec = int(header.stamp.nanosec)
-        if nsec >= 1_000_000_000:
-            _reject_bad_stamp(rb, i, nsec)
-            return
     if not isinstance(r, Reading):
         rb.set_reject(i, r.reason, r.detail)
         return
