@@ -553,7 +553,8 @@ def test_more_bad_replay_values_are_exit_2_naming_the_flag(args, words, tmp_path
 @pytest.mark.parametrize("args,words", [
     (["--duration", "1e12"], "--duration: 1e+12 makes the run too big to start"),
     (["--duration", "inf"], "--duration must be a finite number > 0"),
-    (["--max-step", "1e-12"], "--max-step: 1e-12 makes the run too big to start"),
+    (["--max-step", "1e-12"], "max_step' = 1e-12 s; allowed [1e-06, 1] s"),
+    (["--duration", "1e6", "--max-step", "1e-6"], "makes the run too big to start"),
     (["--max-step", "nan"], "max_step"),
 ])
 def test_runs_too_big_to_run_are_refused_with_an_estimate(args, words, capsys):
@@ -568,7 +569,7 @@ def test_runs_too_big_to_run_are_refused_with_an_estimate(args, words, capsys):
     ("params: {servo_kp: true}\n", "params.servo_kp: expected a number, got a boolean True"),
     ("params: {bias_torque: [[0, 0], [0, 0, 1.0e-7]]}\n", "params.bias_torque[0]: expected a number, got a list"),
     ("sample_rate: 1.0e+9\n", "sample_rate: 1e+09 makes the run too big to start"),
-    ("max_step: 1.0e-12\n", "max_step: 1e-12 makes the run too big to start"),
+    ("max_step: 1.0e-12\n", "max_step: option 'max_step' = 1e-12 s; allowed [1e-06, 1] s"),
     ("rtol: 1.0e-300\n", "rtol: must be ≥ 1e-14"),
 ])
 def test_scene_values_that_cannot_be_meant_are_refused(extra, words, tmp_path, capsys):
