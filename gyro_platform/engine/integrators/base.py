@@ -212,6 +212,12 @@ class Controlled(Integrator):
     def _norm(self, err, y0, y1) -> float:
         return error_norm(err, y0, y1, self.rtol, self.atol)
 
+    def _judge(self, err, y0, y1, est: float, worst: float) -> tuple[float, float, float]:
+        """One substep's error estimate ``err`` (state units) from ``y0`` to ``y1``: (its
+        weighted norm, the largest max-norm estimate so far, the worst norm so far)."""
+        nrm = self._norm(err, y0, y1)
+        return nrm, max(est, float(np.abs(err).max())), max(worst, nrm)
+
     def _advance(self, system, t0, y, t1):
         nsub0, h0 = self._base(t0, t1)
         nrhs = self._prepare(system, t0, y)

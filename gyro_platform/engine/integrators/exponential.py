@@ -181,9 +181,7 @@ class _ETD(Controlled):
                 err = h / 3.0 * (k5 - K[s - 1] - A @ (y1 - U))
             else:
                 err = y1 - U
-            nrm = self._norm(err, y, y1)
-            est = max(est, float(np.abs(err).max()))
-            worst = max(worst, nrm)
+            nrm, est, worst = self._judge(err, y, y1, est, worst)
             if is_rejected(nrm):
                 return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
             y = y1
@@ -290,9 +288,7 @@ class ExpRosenbrock(Controlled):
             nrhs += 1
             err = _phi_apply(Z, [None, None, 2.0 * h * D])
             y1 = U + err
-            nrm = self._norm(err, y, y1)
-            est = max(est, float(np.abs(err).max()))
-            worst = max(worst, nrm)
+            nrm, est, worst = self._judge(err, y, y1, est, worst)
             if is_rejected(nrm):
                 return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
             y = y1

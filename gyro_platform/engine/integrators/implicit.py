@@ -107,9 +107,7 @@ class ImplicitMidpoint(Controlled):
             if yb is None:
                 return y, math.inf, math.nan, nrhs, t
             err = (yb - y_full) / 3.0
-            nrm = self._norm(err, y, yb)
-            est = max(est, float(np.abs(err).max()))
-            worst = max(worst, nrm)
+            nrm, est, worst = self._judge(err, y, yb, est, worst)
             if is_rejected(nrm):
                 return yb, (math.inf if nrm != nrm else nrm), est, nrhs, t
             y, fp = yb, fb

@@ -37,9 +37,7 @@ class RK4(Controlled):
             k5 = np.array(rhs(t + h, y1), dtype=float)
             nrhs += 4
             err = h6 * (k4 - k5)
-            nrm = self._norm(err, y, y1)
-            est = max(est, float(np.abs(err).max()))
-            worst = max(worst, nrm) if nrm == nrm else math.nan
+            nrm, est, worst = self._judge(err, y, y1, est, worst)
             if is_rejected(nrm):
                 return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
             y, k1 = y1, k5
