@@ -16,7 +16,10 @@ step-size controller is the one of ``integrators.base.Controlled`` (levels of ``
 substeps per interval, the same acceptance test and level updates) and, for the exponential
 methods, the step grid with the carried remainder of ``_ETD._base`` (matrices per (friction
 regime, level, grid step), built on demand): the results equal the Python integrators' to
-round-off and the failures are the same. A sample is committed (state, time, input, counters)
+round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
+last stage across intervals (first same as last: the next interval's input starts where this
+one ends and the right-hand side does not see its slope), one right-hand side fewer per
+interval; the check ``_k1_carried`` makes any change of state or input row recompute it. A sample is committed (state, time, input, counters)
 only when its interval succeeded; otherwise everything — ``seg`` included — is as before.
 """
 from __future__ import annotations
@@ -43,8 +46,8 @@ GRID = ETD2.GRID
 # ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
 (F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
  F_F, F_A, F_Q, F_RR, F_V, F_W,
- F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC) = range(37)
-N_FSLOT = 37
+ F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK) = range(38)
+N_FSLOT = 38
 I_I, I_RHOST, I_HDR, I_TABLE = range(4)
 N_ISLOT = 4
 SLOT_W = 4                          # table entry: offset, d0, d1, d2
@@ -55,8 +58,8 @@ TABLE_LEN = SLOT_W * (N_FSLOT + N_ISLOT)
 N_FH = 12
 # int header
 (J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_LEVEL, J_NSAMP, J_NSTEPS, J_NRHS, J_NEED_R, J_NEED_L, J_NEED_H,
- J_STARTED, J_HAS_F, J_NLEV, J_REJ, J_DONE, J_JOUT) = range(17)
-N_IH = 17
+ J_STARTED, J_HAS_F, J_NLEV, J_REJ, J_DONE, J_JOUT, J_K1) = range(18)
+N_IH = 18
 #: system attributes rebound to buffer views: (slot, owner path, attribute)
 _SYSTEM_F = ((F_P, "", "P"), (F_SEG, "", "seg"), (F_MATS, "", "mats"), (F_R, "work", "R"), (F_WB, "work", "w"),
              (F_WD, "work", "wd"), (F_J, "work", "J"), (F_FO, "work", "f"), (F_MM, "work", "M"),
@@ -149,6 +152,20 @@ def _csr_mv(mi, po, row, io, md, do, x, out):
         out[r] = acc
 
 
+@njit(cache=True)
+def _k1_carried(ih, yk, y, tr, wr, fr, n):
+    """The last interval left K[0] = f(t, y) for exactly this state and input row 0."""
+    if ih[J_K1] != 1 or yk[n] != tr[0]:
+        return False
+    for m in range(n):
+        if yk[m] != y[m]:
+            return False
+    for m in range(3):
+        if yk[n + 1 + m] != wr[0, m] or yk[n + 4 + m] != fr[0, m]:
+            return False
+    return True
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def _interval(fb, ib, mi, md):
     """Integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``, ``F_FR``) with the
@@ -196,6 +213,7 @@ def _interval(fb, ib, mi, md):
     fr = _f2(fb, ib, F_FR)
     segsave = _f1(fb, ib, F_SEGSAVE)
     yc = _f1(fb, ib, F_YC)
+    yk = _f1(fb, ib, F_YK)
     table = _i1(ib, I_TABLE)
 
     method = ih[J_METHOD]
@@ -254,7 +272,8 @@ def _interval(fb, ib, mi, md):
     worst_all = 0.0
     for m in range(n):
         yw[m] = y[m]
-    have_k1 = False
+    have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
+    ih[J_K1] = 0                          # K[0] is overwritten from here on
     for chunk in range(nsub0):
         tc = t0 + chunk * h0
         for m in range(n):
@@ -398,8 +417,9 @@ def _interval(fb, ib, mi, md):
             est_all = est
         if worst > worst_all:
             worst_all = worst
-        if level > 0 and worst * 2.0 ** q1 <= COARSEN:
+        while level > 0 and worst * 2.0 ** q1 <= COARSEN:     # as base.coarser_level
             level -= 1
+            worst *= 2.0 ** q1
     # accepted: normalise, check, commit
     ih[J_NRHS] += nrhs
     ih[J_REJ] += nrej
@@ -412,6 +432,17 @@ def _interval(fb, ib, mi, md):
             return ST_NONFINITE
     ih[J_NSTEPS] += steps
     ih[J_LEVEL] = level
+    if method == RK4 and I[0, 5] == 1 and have_k1:
+        # FSAL across intervals: K[0] = f(t1, y1) holds for the next interval, whose input
+        # starts where this one ends; stabilised only (the right-hand side does not see the
+        # input's slope). Valid while the committed state and input row equal yk.
+        for m in range(n):
+            yk[m] = yw[m]
+        yk[n] = t1
+        for m in range(3):
+            yk[n + 1 + m] = wr[1, m]
+            yk[n + 4 + m] = fr[1, m]
+        ih[J_K1] = 1
     fh[H_CARRY] = carry
     if est_all > fh[H_EST]:
         fh[H_EST] = est_all
@@ -546,7 +577,8 @@ class Engine:
                          F_HDR: np.zeros(N_FH), F_Y: np.zeros(n), F_YW: np.zeros(n), F_Y1: np.zeros(n),
                          F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
                          F_AU: np.zeros(n), F_C: c, F_TR: np.zeros(2), F_WR: np.zeros((2, 3)),
-                         F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n)})
+                         F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n),
+                         F_YK: np.zeros(n + 7)})
         table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
         i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
                     I_TABLE: -np.ones(table_n, np.int64)}

@@ -15,8 +15,9 @@ tolerance; ``y0`` is untouched (the caller keeps its state).
 The fixed-grid methods (rk4, etd*, exprb, implicit_midpoint) derive from :class:`Controlled`,
 one step-size controller: the interval is cut into ``nsub = ceil(dt/max_step)`` equal chunks
 and each chunk into ``2^level`` equal substeps; a chunk with a rejected substep is redone at a
-finer level (``level += max(1, ceil(log2 ‖err‖ / (q+1)))``, q the estimator's order), and after
-a chunk whose worst substep was ≤ ``0.5·2^-(q+1)`` the next chunk tries one level coarser. So
+finer level (``level += max(1, ceil(log2 ‖err‖ / (q+1)))``, q the estimator's order), and the
+next chunk goes as many levels coarser as keep the predicted worst error ``‖err‖·2^(q+1)`` per
+level ≤ ``COARSEN``. So
 a brief hard stretch (a friction reversal inside a 33 ms interval) costs fine substeps only
 in its own chunk, not over the whole interval; at one chunk per interval (samples at
 ≤ max_step) chunk and interval coincide. The compiled batch loop
@@ -41,8 +42,8 @@ __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 #: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
 MAX_SUBSTEPS = 4096
-#: controller: after an interval whose worst normalised error is ≤ COARSEN·2^-(q+1), the next
-#: interval tries a level coarser (2× the step); a rejection jumps at most MAX_JUMP levels
+#: controller: after a chunk, the next one goes k levels coarser (2^k× the step) for the largest
+#: k with predicted worst error ‖err‖·2^(k(q+1)) ≤ COARSEN; a rejection jumps at most MAX_JUMP levels
 COARSEN = 0.5
 MAX_JUMP = 4
 
@@ -61,8 +62,12 @@ def next_level(level: int, norm: float, q1: int) -> int:
 
 
 def coarser_level(level: int, norm: float, q1: int) -> int:
-    """Level for the next interval after an accepted one."""
-    return level - 1 if level > 0 and norm * 2.0 ** q1 <= COARSEN else level
+    """Level for the next chunk after an accepted one whose worst normalised error was
+    ``norm``: as many levels coarser as keep the predicted error (×2^q1 per level) ≤ COARSEN."""
+    while level > 0 and norm * 2.0 ** q1 <= COARSEN:
+        level -= 1
+        norm *= 2.0 ** q1
+    return level
 
 
 class OdeSystem(Protocol):
