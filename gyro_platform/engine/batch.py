@@ -31,6 +31,7 @@ from numba import njit
 
 from .integrators import COARSEN, MAX_JUMP
 from .integrators import ETD2
+from .views import view2, view3
 from ..physics.system import FASTMATH, SEG_N, platform_rhs, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
@@ -80,7 +81,7 @@ def _f2(fb, ib, k):
     o = ib[SLOT_W * k]
     d0 = ib[SLOT_W * k + 1]
     d1 = ib[SLOT_W * k + 2]
-    return fb[o:o + d0 * d1].reshape((d0, d1))
+    return view2(fb, o, (d0, d1))
 
 
 @njit(cache=True, inline="always")
@@ -89,7 +90,7 @@ def _f3(fb, ib, k):
     d0 = ib[SLOT_W * k + 1]
     d1 = ib[SLOT_W * k + 2]
     d2 = ib[SLOT_W * k + 3]
-    return fb[o:o + d0 * d1 * d2].reshape((d0, d1, d2))
+    return view3(fb, o, (d0, d1, d2))
 
 
 @njit(cache=True, inline="always")
@@ -103,7 +104,7 @@ def _i2(ib, k):
     o = ib[SLOT_W * (N_FSLOT + k)]
     d0 = ib[SLOT_W * (N_FSLOT + k) + 1]
     d1 = ib[SLOT_W * (N_FSLOT + k) + 2]
-    return ib[o:o + d0 * d1].reshape((d0, d1))
+    return view2(ib, o, (d0, d1))
 
 
 # ---------------------------------------------------------------------------- kernels
@@ -226,7 +227,7 @@ def _interval(fb, ib, mi, md):
     atol = fh[H_ATOL]
     n = y.shape[0]
     s = c.shape[0]
-    Kf = K.reshape(s * n)
+    Kf = fb[ib[SLOT_W * F_K]:ib[SLOT_W * F_K] + s * n]     # K flat (no reshape)
     qa = I[0, 3]
     qp = I[0, 2]
     for m in range(SEG_N):
