@@ -32,6 +32,7 @@ from numba import njit
 from .integrators import COARSEN, MAX_JUMP
 from .integrators import ETD2
 from .views import view2, view3
+from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.system import FASTMATH, SEG_N, platform_rhs, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
@@ -47,8 +48,8 @@ GRID = ETD2.GRID
 # ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
 (F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
  F_F, F_A, F_Q, F_RR, F_V, F_W,
- F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK) = range(38)
-N_FSLOT = 38
+ F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK, F_PUSH) = range(39)
+N_FSLOT = 39
 I_I, I_RHOST, I_HDR, I_TABLE = range(4)
 N_ISLOT = 4
 SLOT_W = 4                          # table entry: offset, d0, d1, d2
@@ -120,12 +121,10 @@ def _normalise(y, a, b):
         y[i] /= s
 
 
-@njit(cache=True)
-def _quat_ok(u, a):
-    """The quaternion u[a:a+4] can be turned into a matrix (finite, non-zero)."""
-    if a < 0:
-        return True
-    s = u[a] * u[a] + u[a + 1] * u[a + 1] + u[a + 2] * u[a + 2] + u[a + 3] * u[a + 3]
+@njit(cache=True, inline="always")
+def _quat_ok(x, y, z, w):
+    """The quaternion (x, y, z, w) can be turned into a matrix (finite, non-zero)."""
+    s = x * x + y * y + z * z + w * w
     return s > 0.0 and s < math.inf
 
 
@@ -168,12 +167,22 @@ def _k1_carried(ih, yk, y, tr, wr, fr, n):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _interval(fb, ib, mi, md):
-    """Integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``, ``F_FR``) with the
-    controller of ``Controlled``. On success (status 0) the state, level, carry and counters
-    are committed and ``seg`` is the interval's; otherwise the state, level and carry are
-    unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header describes a refusal
-    (``H_T_BAD`` …) or the int header names the missing matrices (``NEED_REGIME``)."""
+def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_out, ns_out):
+    """Samples ``first…N−1`` of a chunk (ts (N,) s in the samples' time base, ws (N, 3) rad/s,
+    fs (N, 3) m/s², vehicle axes; ``fs`` ignored unless ``has_f``); after each sample listed in
+    ``out_idx`` (increasing) its snapshot goes to ``y_out``/``seg_out``/``ns_out`` (the rows from
+    ``ih[J_JOUT]`` on). Stops at the first failing sample with its status; ``ih[J_DONE]`` is
+    then the index of that sample (all before it are committed).
+
+    One interval per sample: integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``,
+    ``F_FR``) with the controller of ``Controlled``. On success the state, level, carry,
+    counters and input rows are committed and ``seg`` is the interval's; otherwise the state,
+    level and carry are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
+    describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
+    (``NEED_REGIME``). Everything is in this one function: the views of the buffers are made
+    once per call, and no array is handed to a function per sample (numba's reference
+    counting of array arguments would cost more than the step).
+"""
     fh = _f1(fb, ib, F_HDR)
     ih = _i1(ib, I_HDR)
     I = _i2(ib, I_I)
@@ -216,9 +225,9 @@ def _interval(fb, ib, mi, md):
     yc = _f1(fb, ib, F_YC)
     yk = _f1(fb, ib, F_YK)
     table = _i1(ib, I_TABLE)
-
     method = ih[J_METHOD]
     fid = ih[J_FID]
+    lin = takes_linear_path(fid == 1, I)
     q1 = ih[J_Q1]
     max_level = ih[J_MAX_LEVEL]
     nlev = ih[J_NLEV]
@@ -230,304 +239,295 @@ def _interval(fb, ib, mi, md):
     Kf = fb[ib[SLOT_W * F_K]:ib[SLOT_W * F_K] + s * n]     # K flat (no reshape)
     qa = I[0, 3]
     qp = I[0, 2]
-    for m in range(SEG_N):
-        segsave[m] = seg[m]
-    t0 = tr[0]
-    t1 = tr[1]
-    seg[0] = t0
-    seg[1] = t1 - t0
-    for m in range(3):
-        seg[2 + m] = wr[0, m]
-        seg[5 + m] = wr[1, m]
-        seg[8 + m] = fr[0, m]
-        seg[11 + m] = fr[1, m]
-    carry = 0.0
-    hq = 0
-    if method == RK4:
-        nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
-        if nsub0 < 1:
-            nsub0 = 1
-        h0 = (t1 - t0) / nsub0
-        r = 0
-    else:
-        # the step grid of _ETD._base: h a multiple of q, the remainder carried to the next interval
-        dt = (t1 - t0) + fh[H_CARRY]
-        q = max_step / GRID
-        nsub0 = int(math.ceil(dt / max_step - 1e-9))
-        if nsub0 < 1:
-            nsub0 = 1
-        hq = int(np.rint(dt / nsub0 / q))
-        if hq < 1:
-            hq = 1
-        h0 = hq * q
-        carry = dt - nsub0 * h0
-        r = support_regime(y, I, P, seg, RR)
-    level = ih[J_LEVEL]
-    po = 0
-    io = 0
-    do = 0
-    nrhs = 0
-    nrej = 0
-    steps = 0
-    est_all = 0.0
-    worst_all = 0.0
-    for m in range(n):
-        yw[m] = y[m]
-    have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
-    ih[J_K1] = 0                          # K[0] is overwritten from here on
-    for chunk in range(nsub0):
-        tc = t0 + chunk * h0
+    nout = out_idx.shape[0]
+    jo = ih[J_JOUT]
+    for i in range(first, ts.shape[0]):
+        ih[J_DONE] = i
+        # ---- the sample: finite, after the last one; it becomes input row 1
+        tsi = ts[i]
+        w0, w1, w2 = ws[i, 0], ws[i, 1], ws[i, 2]
+        if has_f:
+            f0, f1, f2 = fs[i, 0], fs[i, 1], fs[i, 2]
+        else:
+            f0, f1, f2 = 0.0, 0.0, 0.0
+        if not (math.isfinite(tsi) and math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)
+                and math.isfinite(f0) and math.isfinite(f1) and math.isfinite(f2)):
+            ih[J_JOUT] = jo
+            return ST_BAD_SAMPLE
+        t1s = tsi - fh[H_T_START]
+        if not t1s > fh[H_T_REL]:
+            ih[J_JOUT] = jo
+            return ST_ORDER
+        tr[1] = t1s
+        wr[1, 0] = w0
+        wr[1, 1] = w1
+        wr[1, 2] = w2
+        fr[1, 0] = f0
+        fr[1, 1] = f1
+        fr[1, 2] = f2
+        # ---- the interval
+        for m in range(SEG_N):
+            segsave[m] = seg[m]
+        t0 = tr[0]
+        t1 = tr[1]
+        seg[0] = t0
+        seg[1] = t1 - t0
+        for m in range(3):
+            seg[2 + m] = wr[0, m]
+            seg[5 + m] = wr[1, m]
+            seg[8 + m] = fr[0, m]
+            seg[11 + m] = fr[1, m]
+        carry = 0.0
+        hq = 0
+        if method == RK4:
+            nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
+            if nsub0 < 1:
+                nsub0 = 1
+            h0 = (t1 - t0) / nsub0
+            r = 0
+        else:
+            # the step grid of _ETD._base: h a multiple of q, the remainder carried to the next interval
+            dt = (t1 - t0) + fh[H_CARRY]
+            q = max_step / GRID
+            nsub0 = int(math.ceil(dt / max_step - 1e-9))
+            if nsub0 < 1:
+                nsub0 = 1
+            hq = int(np.rint(dt / nsub0 / q))
+            if hq < 1:
+                hq = 1
+            h0 = hq * q
+            carry = dt - nsub0 * h0
+            r = support_regime(y, I, P, seg, RR)
+        level = ih[J_LEVEL]
+        po = 0
+        io = 0
+        do = 0
+        nrhs = 0
+        nrej = 0
+        steps = 0
+        est_all = 0.0
+        worst_all = 0.0
         for m in range(n):
-            yc[m] = yw[m]
-        while True:
-            if method != RK4:
-                key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
-                po = table[key]
-                if po < 0:
-                    ih[J_NEED_R] = r
-                    ih[J_NEED_L] = level
-                    ih[J_NEED_H] = hq
-                    for m in range(SEG_N):
-                        seg[m] = segsave[m]
-                    return NEED_REGIME
-                do = table[key + 1]
-                io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
-            nsub = 1 << level
-            h = h0 / nsub
-            est = 0.0
-            worst = 0.0
-            bad = False
-            status = 0
-            t_bad = tc
-            nrm = 0.0
-            for sub in range(nsub):
-                t = tc + sub * h
-                # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
-                for j in range(s + 1):
-                    if j == 0:
-                        if have_k1:
-                            continue
-                        for m in range(n):
-                            U[m] = yw[m]
-                    elif j == s:
-                        if method == EXPRK:
-                            break
-                        if method == RK4:
-                            for m in range(n):
-                                y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
-                        else:
-                            _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
-                        for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
-                            Ul[m] = U[m]
-                            U[m] = y1[m]
-                    elif method == RK4:
-                        cj = c[j] * h
-                        for m in range(n):
-                            U[m] = yw[m] + cj * K[j - 1, m]
-                    else:
-                        _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
-                    if not (_quat_ok(U, qa) and _quat_ok(U, qp)):
-                        status |= ST_NONFINITE
-                        break
-                    nrhs += 1
-                    status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I, P,
-                                           seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm, cc,
-                                           tau_ext, fbb, chol, F, a, Q, RR, V, W)
-                if status & (ST_LOCK | ST_NOT_PD):
-                    break
-                if status & ST_NONFINITE:
-                    nrm = math.inf
-                    bad = True
-                    t_bad = t
-                    break
-                if method == EXPRK:
-                    # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
-                    _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
-                elif method == EXPRK_D:
-                    # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
-                    for m in range(n):
-                        U[m] = y1[m] - Ul[m]
-                    _csr_mv(mi, po, s, io, md, do, U, AU)
-                # error estimate and its weighted RMS norm
-                acc = 0.0
-                emax = 0.0
-                for m in range(n):
-                    if method == RK4:
-                        ee = h / 6.0 * (K[3, m] - k5[m])
-                    elif method == EXPRK_D:
-                        ee = h / 3.0 * (k5[m] - K[s - 1, m] - AU[m])
-                    else:
-                        ee = y1[m] - U[m]
-                    sc = atol + rtol * max(abs(yw[m]), abs(y1[m]))
-                    acc += (ee / sc) ** 2
-                    if abs(ee) > emax:
-                        emax = abs(ee)
-                    if not math.isfinite(ee):
-                        emax = math.inf
-                nrm = math.sqrt(acc / n)
-                if emax > est:
-                    est = emax
-                if not nrm <= 1.0:
-                    if not math.isfinite(nrm):
-                        nrm = math.inf
-                    bad = True
-                    t_bad = t
-                    break
-                if nrm > worst:
-                    worst = nrm
-                for m in range(n):
-                    yw[m] = y1[m]
-                if method != EXPRK:
-                    for m in range(n):
-                        K[0, m] = k5[m]
-                    have_k1 = True
-            if status & (ST_LOCK | ST_NOT_PD):
-                for m in range(SEG_N):
-                    seg[m] = segsave[m]
-                ih[J_NRHS] += nrhs
-                return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
-            if not bad:
-                break
-            # rejected: redo the chunk from its start at a finer level
-            nrej += 1
+            yw[m] = y[m]
+        have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
+        ih[J_K1] = 0                          # K[0] is overwritten from here on
+        for chunk in range(nsub0):
+            tc = t0 + chunk * h0
             for m in range(n):
-                yw[m] = yc[m]
-            have_k1 = False
-            if nrm < math.inf:
-                jump = int(math.ceil(math.log2(nrm) / q1))
-                new = level + min(MAX_JUMP, max(1, jump))
-            else:
-                new = level + MAX_JUMP
-            if new > max_level:
-                if level < max_level:
-                    new = max_level
-                else:
-                    fh[H_T_BAD] = t_bad
-                    fh[H_E_BAD] = est
-                    fh[H_N_BAD] = nrm
-                    fh[H_H_BAD] = h
+                yc[m] = yw[m]
+            while True:
+                if method != RK4:
+                    key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
+                    po = table[key]
+                    if po < 0:
+                        ih[J_NEED_R] = r
+                        ih[J_NEED_L] = level
+                        ih[J_NEED_H] = hq
+                        for m in range(SEG_N):
+                            seg[m] = segsave[m]
+                        ih[J_JOUT] = jo
+                        return NEED_REGIME
+                    do = table[key + 1]
+                    io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
+                nsub = 1 << level
+                h = h0 / nsub
+                est = 0.0
+                worst = 0.0
+                bad = False
+                status = 0
+                t_bad = tc
+                nrm = 0.0
+                for sub in range(nsub):
+                    t = tc + sub * h
+                    # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
+                    for j in range(s + 1):
+                        if j == 0:
+                            if have_k1:
+                                continue
+                            for m in range(n):
+                                U[m] = yw[m]
+                        elif j == s:
+                            if method == EXPRK:
+                                break
+                            if method == RK4:
+                                for m in range(n):
+                                    y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
+                            else:
+                                _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                            for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
+                                Ul[m] = U[m]
+                                U[m] = y1[m]
+                        elif method == RK4:
+                            cj = c[j] * h
+                            for m in range(n):
+                                U[m] = yw[m] + cj * K[j - 1, m]
+                        else:
+                            _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
+                        if not ((qa < 0 or _quat_ok(U[qa], U[qa + 1], U[qa + 2], U[qa + 3]))
+                                    and (qp < 0 or _quat_ok(U[qp], U[qp + 1], U[qp + 2], U[qp + 3]))):
+                            status |= ST_NONFINITE
+                            break
+                        nrhs += 1
+                        if lin:     # the same model without the general kernel's 28 arguments
+                            status |= stabilised_linear_rhs(t + (h if j == s else c[j] * h), U,
+                                                            k5 if j == s else K[j], I, P, seg, mats, F)
+                        else:
+                            status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I,
+                                                   P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm,
+                                                   cc, tau_ext, fbb, chol, F, a, Q, RR, V, W)
+                    if status & (ST_LOCK | ST_NOT_PD):
+                        break
+                    if status & ST_NONFINITE:
+                        nrm = math.inf
+                        bad = True
+                        t_bad = t
+                        break
+                    if method == EXPRK:
+                        # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
+                        _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                    elif method == EXPRK_D:
+                        # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
+                        for m in range(n):
+                            U[m] = y1[m] - Ul[m]
+                        _csr_mv(mi, po, s, io, md, do, U, AU)
+                    # error estimate and its weighted RMS norm
+                    acc = 0.0
+                    emax = 0.0
+                    for m in range(n):
+                        if method == RK4:
+                            ee = h / 6.0 * (K[3, m] - k5[m])
+                        elif method == EXPRK_D:
+                            ee = h / 3.0 * (k5[m] - K[s - 1, m] - AU[m])
+                        else:
+                            ee = y1[m] - U[m]
+                        sc = atol + rtol * max(abs(yw[m]), abs(y1[m]))
+                        acc += (ee / sc) ** 2
+                        if abs(ee) > emax:
+                            emax = abs(ee)
+                        if not math.isfinite(ee):
+                            emax = math.inf
+                    nrm = math.sqrt(acc / n)
+                    if emax > est:
+                        est = emax
+                    if not nrm <= 1.0:
+                        if not math.isfinite(nrm):
+                            nrm = math.inf
+                        bad = True
+                        t_bad = t
+                        break
+                    if nrm > worst:
+                        worst = nrm
+                    for m in range(n):
+                        yw[m] = y1[m]
+                    if method != EXPRK:
+                        for m in range(n):
+                            K[0, m] = k5[m]
+                        have_k1 = True
+                if status & (ST_LOCK | ST_NOT_PD):
                     for m in range(SEG_N):
                         seg[m] = segsave[m]
                     ih[J_NRHS] += nrhs
-                    ih[J_REJ] += nrej
-                    return ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
-            level = new
-        # chunk accepted
-        steps += nsub
-        if est > est_all:
-            est_all = est
-        if worst > worst_all:
-            worst_all = worst
-        while level > 0 and worst * 2.0 ** q1 <= COARSEN:     # as base.coarser_level
-            level -= 1
-            worst *= 2.0 ** q1
-    # accepted: normalise, check, commit
-    ih[J_NRHS] += nrhs
-    ih[J_REJ] += nrej
-    _normalise(yw, qa, qa + 4)
-    _normalise(yw, qp, qp + 4)
-    for m in range(n):
-        if not math.isfinite(yw[m]):
-            for k in range(SEG_N):
-                seg[k] = segsave[k]
-            return ST_NONFINITE
-    ih[J_NSTEPS] += steps
-    ih[J_LEVEL] = level
-    if method == RK4 and I[0, 5] == 1 and have_k1:
-        # FSAL across intervals: K[0] = f(t1, y1) holds for the next interval, whose input
-        # starts where this one ends; stabilised only (the right-hand side does not see the
-        # input's slope). Valid while the committed state and input row equal yk.
+                    ih[J_JOUT] = jo
+                    return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
+                if not bad:
+                    break
+                # rejected: redo the chunk from its start at a finer level
+                nrej += 1
+                for m in range(n):
+                    yw[m] = yc[m]
+                have_k1 = False
+                if nrm < math.inf:
+                    jump = int(math.ceil(math.log2(nrm) / q1))
+                    new = level + min(MAX_JUMP, max(1, jump))
+                else:
+                    new = level + MAX_JUMP
+                if new > max_level:
+                    if level < max_level:
+                        new = max_level
+                    else:
+                        fh[H_T_BAD] = t_bad
+                        fh[H_E_BAD] = est
+                        fh[H_N_BAD] = nrm
+                        fh[H_H_BAD] = h
+                        for m in range(SEG_N):
+                            seg[m] = segsave[m]
+                        ih[J_NRHS] += nrhs
+                        ih[J_REJ] += nrej
+                        ih[J_JOUT] = jo
+                        return ST_TOLERANCE if nrm < math.inf else ST_NONFINITE | ST_TOLERANCE
+                level = new
+            # chunk accepted
+            steps += nsub
+            if est > est_all:
+                est_all = est
+            if worst > worst_all:
+                worst_all = worst
+            while level > 0 and worst * 2.0 ** q1 <= COARSEN:     # as base.coarser_level
+                level -= 1
+                worst *= 2.0 ** q1
+        # accepted: normalise, check, commit
+        ih[J_NRHS] += nrhs
+        ih[J_REJ] += nrej
+        _normalise(yw, qa, qa + 4)
+        _normalise(yw, qp, qp + 4)
         for m in range(n):
-            yk[m] = yw[m]
-        yk[n] = t1
+            if not math.isfinite(yw[m]):
+                for k in range(SEG_N):
+                    seg[k] = segsave[k]
+                ih[J_JOUT] = jo
+                return ST_NONFINITE
+        ih[J_NSTEPS] += steps
+        ih[J_LEVEL] = level
+        if method == RK4 and I[0, 5] == 1 and have_k1:
+            # FSAL across intervals: K[0] = f(t1, y1) holds for the next interval, whose input
+            # starts where this one ends; stabilised only (the right-hand side does not see the
+            # input's slope). Valid while the committed state and input row equal yk.
+            for m in range(n):
+                yk[m] = yw[m]
+            yk[n] = t1
+            for m in range(3):
+                yk[n + 1 + m] = wr[1, m]
+                yk[n + 4 + m] = fr[1, m]
+            ih[J_K1] = 1
+        fh[H_CARRY] = carry
+        if est_all > fh[H_EST]:
+            fh[H_EST] = est_all
+        if worst_all > fh[H_NORM]:
+            fh[H_NORM] = worst_all
+        for m in range(n):
+            y[m] = yw[m]
+        # ---- commit the sample
+        tr[0] = t1s
         for m in range(3):
-            yk[n + 1 + m] = wr[1, m]
-            yk[n + 4 + m] = fr[1, m]
-        ih[J_K1] = 1
-    fh[H_CARRY] = carry
-    if est_all > fh[H_EST]:
-        fh[H_EST] = est_all
-    if worst_all > fh[H_NORM]:
-        fh[H_NORM] = worst_all
-    for m in range(n):
-        y[m] = yw[m]
-    return 0
-
-
-@njit(cache=True)
-def _sample(fb, ib, mi, md, t, w0, w1, w2, f0, f1, f2, has_f):
-    """Check, then integrate to one sample (time t in the samples' time base, s; rate rad/s and
-    specific force m/s², vehicle axes) and commit it. Returns the status (0: done)."""
-    fh = _f1(fb, ib, F_HDR)
-    ih = _i1(ib, I_HDR)
-    if not (math.isfinite(t) and math.isfinite(w0) and math.isfinite(w1) and math.isfinite(w2)
-            and math.isfinite(f0) and math.isfinite(f1) and math.isfinite(f2)):
-        return ST_BAD_SAMPLE
-    t1 = t - fh[H_T_START]
-    if not t1 > fh[H_T_REL]:
-        return ST_ORDER
-    tr = _f1(fb, ib, F_TR)
-    wr = _f2(fb, ib, F_WR)
-    fr = _f2(fb, ib, F_FR)
-    tr[1] = t1
-    wr[1, 0] = w0
-    wr[1, 1] = w1
-    wr[1, 2] = w2
-    fr[1, 0] = f0
-    fr[1, 1] = f1
-    fr[1, 2] = f2
-    st = _interval(fb, ib, mi, md)
-    if st != 0:
-        return st
-    tr[0] = t1
-    for m in range(3):
-        wr[0, m] = wr[1, m]
-        fr[0, m] = fr[1, m]
-    fh[H_T_REL] = t1
-    ih[J_NSAMP] += 1
-    ih[J_HAS_F] = has_f
+            wr[0, m] = wr[1, m]
+            fr[0, m] = fr[1, m]
+        fh[H_T_REL] = t1s
+        ih[J_NSAMP] += 1
+        ih[J_HAS_F] = 1 if has_f else 0
+        while jo < nout and out_idx[jo] == i:
+            for m in range(n):
+                y_out[jo, m] = y[m]
+            for m in range(SEG_N):
+                seg_out[jo, m] = seg[m]
+            ns_out[jo] = ih[J_NSTEPS]
+            jo += 1
+    ih[J_DONE] = ts.shape[0]
+    ih[J_JOUT] = jo
     return 0
 
 
 @njit(cache=True)
 def push_kernel(fb, ib, mi, md, t, w, f, has_f):
-    """One sample (``w``, ``f`` (3,) arrays; ``f`` ignored unless ``has_f``). Returns the status."""
-    if has_f:
-        return _sample(fb, ib, mi, md, t, w[0], w[1], w[2], f[0], f[1], f[2], 1)
-    return _sample(fb, ib, mi, md, t, w[0], w[1], w[2], 0.0, 0.0, 0.0, 0)
-
-
-@njit(cache=True)
-def block_kernel(fb, ib, mi, md, t, w, f, has_f, first, out_idx, y_out, seg_out, ns_out):
-    """Samples ``first…N−1`` of a chunk (t (N,) s, w (N, 3), f (N, 3)); after each sample listed
-    in ``out_idx`` (increasing) its snapshot goes to ``y_out``/``seg_out``/``ns_out`` (the rows
-    from ``ih[J_JOUT]`` on). Stops at the first failing sample with its status;
-    ``ih[J_DONE]`` is then the index of that sample (all before it are committed)."""
-    ih = _i1(ib, I_HDR)
-    y = _f1(fb, ib, F_Y)
-    seg = _f1(fb, ib, F_SEG)
-    n = y.shape[0]
-    nout = out_idx.shape[0]
-    j = ih[J_JOUT]
-    for i in range(first, t.shape[0]):
-        ih[J_DONE] = i
-        if has_f:
-            st = _sample(fb, ib, mi, md, t[i], w[i, 0], w[i, 1], w[i, 2], f[i, 0], f[i, 1], f[i, 2], 1)
-        else:
-            st = _sample(fb, ib, mi, md, t[i], w[i, 0], w[i, 1], w[i, 2], 0.0, 0.0, 0.0, 0)
-        if st != 0:
-            ih[J_JOUT] = j
-            return st
-        while j < nout and out_idx[j] == i:
-            for m in range(n):
-                y_out[j, m] = y[m]
-            for m in range(SEG_N):
-                seg_out[j, m] = seg[m]
-            ns_out[j] = ih[J_NSTEPS]
-            j += 1
-    ih[J_DONE] = t.shape[0]
-    ih[J_JOUT] = j
-    return 0
+    """One sample (``w``, ``f`` (3,) arrays; ``f`` ignored unless ``has_f``): ``block_kernel``
+    on a one-row chunk kept in the buffers (``F_PUSH``). Returns the status."""
+    o = ib[SLOT_W * F_PUSH]
+    fb[o] = t
+    for m in range(3):
+        fb[o + 1 + m] = w[m]
+        fb[o + 4 + m] = f[m] if has_f else 0.0
+    n = ib[SLOT_W * F_Y + 1]
+    return block_kernel(fb, ib, mi, md, fb[o:o + 1], view2(fb, o + 1, (1, 3)), view2(fb, o + 4, (1, 3)),
+                        has_f, 0, ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0])
 
 
 # ---------------------------------------------------------------------------- Python side
@@ -579,7 +579,7 @@ class Engine:
                          F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
                          F_AU: np.zeros(n), F_C: c, F_TR: np.zeros(2), F_WR: np.zeros((2, 3)),
                          F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n),
-                         F_YK: np.zeros(n + 7)})
+                         F_YK: np.zeros(n + 7), F_PUSH: np.zeros(7)})
         table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
         i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
                     I_TABLE: -np.ones(table_n, np.int64)}

@@ -71,33 +71,30 @@ def sat(x):
     return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
 
 
-@njit(cache=True)
-def gimbal_springs(k, q, Q):
-    """Restraint springs: Q_k −= c_k q_k (rate-gyro scenes)."""
-    for i in range(5):
-        Q[i] -= k[K_SPRING + i] * q[i]
-
-
-@njit(cache=True)
-def gimbal_dampers(k, qd, Q):
-    """Viscous dampers: Q_k −= d_k q̇_k."""
-    for i in range(5):
-        Q[i] -= k[K_DAMPER + i] * qd[i]
+@njit(cache=True, inline="always")
+def gimbal_axis_torque(springs, dampers, friction, bias, k, i, q, qd):
+    """Axial torque (N m) on gimbal ``i`` (angle q rad, rate qd rad/s) of the restraint spring
+    (−c q), viscous damper (−d q̇), bearing friction (−b q̇ − μ sat(q̇/ε), a drift source) and
+    g-insensitive bias (+b) whose flags are set, summed in that order."""
+    Qi = 0.0
+    if springs:
+        Qi -= k[K_SPRING + i] * q
+    if dampers:
+        Qi -= k[K_DAMPER + i] * qd
+    if friction:
+        Qi -= k[K_VISC + i] * qd + k[K_COULOMB + i] * sat(qd / k[K_EPS])
+    if bias:
+        Qi += k[K_BIAS + i]
+    return Qi
 
 
 @njit(cache=True)
 def gimbal_friction(k, qd, Q):
-    """Gimbal bearing friction: Q_k −= b_k q̇_k + μ_k sat(q̇_k/ε) (drift source)."""
+    """Gimbal bearing friction alone: Q_k −= b_k q̇_k + μ_k sat(q̇_k/ε) (the precession model
+    iterates it)."""
     eps = k[K_EPS]
     for i in range(5):
         Q[i] -= k[K_VISC + i] * qd[i] + k[K_COULOMB + i] * sat(qd[i] / eps)
-
-
-@njit(cache=True)
-def bias_torque(k, Q):
-    """g-insensitive bias torques: Q_k += b_k."""
-    for i in range(5):
-        Q[i] += k[K_BIAS + i]
 
 
 @njit(cache=True)
@@ -174,15 +171,8 @@ def g_sensitive_torques(k, unbalance_on, aniso_on, rotor_host, rotor_axis, fb, t
 @njit(cache=True)
 def gimbal_forces(on, k, L, q, qd, wc, Q):
     """Sum of the axial gimbal torques Q (N m) of the effects that are on (``on`` flags)."""
+    springs, dampers, friction, bias = on[SPRINGS], on[DAMPERS], on[FRICTION], on[BIAS]
     for i in range(5):
-        Q[i] = 0.0
-    if on[SPRINGS]:
-        gimbal_springs(k, q, Q)
-    if on[DAMPERS]:
-        gimbal_dampers(k, qd, Q)
-    if on[FRICTION]:
-        gimbal_friction(k, qd, Q)
-    if on[BIAS]:
-        bias_torque(k, Q)
+        Q[i] = gimbal_axis_torque(springs, dampers, friction, bias, k, i, q[i], qd[i])
     if on[EARTH]:
         gyro_torquers(L, wc, Q)

@@ -73,6 +73,10 @@ def platform_tree(p: PlatformParams, root_dynamic: bool) -> BodyTree:
     )
 
 
+# the kernels' layout index row I[0]: [Om, qd, qIP, qIB, z, stabilised, nv] (start indices, −1: absent)
+LAY_OM, LAY_QD, LAY_QIP, LAY_QIB, LAY_Z, LAY_STAB, LAY_NV = range(7)
+
+
 @dataclass(frozen=True)
 class StateLayout:
     """Slices of the state vector for one mode/fidelity."""

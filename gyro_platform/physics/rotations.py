@@ -38,20 +38,22 @@ def quat_rate_at(y, i, wx, wy, wz, out):
     out[i + 3] = -0.5 * (x * wx + yy * wy + z * wz)
 
 
+@njit(cache=True, inline="always")
+def quat_matrix_elems(y, i):
+    """The nine elements (row-major) of R(q) for the quaternion q = y[i:i+4], normalised on the
+    fly (no arrays: the kernels' hot path)."""
+    x, yy, z, w = y[i], y[i + 1], y[i + 2], y[i + 3]
+    s = 2.0 / (x * x + yy * yy + z * z + w * w)
+    return (1.0 - s * (yy * yy + z * z), s * (x * yy - z * w), s * (x * z + yy * w),
+            s * (x * yy + z * w), 1.0 - s * (x * x + z * z), s * (yy * z - x * w),
+            s * (x * z - yy * w), s * (yy * z + x * w), 1.0 - s * (x * x + yy * yy))
+
+
 @njit(cache=True)
 def quat_to_matrix_at(y, i, RR, k):
     """RR[k] = R(q) for the quaternion q = y[i:i+4] (normalised on the fly; no views)."""
-    x, yy, z, w = y[i], y[i + 1], y[i + 2], y[i + 3]
-    s = 2.0 / (x * x + yy * yy + z * z + w * w)
-    RR[k, 0, 0] = 1.0 - s * (yy * yy + z * z)
-    RR[k, 0, 1] = s * (x * yy - z * w)
-    RR[k, 0, 2] = s * (x * z + yy * w)
-    RR[k, 1, 0] = s * (x * yy + z * w)
-    RR[k, 1, 1] = 1.0 - s * (x * x + z * z)
-    RR[k, 1, 2] = s * (yy * z - x * w)
-    RR[k, 2, 0] = s * (x * z - yy * w)
-    RR[k, 2, 1] = s * (yy * z + x * w)
-    RR[k, 2, 2] = 1.0 - s * (x * x + yy * yy)
+    (RR[k, 0, 0], RR[k, 0, 1], RR[k, 0, 2], RR[k, 1, 0], RR[k, 1, 1], RR[k, 1, 2],
+     RR[k, 2, 0], RR[k, 2, 1], RR[k, 2, 2]) = quat_matrix_elems(y, i)
 
 
 # ---- small numpy helpers for the output path (no scipy Rotation objects: ~µs, not ~50 µs) ----

@@ -14,17 +14,16 @@ from numba import njit
 
 from . import effects as fx
 from ..errors import GimbalLockError, SimulationError
-from .model import (LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
+from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
+from .rhs_linear import stabilised_linear_rhs, takes_linear_path
 from .rotations import quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
 FULL, LINEAR, PRECESSION = 0, 1, 2
 FIDELITY_CODE = {"full": FULL, "linear": LINEAR, "precession": PRECESSION}
-# layout index array: [Om, qd, qIP, qIB, z, stabilised, nv]
-LAY_OM, LAY_QD, LAY_QIP, LAY_QIB, LAY_Z, LAY_STAB, LAY_NV = range(7)
 # segment array: [t0, dt, w0(3), w1(3), f0(3), f1(3)]
 SEG_N = 14
 STATUS_OK, STATUS_LOCK, STATUS_NOT_PD = 0, 1, 2
@@ -83,7 +82,10 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     interval, ``mats`` (5, 8, 8): M0⁻¹, G0, I_frozen, I_frozen⁻¹, R_PB (mounting). Work arrays
     are preallocated and indexed directly (no views on the linear hot path): the tree's,
     ``RR`` (4, 3, 3) rotations R_IP, R_IB, R_PB, R_IC, ``V`` (9, 3) small vectors (rows
-    ``V_*``), ``W`` rows q̇, tree v, zero a, dvisc, Qf."""
+    ``V_*``), ``W`` rows q̇, tree v, zero a, dvisc, Qf. The linear stabilised model without
+    body rotations is handed to :func:`.rhs_linear.stabilised_linear_rhs` before any view is made."""
+    if takes_linear_path(fid == LINEAR, I):
+        return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
     nb = inertia.shape[0]
     lay = I[0]
     on = I[1]

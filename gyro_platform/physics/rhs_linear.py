@@ -1,0 +1,100 @@
+"""The right-hand side of the linear stabilised model without arrays of its own: the path the
+replay, the node and most scenes take (``mode: stabilised``, ``fidelity: linear``).
+
+``platform_rhs`` (:mod:`.system`) hands over to ``stabilised_linear_rhs`` when the fidelity is
+linear, the platform stabilised, and no effect needs body rotations or the Earth's rate
+(``mass_unbalance``, ``anisoelastic``, ``earth_rate`` off). The physics is the general
+kernel's for that case (spec 6.3: constant M0, G0; support friction, servo, gimbal springs,
+dampers, friction and bias), evaluated on scalars and the argument arrays only: the general
+kernel creates some fifteen array views per call, and each costs numba a reference-count
+round trip, about two thirds of its time. Frames: platform axes for Ω, M_P; vehicle axes
+for ω_B. May import the physics room's kernels only.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from . import effects as fx
+from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_Z
+from .rotations import quat_matrix_elems, quat_rate_at
+
+__all__ = ["stabilised_linear_rhs", "takes_linear_path"]
+
+
+@njit(cache=True, inline="always")
+def takes_linear_path(fid_linear, I):
+    """True when ``stabilised_linear_rhs`` is the model (see module doc); ``fid_linear``:
+    the fidelity is linear."""
+    return (fid_linear and I[0, 5] == 1 and I[1, fx.UNBALANCE] == 0 and I[1, fx.ANISO] == 0
+            and I[1, fx.EARTH] == 0)
+
+
+@njit(cache=True, inline="always")
+def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
+    """ẏ of the linear stabilised model into ``yd`` (state layout of ``I[0]``; ``P`` packed
+    coefficients, whose first block is the effect vector ``k``; ``seg`` the input interval;
+    ``mats[0]`` = M0⁻¹, ``mats[1]`` = G0; ``F`` (8,) work). Returns 0 (no failure mode)."""
+    # vehicle rate at t (linear over the interval), vehicle axes
+    dt = seg[1]
+    s = (t - seg[0]) / dt if dt > 0.0 else 0.0
+    wB0 = seg[2] + s * (seg[5] - seg[2])
+    wB1 = seg[3] + s * (seg[6] - seg[3])
+    wB2 = seg[4] + s * (seg[7] - seg[4])
+    io = I[0, LAY_OM]
+    iqd = I[0, LAY_QD]
+    iqp = I[0, LAY_QIP]
+    iqb = I[0, LAY_QIB]
+    iz = I[0, LAY_Z]
+    quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
+    # R_PB = R_IPᵀ R_IB
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
+    r00 = a00 * b00 + a10 * b10 + a20 * b20
+    r01 = a00 * b01 + a10 * b11 + a20 * b21
+    r02 = a00 * b02 + a10 * b12 + a20 * b22
+    r10 = a01 * b00 + a11 * b10 + a21 * b20
+    r11 = a01 * b01 + a11 * b11 + a21 * b21
+    r12 = a01 * b02 + a11 * b12 + a21 * b22
+    r20 = a02 * b00 + a12 * b10 + a22 * b20
+    r21 = a02 * b01 + a12 * b11 + a22 * b21
+    r22 = a02 * b02 + a12 * b12 + a22 * b22
+    Om0, Om1, Om2 = y[io], y[io + 1], y[io + 2]
+    # platform torque: support friction, then the servo
+    MP0, MP1, MP2 = 0.0, 0.0, 0.0
+    if I[1, fx.SUPPORT]:
+        MP0 += fx.support_friction_axis(P, Om0 - (r00 * wB0 + r01 * wB1 + r02 * wB2))
+        MP1 += fx.support_friction_axis(P, Om1 - (r10 * wB0 + r11 * wB1 + r12 * wB2))
+        MP2 += fx.support_friction_axis(P, Om2 - (r20 * wB0 + r21 * wB1 + r22 * wB2))
+    springs, dampers, friction, bias = I[1, fx.SPRINGS], I[1, fx.DAMPERS], I[1, fx.FRICTION], I[1, fx.BIAS]
+    for i in range(5):
+        F[3 + i] = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, i, y[i], y[iqd + i])
+    if I[1, fx.SERVO]:
+        # pick-offs (β10, α4, α9) drive mount axes 1, 2, 3 (spec 9.3); anti-windup
+        m, sat0 = fx.servo_axis(P, y[4], y[iqd + 4], y[iz])
+        MP0 += m
+        yd[iz] = 0.0 if sat0 else y[4]
+        m, sat1 = fx.servo_axis(P, y[0], y[iqd], y[iz + 1])
+        MP1 += m
+        yd[iz + 1] = 0.0 if sat1 else y[0]
+        m, sat2 = fx.servo_axis(P, y[3], y[iqd + 3], y[iz + 2])
+        MP2 += m
+        yd[iz + 2] = 0.0 if sat2 else y[3]
+    else:
+        yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
+    F[0], F[1], F[2] = MP0, MP1, MP2
+    # M0 v̇ = F − G0 v over v = (Ω, q̇)
+    if I[1, fx.GYRO]:
+        for i in range(8):
+            acc = 0.0
+            for j in range(8):
+                acc += mats[1, i, j] * y[5 + j]
+            F[i] -= acc
+    for i in range(8):
+        acc = 0.0
+        for j in range(8):
+            acc += mats[0, i, j] * F[j]
+        yd[5 + i] = acc
+    for i in range(5):
+        yd[i] = y[iqd + i]
+    quat_rate_at(y, iqp, Om0, Om1, Om2, yd)
+    return 0
