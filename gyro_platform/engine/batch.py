@@ -109,7 +109,7 @@ def _i2(ib, k):
 
 
 # ---------------------------------------------------------------------------- kernels
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _normalise(y, a, b):
     if a < 0:
         return
@@ -152,7 +152,7 @@ def _csr_mv(mi, po, row, io, md, do, x, out):
         out[r] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _k1_carried(ih, yk, y, tr, wr, fr, n):
     """The last interval left K[0] = f(t, y) for exactly this state and input row 0."""
     if ih[J_K1] != 1 or yk[n] != tr[0]:

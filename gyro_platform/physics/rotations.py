@@ -28,7 +28,7 @@ def quat_to_matrix(q, R):
     R[2, 2] = 1.0 - s * (x * x + y * y)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def quat_rate_at(y, i, wx, wy, wz, out):
     """out[i:i+4] = ½ q ⊗ (ω, 0) for q = y[i:i+4] (no array views: hot path)."""
     x, yy, z, s = y[i], y[i + 1], y[i + 2], y[i + 3]
