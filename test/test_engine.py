@@ -513,3 +513,17 @@ def test_paper_matrices_match_the_tree():
         expect = G @ v
         expect[:3] += np.cross(v[:3], (m["B"].T @ m["L"])[:3])
         np.testing.assert_allclose(c_L, expect, rtol=1e-7, atol=1e-9)
+
+
+def test_rate_sample_is_a_frozen_value_with_its_fields():
+    """RateSample's own __init__ (slots set directly) keeps the dataclass behaviour: fields in
+    order, default None force, equality, replace, and no assignment afterwards."""
+    import dataclasses
+
+    w = np.array([0.1, 0.2, 0.3])
+    s = RateSample(1.5, w)
+    assert (s.t, s.omega is w, s.specific_force) == (1.5, True, None)
+    assert RateSample(t=1.5, omega=w, specific_force=None) == s
+    assert dataclasses.replace(s, t=2.0).t == 2.0 and dataclasses.astuple(s)[0] == 1.5
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.t = 3.0

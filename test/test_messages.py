@@ -120,6 +120,47 @@ def test_every_output_message_round_trips_through_cdr():
         np.testing.assert_array_equal([v.vector.x, v.vector.y, v.vector.z], vec)
 
 
+@pytest.mark.parametrize("mount", [True, False])
+@pytest.mark.parametrize("t", [0.0, 1.25, 3.7e4])
+def test_joint_values_of_one_output_row_equal_joint_columns(mount, t):
+    """The node's scalar refill (``joint_values_of_row`` on ``row.tolist()``) gives the numbers
+    of ``joint_columns`` (numpy): mount joints in stabilised mode, rotor spin angles wrapped at
+    large t, and no rotors when their rate is NaN."""
+    from gyro_platform.engine.outputs import C_ROTOR, OutputBlock
+
+    out = make_outputs(mount=mount, t=t)
+    row = OutputBlock.stack([out]).rows[0]
+    for rotors in (True, False):
+        if not rotors:
+            row[C_ROTOR:C_ROTOR + 3] = np.nan
+            out.rotor_rates = None
+        cols = m.joint_columns(out)
+        pos, vel, eff = m.joint_values_of_row(row.tolist(), mount)
+        for got, want in ((pos, cols.position[0]), (vel, cols.velocity[0]), (eff, cols.effort[0])):
+            assert len(got) == len(want) == len(cols.names)
+            assert all(type(x) is float for x in got)
+            np.testing.assert_allclose(got, want, rtol=1e-15, atol=1e-300)
+
+
+def test_output_columns_hold_what_output_messages_publish():
+    """``OUTPUT_COLUMNS`` names, per vector topic, the row columns whose numbers
+    ``output_messages`` puts into the message."""
+    from gyro_platform.engine.outputs import OutputBlock
+
+    out = make_outputs()
+    v = OutputBlock.stack([out]).rows[0].tolist()
+    msgs = dict(m.output_messages(out, TYPES, 7, ""))
+    assert {t.lstrip("/") for t in msgs} - {"gimbal/joint_states"} == set(m.OUTPUT_COLUMNS)
+    for topic, c in m.OUTPUT_COLUMNS.items():
+        msg = msgs["/" + topic]
+        if topic == "platform/attitude":
+            q = msg.quaternion
+            assert [q.x, q.y, q.z, q.w] == v[c:c + 4]
+        else:
+            vec = msg.wrench.torque if topic.startswith("bearing/") else msg.vector
+            assert [vec.x, vec.y, vec.z] == v[c:c + 3]
+
+
 def test_joint_state_without_mount_rates_leaves_velocity_and_effort_empty():
     out = make_outputs()
     out.mount_rates = None                              # an Outputs from an older producer

@@ -331,6 +331,20 @@ def test_block_instants_are_exactly_outputs(mode, fid):
         block[15]
 
 
+def test_output_row_is_the_row_of_outputs_and_a_new_array_each_call():
+    """``Simulator.output_row`` (the node's per-instant path) holds exactly the numbers of
+    ``outputs()`` in the block layout, a fresh array per call; before any sample it refuses."""
+    rng = np.random.default_rng(3)
+    sim = _sim("stabilised", "linear", None)
+    with pytest.raises(SimulationError):
+        sim.output_row()
+    for _ in _drive(sim, 5, rng):
+        row = sim.output_row()
+        assert row.shape == (N_COL,)
+        np.testing.assert_array_equal(row, OutputBlock.stack([sim.outputs()]).rows[0])
+        assert sim.output_row() is not row
+
+
 def test_block_items_are_copies_and_stack_keeps_extra_status():
     rng = np.random.default_rng(2)
     sim = _sim("stabilised", "linear", None)

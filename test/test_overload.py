@@ -118,3 +118,16 @@ def test_input_loss_restart_forgets_the_period():
     loss.on_stamp(100 * MS, 100 * MS, 1.0)        # first stamp of a new time base: no gap
     loss.on_stamp(105 * MS, 105 * MS, 1.0)        # period unknown again: not counted
     assert loss.stamp_gaps == 0
+
+
+def test_the_stamp_window_stays_sorted_through_steady_and_changing_steps():
+    """The sorted copy of the last WINDOW stamp steps is kept in step with the window, also when
+    a step leaves the window and an equal one enters it (nothing to move then)."""
+    rng = np.random.default_rng(5)
+    loss, t = InputLoss(), BASE
+    steps = np.concatenate([np.full(100, MS), rng.choice([MS - 1, MS, MS + 1, 2 * MS], 300), np.full(100, MS)])
+    for step in steps.tolist():
+        t += step
+        loss.on_stamp(t, t, 1.0)
+        assert loss._sorted == sorted(loss._steps)
+        assert len(loss._steps) <= InputLoss.WINDOW

@@ -12,13 +12,20 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, init=False)
 class RateSample:
     """One timed vehicle sample. ``omega`` rad/s and ``specific_force`` m/s², vehicle axes."""
 
     t: float
     omega: np.ndarray
     specific_force: np.ndarray | None = None
+
+    def __init__(self, t: float, omega: np.ndarray, specific_force: np.ndarray | None = None):
+        # the generated frozen __init__ (object.__setattr__ per field) costs twice as much, and a
+        # sample is made per input message: set the slots through their descriptors
+        _SET_T(self, t)
+        _SET_OMEGA(self, omega)
+        _SET_FORCE(self, specific_force)
 
     @staticmethod
     def of(t: float, omega, specific_force=None) -> "RateSample":
@@ -31,3 +38,6 @@ class RateSample:
         if self.specific_force is not None:
             ok = ok and bool(np.all(np.isfinite(self.specific_force)))
         return bool(ok)
+
+
+_SET_T, _SET_OMEGA, _SET_FORCE = (getattr(RateSample, n).__set__ for n in ("t", "omega", "specific_force"))

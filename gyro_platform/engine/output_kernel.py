@@ -459,9 +459,14 @@ class OutputKernel:
     def row(self, t: float, t_rel: float, n_steps: float, y: np.ndarray, seg: np.ndarray) -> Outputs:
         """Outputs at one instant: time t (s), t_rel (s since the first sample), accepted
         substeps so far, state y (n,), input segment seg (14,) ending at the instant."""
+        return outputs_of_row(self.values(t, t_rel, n_steps, y, seg), self.stabilised)
+
+    def values(self, t: float, t_rel: float, n_steps: float, y: np.ndarray, seg: np.ndarray) -> np.ndarray:
+        """The numbers of :meth:`row` as one new row (N_COL,), layout ``outputs.C_*`` (no
+        ``Outputs`` object: the node's per-instant path)."""
         out = np.empty(N_COL)
         self._row_into(out, t, t_rel, n_steps, y, seg)
-        return outputs_of_row(out, self.stabilised)
+        return out
 
     def _row_into(self, out, t, t_rel, n_steps, y, seg) -> None:
         s = self.system

@@ -21,7 +21,7 @@ from .batch import (COMPILED, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD,
                     J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
                     ST_ORDER, ST_TOLERANCE, Engine)
 from .output_kernel import OutputKernel
-from .outputs import OutputBlock, Outputs
+from .outputs import OutputBlock, Outputs, outputs_of_row
 from .checks import as_time as _time, as_vec3 as _vec3, check_block
 from .snapshots import SEG_N, Snapshots, first_segment
 from ..physics.params import NAV1, PlatformParams
@@ -290,14 +290,15 @@ class Simulator:
         t = sample.t
         if t.__class__ is not float:
             t = _time(t)
-        if not self.engine.ih[J_STARTED]:
+        engine = self.engine
+        if not engine.ih[J_STARTED]:
             self._first(t, w, f if has_f else None)
             return
         if self._python_now():
             self._push_python(t, w, f, has_f)
             return
         try:
-            st = self.engine.push(t, w, f, has_f)
+            st = engine.push(t, w, f, has_f)
         except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
             self.system.seg[:] = self.engine.segsave
             raise SimulationError(f"integration failed at t = {t} ({type(e).__name__}: {e}); "
@@ -536,9 +537,18 @@ class Simulator:
         (``output_kernel``; the one-instant case of ``_outputs_at``). Raises
         ``NonFiniteOutputError`` rather than return a NaN or Inf, and the model's
         ``SimulationError`` for a state it refuses (precession at gimbal lock)."""
-        if self._last is None:
+        return outputs_of_row(self.output_row(), self._outk.stabilised)
+
+    def output_row(self) -> np.ndarray:
+        """The numbers of :meth:`outputs` as one new row (``outputs.N_COL``,), in the layout of
+        :mod:`gyro_platform.engine.outputs` (``C_*``), without building the ``Outputs`` object
+        (``outputs.outputs_of_row`` makes it); the same errors."""
+        e = self.engine
+        if not e.ih[J_STARTED]:
             raise SimulationError("no sample pushed yet")
-        return self._outk.row(self.t_start + self.t_rel, self.t_rel, self.n_steps, self.y, self.system.seg)
+        fh = e.fh
+        t_rel = fh.item(H_T_REL)
+        return self._outk.values(fh.item(H_T_START) + t_rel, t_rel, e.ih.item(J_NSTEPS), e.y, self.system.seg)
 
     def _outputs_at(self, snaps: Snapshots) -> OutputBlock:
         """Outputs at the instants of ``snaps`` in one compiled call. A failure at an instant

@@ -34,7 +34,9 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
+from ..engine.outputs import (BEARING_FRAMES, BEARING_NAMES, C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MOTOR,
+                              C_MOUNT, C_MRATE, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, GIMBAL_NAMES, MOUNT_NAMES,
+                              Outputs)
 
 if TYPE_CHECKING:
     from .blocks import RateBlock
@@ -481,7 +483,8 @@ def joint_columns(src: Any) -> JointColumns:
     * rotors ``rotor6, rotor8, rotor11``: spin angle ``ω_r t`` of the ideal speed control,
       wrapped to [-π, π) (rad), spin rate rad/s, motor torque N m.
 
-    Every value is finite for finite outputs."""
+    Every value is finite for finite outputs. :func:`joint_values_of_row` is the scalar twin for one
+    output row (the node's refill); the tests hold the two equal."""
     t = np.asarray(src.t, dtype=np.float64).reshape(-1)
     k = t.shape[0]
     names = list(GIMBAL_NAMES)
@@ -507,6 +510,28 @@ def joint_columns(src: Any) -> JointColumns:
         vel, eff = [np.zeros((k, 0))], [np.zeros((k, 0))]
     return JointColumns(tuple(names), np.concatenate(pos, axis=1), np.concatenate(vel, axis=1),
                         np.concatenate(eff, axis=1))
+
+
+def joint_values_of_row(v: list[float], stabilised: bool) -> tuple[list[float], list[float], list[float]]:
+    """Positions, velocities and efforts of :func:`joint_columns` for one output row as a list
+    (``row.tolist()``, layout ``engine.outputs.C_*``; mount joints when ``stabilised``, rotors
+    unless their rate is NaN): the same float operations in scalar Python, for the node's
+    per-instant refill (a handful of numbers; numpy would cost more than the arithmetic)."""
+    pos, vel, eff = v[C_ANG:C_ANG + 5], v[C_RATE:C_RATE + 5], v[C_AXIAL:C_AXIAL + 5]
+    if stabilised:
+        pos += v[C_MOUNT:C_MOUNT + 3]
+        vel += v[C_MRATE:C_MRATE + 3]
+        b, c = v[C_MOUNT + 1], v[C_MOUNT + 2]
+        cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+        s0, s1, s2 = v[C_SERVO:C_SERVO + 3]
+        eff += (cb * cc * s0 - cb * sc * s1 + sb * s2, sc * s0 + cc * s1, s2)     # mount_joint_efforts
+    if v[C_ROTOR] == v[C_ROTOR]:
+        w, t, pi = v[C_ROTOR:C_ROTOR + 3], v[C_T], math.pi
+        pos += ((w[0] * t + pi) % (2.0 * pi) - pi, (w[1] * t + pi) % (2.0 * pi) - pi,
+                (w[2] * t + pi) % (2.0 * pi) - pi)
+        vel += w
+        eff += v[C_MOTOR:C_MOTOR + 3]
+    return pos, vel, eff
 
 
 def joint_positions(out: Outputs) -> dict[str, float]:
@@ -639,6 +664,13 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
         else:
             res.append((f"{prefix}{k}", v))
     return res
+
+
+#: first column (layout ``engine.outputs.C_*``) of the numbers of each 3-vector or quaternion
+#: output topic: what :func:`output_messages` puts in its Vector3 / torque / Quaternion
+OUTPUT_COLUMNS: dict[str, int] = {"drift/angle": C_DRIFT, "drift/rate": C_DRATE, "platform/attitude": C_QUAT,
+                                  "platform/servo_torque": C_SERVO,
+                                  **{bearing_topic(b): C_BEAR + 3 * j for j, b in enumerate(BEARING_NAMES)}}
 
 
 def output_messages(out: Outputs, types: MessageTypes, t_ns: int, namespace: str = "") -> list[tuple[str, Any]]:

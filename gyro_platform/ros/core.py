@@ -29,6 +29,7 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
+from ..engine.outputs import C_QUAT, C_ROTOR, outputs_of_row
 from ..errors import SimulationError
 from ..io import messages as msgs
 from ..io.messages import MessageTypes, Reading
@@ -62,43 +63,48 @@ class _Timing:
     def add(self, dt: int, a: float = 0.05) -> None:
         self.n += 1
         self.last_ns = dt
-        self.max_ns = max(self.max_ns, dt)
-        self.ema_ns = float(dt) if self.ema_ns is None else self.ema_ns + a * (dt - self.ema_ns)
+        if dt > self.max_ns:
+            self.max_ns = dt
+        e = self.ema_ns
+        self.ema_ns = float(dt) if e is None else e + a * (dt - e)
 
 
 
 class OutputMessages:
     """The output messages of one instant (``messages.output_messages`` with the frame
-    prefix), built once and refilled in place at each later instant: stamps, vectors,
-    quaternion, bearing torques, the JointState's arrays.
-    Rebuilt from scratch when the set of outputs changes (e.g. the servo effect switched)."""
+    prefix), built once and refilled in place at each later instant from the simulator's
+    output row (``Simulator.output_row``): the one shared stamp, the Vector3s and the
+    quaternion (``messages.OUTPUT_COLUMNS``), the JointState's arrays
+    (``messages.joint_values_of_row``). Names, frames and message objects are not touched
+    again. Rebuilt from scratch when the set of outputs changes (mode, rotor rates)."""
 
     def __init__(self, types: MessageTypes, frame_prefix: str = ""):
         self.types, self.prefix = types, frame_prefix
         self._key: tuple | None = None
         self.pairs: list[tuple[str, Any]] = []
-        self._stamps: list[Any] = []
-        self._vectors: list[tuple[Any, str, str | None]] = []   # (Vector3, Outputs field, bearing)
+        self._stamp: Any = None
+        self._vectors: list[tuple[Any, int]] = []     # (Vector3, first column of the output row)
         self._quat: Any = None
         self._js: Any = None
 
-    def fill(self, out: Any, t_ns: int) -> list[tuple[str, Any]]:
-        """(topic, message) pairs of ``out`` stamped ``t_ns`` (topics relative, as on_message)."""
-        key = (out.servo_torque is None, out.mount_angles is None, out.mount_rates is None,
-               out.rotor_rates is None, tuple(out.bearing_torques))
+    def fill(self, row: Any, stabilised: bool, t_ns: int) -> list[tuple[str, Any]]:
+        """(topic, message) pairs of the output row ``row`` (``Simulator.output_row``; mode
+        ``stabilised``) stamped ``t_ns`` (topics relative, as on_message)."""
+        v = row.tolist()
+        key = (stabilised, v[C_ROTOR] == v[C_ROTOR])
         if key != self._key:
-            self._build(out, t_ns)
+            self._build(outputs_of_row(row, stabilised), t_ns)
             self._key = key
             return self.pairs
-        sec, nsec = divmod(max(int(t_ns), 0), NS)
-        for st in self._stamps:
-            st.sec, st.nanosec = sec, nsec
-        bt = out.bearing_torques
-        for v, name, bearing in self._vectors:
-            v.x, v.y, v.z = (getattr(out, name) if bearing is None else bt[bearing]).tolist()
+        st = self._stamp
+        st.sec, st.nanosec = divmod(t_ns if t_ns > 0 else 0, NS)
+        for vec, c in self._vectors:
+            vec.x = v[c]
+            vec.y = v[c + 1]
+            vec.z = v[c + 2]
         q = self._quat
-        q.x, q.y, q.z, q.w = out.platform_attitude.tolist()
-        _, pos, vel, eff = msgs.joint_state_values(out)
+        q.x, q.y, q.z, q.w = v[C_QUAT:C_QUAT + 4]
+        pos, vel, eff = msgs.joint_values_of_row(v, stabilised)
         js, fa = self._js, self.types.float_array
         js.position, js.velocity, js.effort = fa(pos), fa(vel), fa(eff)
         return self.pairs
@@ -106,20 +112,17 @@ class OutputMessages:
     def _build(self, out: Any, t_ns: int) -> None:
         pairs = [(t.lstrip("/"), m) for t, m in msgs.output_messages(out, self.types, t_ns, "")]
         self._js = pairs[0][1]                # the JointState
-        stamp = self._js.header.stamp         # one Time object shared by every header
-        self._stamps, self._vectors = [stamp], []
+        self._stamp = stamp = self._js.header.stamp     # one Time object shared by every header
+        self._vectors = []
         for topic, m in pairs[1:]:
             m.header.stamp = stamp
             if self.prefix and m.header.frame_id:
                 m.header.frame_id = self.prefix + m.header.frame_id
-            if topic.startswith("bearing/"):
-                self._vectors.append((m.wrench.torque, "", topic.split("/")[1]))
-            elif topic == "platform/attitude":
+            if topic == "platform/attitude":
                 self._quat = m.quaternion
             else:
-                field = {"drift/angle": "drift_angle", "drift/rate": "drift_rate",
-                         "platform/servo_torque": "servo_torque"}[topic]
-                self._vectors.append((m.vector, field, None))
+                vec = m.wrench.torque if topic.startswith("bearing/") else m.vector
+                self._vectors.append((vec, msgs.OUTPUT_COLUMNS[topic]))
         self.pairs = pairs
 
 
@@ -155,7 +158,8 @@ class NodeCore:
         self.parameter_changes = 0
         self.last_error: str | None = None
         self.last_reset_reason: str | None = None
-        self.last_out = None
+        self._last_row: tuple[Any, bool] | None = None     # (output row, stabilised) of the last instant
+        self._last_out = None
         self._last_rx_ns: int | None = None
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
@@ -200,15 +204,17 @@ class NodeCore:
             self._last_rx_ns = rx
         result: list[tuple[str, Any]] = []
         try:
-            reading = msgs.reading_from_msg(msg, self.config.mounting)
+            pipe = self.pipe
+            reading = msgs.reading_from_msg(msg, pipe.mounting)
             if reading.__class__ is Reading and reading.identity_assumed:
                 self._identity_notice(reading.frame_id)
-            step = self.pipe.offer(reading, rx)
+            step = pipe.offer(reading, rx)
             outcome = step.outcome
             if outcome == "pushed":
-                if self.gate.time_source == "header":   # receive times say nothing about loss
-                    self.loss.on_stamp(step.decision.stamp_ns, rx if rx is not None else self._last_rx_ns,
-                                       self.config["gate.max_gap"])
+                d = step.decision
+                if d.source == "header":      # the gate's time source; receive times say nothing about loss
+                    self.loss.on_stamp(d.stamp_ns, rx if rx is not None else self._last_rx_ns,
+                                       self.gate.config.max_gap)
             elif outcome in ("reset", "restarted"):
                 self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
                                   step.decision.stamp_ns, rx)
@@ -251,15 +257,25 @@ class NodeCore:
         return grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
 
     def _emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
+        sim = self.sim
         try:
-            out = self.sim.outputs()
+            row = sim.output_row()
         except SimulationError as e:
             self.outcomes["output_failed"] += 1
             self.last_error = f"outputs failed: {e}"
             return []
-        self.last_out = out
+        stabilised = bool(sim.system.stabilised)
+        self._last_row, self._last_out = (row, stabilised), None
         self.published += 1
-        return self.messages.fill(out, stamp_ns)
+        return self.messages.fill(row, stabilised, stamp_ns)
+
+    @property
+    def last_out(self) -> Any:
+        """The ``Outputs`` of the last published instant (None before the first), made when
+        asked (diagnostics) from the output row kept by :meth:`_emit`."""
+        if self._last_out is None and self._last_row is not None:
+            self._last_out = outputs_of_row(*self._last_row)
+        return self._last_out
 
     # ---- control --------------------------------------------------------------------
     def reset(self, reason: str) -> None:

@@ -58,7 +58,7 @@ from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
 from .parameters import NODE_NAME, PARAMETERS, SPECS, ConfigError, ParamSpec
 from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
-from .command import warm_up
+from .command import freeze_startup_objects, warm_up
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -240,6 +240,7 @@ def main(args: list[str] | None = None) -> int:
     code = 0
     try:
         node = PlatformNode()
+        freeze_startup_objects()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

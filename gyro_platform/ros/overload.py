@@ -57,9 +57,13 @@ class InputLoss:
                 self.last_rx_ns = rx_ns
         steps = self._steps
         if len(steps) == self.WINDOW:
-            del srt[bisect_left(srt, steps.popleft())]
+            old = steps.popleft()
+            if old != step:             # a steady input replaces a step by an equal one: srt stays
+                del srt[bisect_left(srt, old)]
+                insort(srt, step)
+        else:
+            insort(srt, step)
         steps.append(step)
-        insort(srt, step)
 
     def restart(self) -> None:
         """A new time base (reset): stamp steps across it are not gaps."""
