@@ -109,6 +109,23 @@ def test_generated_imu_bag_reads_back_as_the_motion(tmp_path):
     assert 1e-3 < np.std(imu.omega[:, 0]) < 0.5
 
 
+def test_second_bag_is_another_vehicle_at_jittered_stamps(tmp_path):
+    """The bag the fast path was not tuned on: stamps within ±5 % of a period of the 1 kHz grid,
+    increasing, not on it; other samples than the unjittered bag's; it reads back through the
+    replay's reader and gate exactly."""
+    imu = bags.vehicle_imu(0.5, seed=31, jitter=0.05)
+    grid = np.arange(imu.t.size) * 1e-3
+    off = imu.t - grid
+    assert np.all(np.diff(imu.t) > 0) and np.max(np.abs(off)) <= 0.05e-3 + 1e-15
+    assert np.std(off) > 0.02e-3                       # really jittered
+    plain = bags.vehicle_imu(0.5, seed=31)
+    assert np.max(np.abs(imu.omega - plain.omega)) > 1e-4   # other times, other samples
+    t, w, f = consumer.bag_samples(bags.cached_imu_bag(0.5, "mcap", seed=31, jitter=0.05))
+    np.testing.assert_allclose(t, imu.t, atol=1e-9)
+    np.testing.assert_array_equal(w, imu.omega)
+    np.testing.assert_array_equal(f, imu.force)
+
+
 def test_replay_row_goes_through_the_command_and_counts_every_message(tmp_path):
     path = bags.cached_imu_bag(0.3, "mcap")
     s = consumer.replay_once(path, tmp_path / "out", ("--output-rate", "100"))

@@ -41,14 +41,20 @@ class VehicleImu:
     force: np.ndarray
 
 
-def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12) -> VehicleImu:
+def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: float = 0.0) -> VehicleImu:
     """A ground vehicle on a rough road: band-limited roll/pitch (RMS 2°/1.5°, 0.2–3 Hz), heading
     changes (RMS 25°, 0.005–0.2 Hz), body accelerations (RMS 0.8/0.4/0.5 m/s² x/y/z, 0.05–2 Hz) on
     top of gravity, plus a MEMS-grade gyro (white noise 0.005 °/s/√Hz, bias 0.05 °/s) and
-    accelerometer (100 µg/√Hz, bias 5 mg)."""
+    accelerometer (100 µg/√Hz, bias 5 mg). ``jitter`` > 0: sample times moved by up to
+    ±jitter periods (uniform), as a driver's header stamps are (the samples are those times')."""
     road = RandomMotion(seed, angle_rms=(math.radians(2.0), math.radians(1.5), 0.0), band=(0.2, 3.0))
     heading = RandomMotion(seed + 1, angle_rms=(0.0, 0.0, math.radians(25.0)), band=(0.005, 0.2))
     t, w_road, f = road.arrays(duration, rate)      # f: gravity's reaction in body axes
+    if jitter > 0.0:
+        t = t + np.random.default_rng(seed + 3).uniform(-jitter, jitter, t.size) / rate
+        t[0] = max(t[0], 0.0)
+        w_road = road.omega(t)
+        f = road.specific_force(t)
     w = w_road + heading.omega(t)          # small-angle composition: adequate for a test signal
     rng = np.random.default_rng(seed + 2)
     n = 12                                 # body accelerations: sums of n sines, given RMS per axis
@@ -125,13 +131,16 @@ def cache_dir() -> Path:
     return d
 
 
-def cached_imu_bag(duration: float, storage: str, rate: float = 1000.0) -> Path:
-    """The vehicle Imu bag of ``duration`` s at ``rate`` Hz in ``storage``, made once and cached."""
-    path = cache_dir() / f"vehicle_imu_v{BAG_VERSION}_{rate:g}hz_{duration:g}s_{storage}"
+def cached_imu_bag(duration: float, storage: str, rate: float = 1000.0, seed: int = 12,
+                   jitter: float = 0.0) -> Path:
+    """The vehicle Imu bag of ``duration`` s at ``rate`` Hz in ``storage`` (``vehicle_imu``'s
+    ``seed`` and ``jitter``), made once and cached."""
+    variant = "" if (seed, jitter) == (12, 0.0) else f"_seed{seed}_jitter{jitter:g}"
+    path = cache_dir() / f"vehicle_imu_v{BAG_VERSION}_{rate:g}hz_{duration:g}s{variant}_{storage}"
     if (path / "metadata.yaml").is_file():
         return path
     shutil.rmtree(path, ignore_errors=True)
-    return write_imu_bag(path, vehicle_imu(duration, rate), storage)
+    return write_imu_bag(path, vehicle_imu(duration, rate, seed, jitter), storage)
 
 
 def husky_bag() -> tuple[Path | None, str]:
