@@ -19,7 +19,7 @@ from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, L
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import stabilised_linear_rhs, takes_linear_path
-from .rotations import quat_rate_at, quat_to_matrix_at
+from .rotations import quat_matrix, quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
 FULL, LINEAR, PRECESSION = 0, 1, 2
@@ -455,8 +455,7 @@ class PlatformSystem:
         self.mats[1] = G0
         self.mats[2, :3, :3] = self.Ifz
         self.mats[3, :3, :3] = np.linalg.inv(self.Ifz)
-        from scipy.spatial.transform import Rotation
-        self.R_BP = Rotation.from_quat(params.mounting).as_matrix()   # platform → vehicle
+        self.R_BP = quat_matrix(params.mounting)            # platform → vehicle (x, y, z, w)
         self.R_PB = np.ascontiguousarray(self.R_BP.T)
         self.mats[4, :3, :3] = self.R_PB
         lat = params.latitude

@@ -17,7 +17,6 @@ import math
 from typing import Hashable
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 from ...errors import SimulationError
@@ -35,6 +34,8 @@ def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
     W[:n, :n] = Z
     for k in range(p):
         W[k * n:(k + 1) * n, (k + 1) * n:(k + 2) * n] = np.eye(n)
+    import scipy.linalg        # here, not at import: ~0.2 s a compiled rk4 run never needs
+
     E = scipy.linalg.expm(W)
     return [E[:n, k * n:(k + 1) * n] for k in range(p + 1)]
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from .base import Controlled, is_rejected
 from .jacobian import fd_jacobian
@@ -116,4 +115,6 @@ class ImplicitMidpoint(Controlled):
 
 def _inv(M: np.ndarray) -> np.ndarray:
     """Inverse via LU (used once per (key, h) or per call, never in the step loop)."""
+    import scipy.linalg        # here, not at import (see exponential._phi_blocks)
+
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M), np.eye(M.shape[0]))

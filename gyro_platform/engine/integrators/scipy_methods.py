@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.integrate
 
 from ...errors import SimulationError
 from .base import MAX_SUBSTEPS, Integrator, StepStats
@@ -23,7 +22,15 @@ class _Scipy(Integrator):
     ``max_step``; a proposed step below ``max_step / max_substeps`` is refused.
     """
 
-    solver_cls: type = scipy.integrate.OdeSolver
+    #: name of the ``scipy.integrate`` solver class (imported on first use: scipy.integrate
+    #: costs ~0.2 s to import, which a replay on the compiled methods never needs)
+    solver_name: str = "OdeSolver"
+
+    @property
+    def solver_cls(self) -> type:
+        import scipy.integrate
+
+        return getattr(scipy.integrate, self.solver_name)
 
     def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
                  max_substeps: int = MAX_SUBSTEPS) -> None:
@@ -79,13 +86,13 @@ class _Scipy(Integrator):
 class DOP853(_Scipy):
     """Dormand–Prince 8(5,3) (scipy ``DOP853``)."""
 
-    name, order, solver_cls = "dop853", 8, scipy.integrate.DOP853
+    name, order, solver_name = "dop853", 8, "DOP853"
 
 
 class RK45(_Scipy):
     """Dormand–Prince 5(4) (scipy ``RK45``)."""
 
-    name, order, solver_cls = "rk45", 5, scipy.integrate.RK45
+    name, order, solver_name = "rk45", 5, "RK45"
 
 
 class Radau(_Scipy):
@@ -95,7 +102,7 @@ class Radau(_Scipy):
 
     uses_linear_part = True
 
-    name, order, solver_cls = "radau", 5, scipy.integrate.Radau
+    name, order, solver_name = "radau", 5, "Radau"
 
     def _solver_kwargs(self, system):
         jac = getattr(system, "jacobian", None)
