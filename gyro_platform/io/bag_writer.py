@@ -37,7 +37,7 @@ import numpy as np
 from ..errors import OutputError, deferred_signals
 from . import messages as msgs
 from .bag_paths import rosbags_api
-from .bag_storage import writer_class
+from .bag_storage import Rows, writer_class
 
 def default_qos() -> list:
     """QoS offered by the output publishers: reliable, volatile, keep last 10 (rclpy default)."""
@@ -181,6 +181,21 @@ class OutputBag:
             raws[j::n] = rs
         self._write(cids, np.repeat(ts, n), raws)
 
+    def write_topics(self, ts: Any, encoded: Iterable[tuple[str, Any]]) -> None:
+        """Write what :func:`gyro_platform.io.encode.encode_outputs` made (its K messages per
+        topic: bytes, or one uint8 array (K, size) with ``arrays=True``) topic by topic, each
+        at record times ``ts`` (int64 (K,) ns): the rows and order of one :meth:`write_many`
+        per topic, in one write."""
+        ts = np.asarray(ts, np.int64).reshape(-1)
+        topics = list(encoded)
+        if not topics or not len(ts):
+            return
+        for t, rs in topics:
+            if len(rs) != len(ts):
+                raise ValueError(f"{len(ts)} record times for {len(rs)} messages on {t}")
+        cids = np.repeat(np.array([self._outs[t].id for t, _ in topics], np.int64), len(ts))
+        self._write(cids, np.tile(ts, len(topics)), Rows([rs for _, rs in topics]))
+
     def copy_chunk(self, chunk: Any, bag: Any = None) -> int:
         """Copy every row of a :class:`~gyro_platform.io.blocks.RowChunk` whose input connection
         is copied (byte for byte, same record time, bag order); returns the rows written.
@@ -188,13 +203,15 @@ class OutputBag:
         ids = np.asarray(chunk.conn_id, np.int64)
         if not len(ids):
             return 0
+        lut = self._lut
         if bag is not None:
-            for cid in np.unique(ids).tolist():
+            fresh = (ids >= len(lut)) | (lut[np.minimum(ids, len(lut) - 1)] == 0)
+            for cid in (np.unique(ids[fresh]).tolist() if fresh.any() else ()):
                 if cid not in self._copies:
                     conn = next((c for c in bag.connections if c.id == cid), None)
                     if conn is not None:
                         self.copy_connection(conn, bag.store_for(conn))
-        lut = self._lut
+            lut = self._lut
         out = np.where(ids < len(lut), lut[np.minimum(ids, len(lut) - 1)], 0)
         keep = out > 0
         if keep.all():
@@ -215,7 +232,7 @@ class OutputBag:
             raise OutputError(f"{self.path}: the output bag is closed" + (f" ({self.error})" if self.error else ""))
         return self.writer.storage
 
-    def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
+    def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
         self._storage()
         self._guard(lambda: self.writer.write_rows(cids, ts, raws))
 

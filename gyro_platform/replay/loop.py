@@ -27,7 +27,7 @@ from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..pipeline import (ADVANCED, DROP, NS, Pipeline, bag_chunks, copy_chunk, grid_index,
-                        grid_indices, judge, new_slots, no_sample_hint, rate_rows, write_many)
+                        grid_indices, judge, new_slots, no_sample_hint, rate_rows)
 from .stats import PlotSeries, Stats
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -227,8 +227,7 @@ class _Run:
     def _write_block(self, run: Any, gb: Any, rx: np.ndarray) -> None:
         block = run.block
         ts = rx[run.rows]
-        for topic, raws in encode_outputs(block, gb.stamp_ns[run.rows], self.cfg.namespace):
-            write_many(self.out, topic, ts, raws)
+        self.out.write_topics(ts, encode_outputs(block, gb.stamp_ns[run.rows], self.cfg.namespace, arrays=True))
         self.n_out += len(block)
         self.stats.add_block(block, run.new_segment)
         self.series.add_block(block)

@@ -51,19 +51,25 @@ class Stats:
         if k == 0:
             return
         self.n += k
-        for name, v in block_columns(block).items():
-            ok = np.isfinite(v)
-            bad = k - int(np.count_nonzero(ok))
-            if bad:
-                self.non_finite[name] = self.non_finite.get(name, 0) + bad
-                v = v[ok]
-                if v.size == 0:
+        cols = block_columns(block)
+        m = np.column_stack(list(cols.values()))           # (K, columns)
+        ok = np.isfinite(m)
+        if ok.all():
+            lo, hi = m.min(axis=0).tolist(), m.max(axis=0).tolist()
+            bad = [0] * len(cols)
+        else:
+            lo = np.where(ok, m, np.inf).min(axis=0).tolist()
+            hi = np.where(ok, m, -np.inf).max(axis=0).tolist()
+            bad = (k - np.count_nonzero(ok, axis=0)).tolist()
+        for name, lo_, hi_, bad_ in zip(cols, lo, hi, bad):
+            if bad_:
+                self.non_finite[name] = self.non_finite.get(name, 0) + bad_
+                if bad_ == k:
                     continue
-            lo, hi = float(v.min()), float(v.max())
-            if name not in self.lo or lo < self.lo[name]:
-                self.lo[name] = lo
-            if name not in self.hi or hi > self.hi[name]:
-                self.hi[name] = hi
+            if name not in self.lo or lo_ < self.lo[name]:
+                self.lo[name] = lo_
+            if name not in self.hi or hi_ > self.hi[name]:
+                self.hi[name] = hi_
         if new_segment or self.last is None:
             self._fit = LineFit()
         d = np.asarray(block.drift_angle, dtype=float)
@@ -158,26 +164,27 @@ class PlotSeries:
         """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each; the kept
         rows are copied out of the block at once (one fancy index per field)."""
         k, j = len(block), 0
-        mark = object()
+        new: list[int] = []             # block rows kept, in order: the last len(new) items
         while j < k:
             first = j + (-self.i) % self.stride     # the next index whose count is a multiple of the stride
             room = self.cap - len(self.items)
             take = range(first, k, self.stride)[:room]
-            self.items.extend((mark, int(m)) for m in take)
+            new += take
+            self.items += [None] * len(take)
             if len(self.items) >= self.cap:
                 stop = int(take[-1]) + 1            # halve after the item that filled it
                 self.i += stop - j
                 j = stop
+                at = len(self.items) - len(new)     # where the new rows start; even places stay
+                new = new[at % 2::2]
                 self.items = self.items[::2]
                 self.stride *= 2
             else:
                 self.i += k - j
                 j = k
-        pos = [n for n, it in enumerate(self.items) if type(it) is tuple and it[0] is mark]
-        if pos:
-            sub = take_rows(block, np.array([self.items[n][1] for n in pos], dtype=np.int64))
-            for r, n in enumerate(pos):
-                self.items[n] = (sub, r)
+        if new:
+            sub = take_rows(block, np.array(new, dtype=np.int64))
+            self.items[len(self.items) - len(new):] = [(sub, r) for r in range(len(new))]
 
     def outputs(self) -> list[Any]:
         """The kept outputs as ``Outputs``, in order."""
