@@ -26,6 +26,7 @@ from ..io.bag_writer import OutputBag
 from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
+from ..io.typedefs import core_typestore
 from ..pipeline import (ADVANCED, DROP, NS, Pipeline, bag_chunks, copy_chunk, grid_index,
                         grid_indices, judge, new_slots, no_sample_hint, rate_rows)
 from .stats import PlotSeries, Stats
@@ -140,7 +141,7 @@ class _Run:
 
     def __init__(self, bag: InputBag, out: OutputBag, sim: Any, cfg: ReplayConfig):
         self.bag, self.out, self.sim, self.cfg = bag, out, sim, cfg
-        self.types = MessageTypes.rosbags()
+        self.types = MessageTypes.rosbags(core_typestore())
         self.gate = TimeGate(cfg.gate)
         self.pipeline = Pipeline(sim, self.gate, cfg.output_rate, cfg.mounting)
         self.stats = Stats()
@@ -192,9 +193,10 @@ class _Run:
             self.first_ts = int(chunk.ts[0])
         self.last_ts = int(chunk.ts[-1])
         self.n_msgs += len(chunk.ts)
-        copy_chunk(self.out, chunk, self.bag)
-        for rows, rb in self.pipeline.decode(self.bag, chunk):
-            self._input_block(rb, chunk.ts[rows])
+        with self.out.batched():            # the chunk's copies, outputs and diagnostics: one write
+            copy_chunk(self.out, chunk, self.bag)
+            for rows, rb in self.pipeline.decode(self.bag, chunk):
+                self._input_block(rb, chunk.ts[rows])
 
     def _input_block(self, rb: Any, rx: np.ndarray) -> None:
         """Input rows received at ``rx``: cut at the diagnostics instants (1 Hz of receive
