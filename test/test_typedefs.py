@@ -46,3 +46,22 @@ def test_core_messages_serialise_as_jazzys():
                             linear_acceleration=CORE.types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=9.81),
                             linear_acceleration_covariance=np.zeros(9))
     assert bytes(CORE.serialize_cdr(imu, m.IMU)) == bytes(JAZZY.serialize_cdr(imu, m.IMU))
+
+
+def test_a_bag_with_rosbags_definitions_decodes_with_the_core_store(tmp_path):
+    """A connection whose definition is the text rosbags writes is decoded with the core store
+    (no parsing); any other text gets a store of its own."""
+    from types import SimpleNamespace
+
+    from rosbags.interfaces import MessageDefinition, MessageDefinitionFormat
+
+    from gyro_platform.io.bag_reader import typestore_for
+    from gyro_platform.io.typedefs import core_msgdef
+
+    text = JAZZY.generate_msgdef(m.IMU, ros_version=2)[0]
+    assert core_msgdef(m.IMU) == text
+    conn = SimpleNamespace(msgtype=m.IMU, msgdef=MessageDefinition(MessageDefinitionFormat.MSG, text))
+    assert typestore_for(conn) is CORE
+    other = SimpleNamespace(msgtype=m.IMU, msgdef=MessageDefinition(MessageDefinitionFormat.MSG, "# comment\n" + text))
+    store = typestore_for(other)
+    assert store is not CORE and store.get_msgdef(m.IMU).fields == CORE.get_msgdef(m.IMU).fields

@@ -94,15 +94,17 @@ def _fixed(seg: Any, lens: np.ndarray) -> np.ndarray | None:
     return None
 
 
-def _cut(segs: list[Any], seg_lens: list[np.ndarray], a: int, b: int) -> list[Any]:
-    """Rows ``a:b`` of the concatenation of ``segs`` as segments (``seg_lens``: their sizes)."""
-    res, at = [], 0
-    for seg, sl in zip(segs, seg_lens):
-        m = len(sl)
-        lo, hi = max(a - at, 0), min(b - at, m)
+def _cut(segs: list[Any], seg_at: np.ndarray, a: int, b: int) -> list[Any]:
+    """Rows ``a:b`` of the concatenation of ``segs`` as segments (``seg_at``: the first row of
+    each segment, then the total)."""
+    res = []
+    first = int(np.searchsorted(seg_at, a, side="right")) - 1
+    last = int(np.searchsorted(seg_at, b, side="left"))
+    for i in range(max(first, 0), min(last, len(segs))):
+        at = int(seg_at[i])
+        lo, hi = max(a - at, 0), min(b - at, int(seg_at[i + 1]) - at)
         if lo < hi:
-            res.append(seg[lo:hi])
-        at += m
+            res.append(segs[i][lo:hi])
     return res
 
 
@@ -288,6 +290,7 @@ def storage_classes():
             seg_lens = [_seg_lens(seg) for seg in segs]
             lens = (seg_lens[0] if len(segs) == 1 else np.concatenate(seg_lens)) + 31   # record: 1 + 8 + 22 + data
             n = len(lens)
+            seg_at = np.cumsum([0] + [len(sl) for sl in seg_lens])      # first row of each segment
             start = 0
             while start < n:
                 base = self.chunk.bio.tell()
@@ -295,7 +298,7 @@ def storage_classes():
                 # rosbags closes the chunk after the first message that takes it past 1 MiB
                 over = int(np.searchsorted(ends, MCAP_CHUNK_BYTES, side="right"))
                 stop = start + min(over + 1, n - start)
-                part = segs if (start, stop) == (0, n) else _cut(segs, seg_lens, start, stop)
+                part = segs if (start, stop) == (0, n) else _cut(segs, seg_at, start, stop)
                 self._append(cids[start:stop], ts[start:stop], part, lens[start:stop], base)
                 start = stop
                 if self.chunk.bio.tell() > MCAP_CHUNK_BYTES:

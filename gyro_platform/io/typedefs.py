@@ -54,6 +54,18 @@ def core_typestore() -> Any:
     return _CORE
 
 
+_MSGDEFS: dict[str, str] = {}
+
+
+def core_msgdef(msgtype: str) -> str:
+    """The message definition text (``.msg``, dependencies appended) that rosbags writes for
+    ``msgtype`` (a type of :data:`DEFINITIONS`) into a bag."""
+    text = _MSGDEFS.get(msgtype)
+    if text is None:
+        text = _MSGDEFS[msgtype] = core_typestore().generate_msgdef(msgtype, ros_version=2)[0]
+    return text
+
+
 def has_type(msgtype: str) -> bool:
     """True when :func:`core_typestore` defines ``msgtype``."""
     return msgtype in DEFINITIONS
