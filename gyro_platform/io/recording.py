@@ -365,9 +365,11 @@ class Recorder:
         """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
         vehicle rate against time (matplotlib Agg backend). Every panel has a title, axis
         labels with units and a legend; ``title`` (wrapped, never cut) heads the figure. A plain
-        ``matplotlib.figure.Figure`` (no pyplot: nothing to close, ~0.15 s less to import)."""
+        ``matplotlib.figure.Figure`` on an Agg canvas (no pyplot: nothing to close, ~0.1 s
+        less to import)."""
         import textwrap
 
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
         s = summary if summary is not None else self.summary()
@@ -375,6 +377,7 @@ class Recorder:
         has_vehicle = "vehicle_omega" in self._extra
         n = 4 if has_vehicle else 3
         fig = Figure(figsize=(10, 2.8 * n + 0.8), layout="constrained")
+        FigureCanvasAgg(fig)                    # the Agg canvas: draw(), get_renderer(), savefig
         axs = fig.subplots(n, 1, sharex=True)
         q = self.gimbal_angles
         for i, g in enumerate(GIMBAL_NAMES):
