@@ -42,7 +42,10 @@ SUBCOMMANDS = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every subcommand; given ``command``, only that subcommand's module is
+    imported for its arguments (the others are listed with their help, without arguments), so
+    that a command pays only for its own imports."""
     parser = argparse.ArgumentParser(
         prog="gyro-platform", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Gyro-stabilised three-gyro platform simulator: run a scene, replay a rosbag2 bag, "
@@ -53,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_, description=help_, epilog=EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_module=module)
+        if command is not None and name != command:
+            continue
         try:
             importlib.import_module(module).add_arguments(p)
         except ImportError as e:  # the subcommand's own dependency is missing
@@ -81,8 +86,14 @@ def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespa
                 sub.error(f"argument {'/'.join(action.option_strings)}: expected one {action.type.__name__} value")
 
 
+def command_of(argv: list[str]) -> str:
+    """The subcommand named on a command line: its first word that is no option ("" if none;
+    the only options before it are ``--help`` and ``--version``, which take no value)."""
+    return next((a for a in argv if not a.startswith("-")), "")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(command_of(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
     _check_scalar_values(parser, args)
     err = getattr(args, "_import_error", None)

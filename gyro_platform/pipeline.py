@@ -311,7 +311,9 @@ class Pipeline:
         cuts = np.flatnonzero(ids[1:] != ids[:-1]) + 1
         for part in np.split(rows, cuts):
             conn = conns[int(chunk.conn_id[part[0]])]
-            rb = decode_rates(conn.msgtype, [chunk.raws[i] for i in part], bag.store_for(conn))
+            a, b = int(part[0]), int(part[-1]) + 1
+            raws = chunk.raws[a:b] if b - a == len(part) else [chunk.raws[i] for i in part.tolist()]
+            rb = decode_rates(conn.msgtype, raws, bag.store_for(conn))
             yield part, rotate_block(self.mounting, rb)
 
 

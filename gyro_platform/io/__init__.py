@@ -6,7 +6,8 @@ diagnostics, TF), the input time gate (``gate``: stamps, gaps, rates, resets), t
 (``urdf``), and rosbag2 bags: where their files are (``bag_paths``), reading an intact bag
 (``bag_reader``; fast block readers ``bag_fast``), salvaging a damaged one (``bag_salvage``),
 writing the output bag (``bag_writer``); the fast path's array blocks (``blocks``: RowChunk,
-RateBlock) and the vectorised input decoder (``decode``). May import ``physics`` (parameters,
+RateBlock), the vectorised input decoder (``decode``) and the Jazzy definitions of the types it
+reads and writes (``typedefs``: a small typestore). May import ``physics`` (parameters,
 geometry), the engine's public records (``engine.inputs``, ``engine.outputs``) and ``errors`` —
 never integrators or the simulator.
 """

@@ -75,14 +75,23 @@ def reader_path(path: Path) -> Path:
 
 
 def read_metadata(path: Path) -> dict | None:
-    """``rosbag2_bagfile_information`` of ``path/metadata.yaml``, None if absent or unreadable."""
+    """``rosbag2_bagfile_information`` of ``path/metadata.yaml``, None if absent or unreadable
+    (YAML safe loading, by libyaml where present; the last file read is remembered: do not
+    change the dict)."""
     try:
         import yaml
 
-        doc = yaml.safe_load((path / "metadata.yaml").read_text())
+        text = (path / "metadata.yaml").read_text()
+        if _LAST_METADATA[0] != (path, text):
+            loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+            _LAST_METADATA[:] = [(path, text), yaml.load(text, Loader=loader)]
+        doc = _LAST_METADATA[1]
         return doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None
     except Exception:
         return None
+
+
+_LAST_METADATA: list = [None, None]     # ((path, text), document) of the last read_metadata
 
 
 def storage_of(path: Path) -> str:

@@ -19,6 +19,7 @@ from .bag_fast import Batch, McapBag, row_batches
 from .bag_salvage import Salvage
 from .blocks import RowChunk
 from .messages import INPUT_TYPES
+from .typedefs import core_msgdef, core_typestore, has_type
 
 
 class InputBag:
@@ -240,6 +241,9 @@ def typestore_for(conn: Any) -> Any:
     or IDL) when it has a usable one, else the Jazzy typestore."""
     rb = rosbags_api()
     fmt = rb["MsgDefFormat"]
+    if (conn.msgdef.format == fmt.MSG and has_type(conn.msgtype)
+            and conn.msgdef.data == core_msgdef(conn.msgtype)):    # the text rosbags writes: no parsing
+        return core_typestore()
     if conn.msgdef.format != fmt.NONE and conn.msgdef.data:
         try:
             store = rb["get_typestore"](rb["Stores"].EMPTY)

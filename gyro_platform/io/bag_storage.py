@@ -35,6 +35,125 @@ COMMIT_SECONDS = 1.0
 COMMIT_BYTES = 2 ** 19
 #: MCAP chunk size at which rosbags' writer (and this one) closes a chunk (bytes)
 MCAP_CHUNK_BYTES = 2 ** 20
+#: rows per sqlite3 INSERT statement (one multi-row ``VALUES`` list: ~2x fewer µs per row
+#: than one statement per row; the same rows in the same order)
+SQLITE_ROWS_PER_INSERT = 128
+
+
+class Rows:
+    """Message payloads of a batch in segments, in order: each a 2-D uint8 array (one message
+    per row, all of its width: what :func:`gyro_platform.io.encode.encode_outputs` makes with
+    ``arrays=True``) or a sequence of bytes. ``len`` is the number of messages."""
+
+    __slots__ = ("segments", "n")
+
+    def __init__(self, segments: Sequence[Any]):
+        self.segments = list(segments)
+        self.n = sum(len(s) for s in self.segments)
+
+    def __len__(self) -> int:
+        return self.n
+
+
+def segments(raws: Any) -> list[Any]:
+    """The segments of ``raws`` (a :class:`Rows` or one sequence of bytes)."""
+    return raws.segments if isinstance(raws, Rows) else [raws]
+
+
+def as_bytes_list(raws: Any) -> list[Any]:
+    """``raws`` (a :class:`Rows` or a sequence of bytes) as one list of bytes-like objects."""
+    res: list[Any] = []
+    for seg in segments(raws):
+        res += _seg_list(seg)
+    return res
+
+
+def payload_bytes(raws: Any) -> int:
+    """Total payload size of ``raws`` (bytes)."""
+    return sum(seg.size if isinstance(seg, np.ndarray) else sum(map(len, seg)) for seg in segments(raws))
+
+
+def _seg_list(seg: Any) -> list[Any]:
+    if isinstance(seg, np.ndarray):
+        return seg.view(f"V{seg.shape[1]}").ravel().tolist() if seg.shape[1] else [b""] * len(seg)
+    return seg if isinstance(seg, list) else list(seg)
+
+
+def _seg_lens(seg: Any) -> np.ndarray:
+    if isinstance(seg, np.ndarray):
+        return np.full(len(seg), seg.shape[1], np.int64)
+    return np.fromiter(map(len, seg), np.int64, len(seg))
+
+
+def _fixed(seg: Any, lens: np.ndarray) -> np.ndarray | None:
+    """``seg`` as a 2-D uint8 array when its messages all have one size, else None."""
+    if isinstance(seg, np.ndarray):
+        return seg
+    if len(lens) and lens[0] == lens[-1] and not np.any(lens != lens[0]):
+        return np.frombuffer(b"".join(seg), np.uint8).reshape(len(seg), int(lens[0]))
+    return None
+
+
+def _cut(segs: list[Any], seg_at: np.ndarray, a: int, b: int) -> list[Any]:
+    """Rows ``a:b`` of the concatenation of ``segs`` as segments (``seg_at``: the first row of
+    each segment, then the total)."""
+    res = []
+    first = int(np.searchsorted(seg_at, a, side="right")) - 1
+    last = int(np.searchsorted(seg_at, b, side="left"))
+    for i in range(max(first, 0), min(last, len(segs))):
+        at = int(seg_at[i])
+        lo, hi = max(a - at, 0), min(b - at, int(seg_at[i + 1]) - at)
+        if lo < hi:
+            res.append(segs[i][lo:hi])
+    return res
+
+
+def _runs(cids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and ends of the runs of equal ids in ``cids`` (non-empty)."""
+    if cids[0] == cids[-1] and not np.any(cids != cids[0]):
+        return np.zeros(1, np.int64), np.array([len(cids)], np.int64)
+    cuts = np.flatnonzero(cids[1:] != cids[:-1]) + 1
+    return np.concatenate(([0], cuts)), np.concatenate((cuts, [len(cids)]))
+
+
+def _channel_groups(cids: np.ndarray) -> list[tuple[int, Any]]:
+    """(id, rows: a slice or an index array) per id of ``cids`` (non-empty), ids in order of
+    first appearance, rows in order: runs of equal ids as slices when there are few of them."""
+    starts, ends = _runs(cids)
+    if len(starts) <= 16:
+        return [(int(cids[a]), slice(a, b)) for a, b in zip(starts.tolist(), ends.tolist())]
+    ids, first = np.unique(cids, return_index=True)
+    order = np.argsort(cids, kind="stable")
+    bounds = np.searchsorted(cids[order], ids)
+    parts = np.split(order, bounds[1:])
+    return [(int(ids[i]), parts[i]) for i in np.argsort(first).tolist()]
+
+
+def id_counts(cids: np.ndarray) -> list[tuple[int, int]]:
+    """(id, number of rows) of every id in ``cids`` (int64 >= 0), in increasing id order."""
+    if not len(cids):
+        return []
+    if cids[0] == cids[-1] and not np.any(cids != cids[0]):
+        return [(int(cids[0]), len(cids))]
+    bc = np.bincount(cids)
+    nz = np.flatnonzero(bc)
+    return list(zip(nz.tolist(), bc[nz].tolist()))
+
+
+def insert_rows(cursor: Any, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
+    """``INSERT INTO messages`` of the rows in order, ``SQLITE_ROWS_PER_INSERT`` per statement."""
+    n, r = len(raws), SQLITE_ROWS_PER_INSERT
+    flat: list[Any] = [None] * (3 * n)
+    flat[0::3] = cids.tolist()
+    flat[1::3] = ts.tolist()
+    flat[2::3] = raws
+    m = n - n % r
+    if m:
+        many = "INSERT INTO messages (topic_id, timestamp, data) VALUES " + ",".join(["(?, ?, ?)"] * r)
+        cursor.executemany(many, (flat[3 * a:3 * (a + r)] for a in range(0, m, r)))
+    if n > m:
+        cursor.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)",
+                           (flat[3 * a:3 * a + 3] for a in range(m, n)))
 
 # ---- storage writers: rosbags' with a batched, bounded, fault-aware message path -------------
 def storage_classes():
@@ -68,7 +187,7 @@ def storage_classes():
         def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
             self.pending.append((cids, ts, raws))
             self.n_pending += len(raws)
-            self.bytes_pending += sum(map(len, raws))
+            self.bytes_pending += payload_bytes(raws)
             if (self.n_pending >= COMMIT_ROWS or self.bytes_pending >= COMMIT_BYTES
                     or time.monotonic() - self.last_commit >= COMMIT_SECONDS):
                 self.commit()
@@ -82,7 +201,7 @@ def storage_classes():
                 return
             cids = np.concatenate([p[0] for p in parts])
             ts = np.concatenate([p[1] for p in parts])
-            raws = [r for p in parts for r in p[2]] if len(parts) > 1 else list(parts[0][2])
+            raws = [r for p in parts for r in as_bytes_list(p[2])]
             ends = np.cumsum(np.fromiter(map(len, raws), np.int64, len(raws)))
             cuts = np.searchsorted(ends, np.arange(COMMIT_BYTES, int(ends[-1]), COMMIT_BYTES), side="right")
             bounds = [0, *sorted(set(cuts.tolist()) - {0, len(raws)}), len(raws)]
@@ -93,17 +212,17 @@ def storage_classes():
             self.dirty = True        # stays set if anything below is cut short (error, Ctrl-C)
             try:
                 self.cursor.execute("BEGIN")
-                self.cursor.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)",
-                                        zip(cids.tolist(), ts.tolist(), raws))
+                insert_rows(self.cursor, cids, ts, raws)
                 self.cursor.execute("COMMIT")
             except BaseException:
                 if self.conn.in_transaction:
                     _rollback(self.conn)
                 raise
-            for cid in np.unique(cids).tolist():
-                sel = ts[cids == cid]
-                cur = self.committed.setdefault(cid, [0, 2 ** 63 - 1, 0])
-                cur[0] += len(sel)
+            starts, ends = _runs(cids)
+            for a, b in zip(starts.tolist(), ends.tolist()):
+                sel = ts[a:b]
+                cur = self.committed.setdefault(int(cids[a]), [0, 2 ** 63 - 1, 0])
+                cur[0] += b - a
                 cur[1], cur[2] = min(cur[1], int(sel.min())), max(cur[2], int(sel.max()))
             self.dirty = False
 
@@ -163,42 +282,57 @@ def storage_classes():
         def write(self, connection: Any, timestamp: int, data: Any) -> None:
             self.write_rows(np.array([connection.id]), np.array([timestamp], np.int64), [data])
 
-        def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
-            n = len(raws)
+        def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
+            """Rows (payloads: a sequence of bytes or a :class:`Rows`) appended to the open
+            chunk, which is closed where rosbags closes it (after the message that takes it
+            past 1 MiB)."""
+            segs = segments(raws)
+            seg_lens = [_seg_lens(seg) for seg in segs]
+            lens = (seg_lens[0] if len(segs) == 1 else np.concatenate(seg_lens)) + 31   # record: 1 + 8 + 22 + data
+            n = len(lens)
+            seg_at = np.cumsum([0] + [len(sl) for sl in seg_lens])      # first row of each segment
             start = 0
-            lens = np.fromiter(map(len, raws), np.int64, n) + 31       # record: 1 + 8 + 22 + data
             while start < n:
                 base = self.chunk.bio.tell()
                 ends = base + np.cumsum(lens[start:])
                 # rosbags closes the chunk after the first message that takes it past 1 MiB
                 over = int(np.searchsorted(ends, MCAP_CHUNK_BYTES, side="right"))
                 stop = start + min(over + 1, n - start)
-                self._append(cids[start:stop], ts[start:stop], raws[start:stop], lens[start:stop], base)
+                part = segs if (start, stop) == (0, n) else _cut(segs, seg_at, start, stop)
+                self._append(cids[start:stop], ts[start:stop], part, lens[start:stop], base)
                 start = stop
                 if self.chunk.bio.tell() > MCAP_CHUNK_BYTES:
                     self.close_chunk()
             if self._rows >= COMMIT_ROWS or (self._rows and time.monotonic() - self._opened >= COMMIT_SECONDS):
                 self.close_chunk()
 
-        def _append(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any], lens: np.ndarray,
+        def _append(self, cids: np.ndarray, ts: np.ndarray, segs: list[Any], lens: np.ndarray,
                     base: int) -> None:
-            k = len(raws)
+            k = len(lens)
             hdr = np.zeros(k, dtype=_MSG_HEADER)
             hdr["op"] = 0x05
             hdr["len"] = lens - 9
             hdr["cid"] = cids
             hdr["log"] = ts
             hdr["pub"] = ts
-            parts: list[Any] = [None] * (2 * k)
-            parts[0::2] = hdr.view("V31").tolist()
-            parts[1::2] = raws
+            parts: list[Any] = []
+            a = 0
+            for seg in segs:
+                m = len(seg)
+                data = _fixed(seg, lens[a:a + m] - 31)
+                if data is not None:     # one piece: records of one size as rows of one array
+                    rec = np.empty((m, 31 + data.shape[1]), np.uint8)
+                    rec[:, :31] = hdr[a:a + m].view(np.uint8).reshape(m, 31)
+                    rec[:, 31:] = data
+                    parts.append(rec)
+                else:
+                    pieces: list[Any] = [None] * (2 * m)
+                    pieces[0::2] = hdr[a:a + m].view("V31").tolist()
+                    pieces[1::2] = seg
+                    parts += pieces
+                a += m
             offsets = base + np.concatenate(([0], np.cumsum(lens[:-1])))
-            if np.all(cids == cids[0]):
-                groups = [(int(cids[0]), ts, offsets)]
-            else:                # per channel, in order of first appearance (as rosbags' dict)
-                _, first = np.unique(cids, return_index=True)
-                groups = [(c, ts[cids == c], offsets[cids == c]) for c in cids[np.sort(first)].tolist()]
-            ucid, cnt = np.unique(cids, return_counts=True)
+            groups = _channel_groups(cids)
             lo, hi = int(ts.min()), int(ts.max())
             buf = self.chunk.bio
             saved = (dict(self.channel_stats), {c: len(v) for c, v in self._index.items()},
@@ -206,10 +340,10 @@ def storage_classes():
                      self.chunk.message_end_time, self._rows, buf.mark())
             try:                 # all or nothing, even when a Ctrl-C lands in between
                 buf.extend(parts, int(lens.sum()))
-                for c, t, o in groups:
-                    self._index.setdefault(c, []).append((t, o))
-                for c, n in zip(ucid.tolist(), cnt.tolist()):
-                    self.channel_stats[c] += n
+                # per channel in order of first appearance (as rosbags' dict), rows in order
+                for c, rows in groups:
+                    self._index.setdefault(c, []).append((ts[rows], offsets[rows]))
+                    self.channel_stats[c] += len(ts[rows])
                 self.message_start_time = min(lo, self.message_start_time)
                 self.message_end_time = max(hi, self.message_end_time)
                 self.chunk.message_start_time = min(lo, self.chunk.message_start_time)
@@ -450,13 +584,14 @@ def writer_class():
                 with _fast_yaml():
                     super().close()
 
-            def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
-                """Rows on connection ids ``cids`` (int64) at record times ``ts`` (int64 ns)."""
+            def write_rows(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
+                """Rows on connection ids ``cids`` (int64) at record times ``ts`` (int64 ns);
+                payloads a sequence of bytes or a :class:`Rows`."""
                 if not len(raws):
                     return
                 self.storage.write_rows(cids, ts, raws)
-                for cid, cnt in zip(*np.unique(cids, return_counts=True)):
-                    self.counts[int(cid)] += int(cnt)
+                for cid, cnt in id_counts(cids):
+                    self.counts[cid] += cnt
                 self.min_timestamp = min(int(ts.min()), self.min_timestamp)
                 self.max_timestamp = max(int(ts.max()), self.max_timestamp)
 

@@ -29,15 +29,17 @@ import atexit
 import os
 import sqlite3
 import sys
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from ..errors import OutputError, deferred_signals
 from . import messages as msgs
 from .bag_paths import rosbags_api
-from .bag_storage import writer_class
+from .bag_storage import Rows, segments, writer_class
+from .typedefs import core_typestore, has_type
 
 def default_qos() -> list:
     """QoS offered by the output publishers: reliable, volatile, keep last 10 (rclpy default)."""
@@ -54,6 +56,12 @@ def _err(e: BaseException) -> str:
     if isinstance(e, OSError) and e.errno is not None:
         return f"[Errno {e.errno}] {e.strerror or os.strerror(e.errno)}"
     return f"{type(e).__name__}: {e}"
+
+
+def _store_of(msgtype: str) -> Any:
+    """The typestore that defines ``msgtype`` at least cost: the small one of the types this
+    package writes, else rosbags' Jazzy store."""
+    return core_typestore() if has_type(msgtype) else msgs.jazzy_typestore()
 
 
 #: what a full disk or an unwritable file looks like from the storage writers
@@ -83,6 +91,7 @@ class OutputBag:
         self._outs: dict[str, Any] = {}
         self._lut = np.zeros(1, np.int64)     # input connection id -> output id (0: not copied)
         self.skipped: dict[str, str] = {}     # input topics that could not be copied -> why
+        self._batch: list[tuple[np.ndarray, np.ndarray, Any]] | None = None   # see batched()
         self.closed = False
         self.error: str | None = None
         atexit.register(self._close_at_exit)
@@ -141,7 +150,7 @@ class OutputBag:
         shared = next((c for c in self._copies.values() if c is not None and c.topic == topic
                        and c.msgtype == msgtype), None)
         self._outs[topic] = shared or self._guard(lambda: self.writer.add_connection(
-            topic, msgtype, typestore=msgs.jazzy_typestore(), offered_qos_profiles=default_qos()))
+            topic, msgtype, typestore=_store_of(msgtype), offered_qos_profiles=default_qos()))
 
     def output_connection(self, topic: str) -> Any:
         """The output connection of an output topic added with :meth:`add_output`."""
@@ -154,7 +163,7 @@ class OutputBag:
 
     def write_msg(self, topic: str, ts: int, msg: Any) -> None:
         """Serialise a Jazzy message and write it on output topic ``topic`` at ``ts`` (ns)."""
-        raw = msgs.jazzy_typestore().serialize_cdr(msg, msg.__msgtype__)
+        raw = _store_of(msg.__msgtype__).serialize_cdr(msg, msg.__msgtype__)
         self.write_raw(self._outs[topic], ts, raw)
 
     def write_many(self, out_conn: Any, ts: Any, raws: Sequence[Any]) -> None:
@@ -181,6 +190,21 @@ class OutputBag:
             raws[j::n] = rs
         self._write(cids, np.repeat(ts, n), raws)
 
+    def write_topics(self, ts: Any, encoded: Iterable[tuple[str, Any]]) -> None:
+        """Write what :func:`gyro_platform.io.encode.encode_outputs` made (its K messages per
+        topic: bytes, or one uint8 array (K, size) with ``arrays=True``) topic by topic, each
+        at record times ``ts`` (int64 (K,) ns): the rows and order of one :meth:`write_many`
+        per topic, in one write."""
+        ts = np.asarray(ts, np.int64).reshape(-1)
+        topics = list(encoded)
+        if not topics or not len(ts):
+            return
+        for t, rs in topics:
+            if len(rs) != len(ts):
+                raise ValueError(f"{len(ts)} record times for {len(rs)} messages on {t}")
+        cids = np.repeat(np.array([self._outs[t].id for t, _ in topics], np.int64), len(ts))
+        self._write(cids, np.tile(ts, len(topics)), Rows([rs for _, rs in topics]))
+
     def copy_chunk(self, chunk: Any, bag: Any = None) -> int:
         """Copy every row of a :class:`~gyro_platform.io.blocks.RowChunk` whose input connection
         is copied (byte for byte, same record time, bag order); returns the rows written.
@@ -188,13 +212,15 @@ class OutputBag:
         ids = np.asarray(chunk.conn_id, np.int64)
         if not len(ids):
             return 0
+        lut = self._lut
         if bag is not None:
-            for cid in np.unique(ids).tolist():
+            fresh = (ids >= len(lut)) | (lut[np.minimum(ids, len(lut) - 1)] == 0)
+            for cid in (np.unique(ids[fresh]).tolist() if fresh.any() else ()):
                 if cid not in self._copies:
                     conn = next((c for c in bag.connections if c.id == cid), None)
                     if conn is not None:
                         self.copy_connection(conn, bag.store_for(conn))
-        lut = self._lut
+            lut = self._lut
         out = np.where(ids < len(lut), lut[np.minimum(ids, len(lut) - 1)], 0)
         keep = out > 0
         if keep.all():
@@ -215,8 +241,30 @@ class OutputBag:
             raise OutputError(f"{self.path}: the output bag is closed" + (f" ({self.error})" if self.error else ""))
         return self.writer.storage
 
-    def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
+    @contextmanager
+    def batched(self) -> Iterator[None]:
+        """Writes inside the block are kept and written at its end as one write, in their
+        order (the same rows as written one by one; fewer, larger appends)."""
+        if self._batch is not None:         # nested: the outer block writes
+            yield
+            return
+        self._batch = []
+        try:
+            yield
+        finally:
+            batch, self._batch = self._batch, None
+            if batch and not self.closed:
+                if len(batch) == 1:
+                    self._write(*batch[0])
+                else:
+                    self._write(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]),
+                                Rows([seg for b in batch for seg in segments(b[2])]))
+
+    def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
         self._storage()
+        if self._batch is not None:
+            self._batch.append((cids, ts, raws))
+            return
         self._guard(lambda: self.writer.write_rows(cids, ts, raws))
 
     def _guard(self, fn: Any) -> Any:

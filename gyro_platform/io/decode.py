@@ -25,6 +25,7 @@ import numpy as np
 
 from .blocks import RateBlock, Raw, bad_stamp_detail
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
+from .typedefs import core_typestore, has_type
 
 #: detail of an Imu row whose rate is not reported (the text of ``reading_from_msg``)
 NO_RATE_DETAIL = "angular_velocity_covariance[0] = -1 (rate not reported)"
@@ -44,11 +45,13 @@ _LAYOUT_OK: dict[tuple[int, str], tuple[Any, bool]] = {}   # (id(store), type) -
 def decode_rates(msgtype: str, raws: Sequence[Raw], store: Any = None) -> RateBlock:
     """CDR bytes of ``msgtype`` messages → :class:`RateBlock` (sensor frame; ``identity`` all
     False until ``Mounting.rotate_block``). ``store``: the rosbags typestore that decodes this
-    connection (``InputBag.store_for``), default Jazzy. Never raises on bad data: such rows are
-    rejected ``bad_message`` with rosbags' error in ``detail``."""
+    connection (``InputBag.store_for``), default Jazzy (``typedefs.core_typestore`` for the
+    types it holds). Never raises on bad data: such rows are rejected ``bad_message`` with
+    rosbags' error in ``detail``."""
     n = len(raws)
     rb = RateBlock.zeros(n)
-    store = jazzy_typestore() if store is None else store
+    if store is None:
+        store = core_typestore() if has_type(msgtype) else jazzy_typestore()
     if n == 0:
         return rb
     slow = np.ones(n, bool)
@@ -222,7 +225,8 @@ def standard_layout(store: Any, msgtype: str) -> bool:
     key = (id(store), msgtype)
     hit = _LAYOUT_OK.get(key)
     if hit is None or hit[0] is not store:
-        hit = _LAYOUT_OK[key] = (store, _same_fields(store, jazzy_typestore(), msgtype, set()))
+        ref = core_typestore() if has_type(msgtype) else jazzy_typestore()
+        hit = _LAYOUT_OK[key] = (store, _same_fields(store, ref, msgtype, set()))
     return hit[1]
 
 

@@ -115,6 +115,12 @@ def stamp_columns(stamps_ns: Any) -> tuple[np.ndarray, np.ndarray]:
 
 def fill(layout: Layout, sec: np.ndarray, nsec: np.ndarray, values: list[np.ndarray]) -> list[bytes]:
     """K messages of ``layout``: stamps and the float64 groups ``values`` ((K, n) each)."""
+    rows = fill_rows(layout, sec, nsec, values)
+    return rows.view(f"V{rows.shape[1]}").ravel().tolist()     # one bytes object per row (NULs kept)
+
+
+def fill_rows(layout: Layout, sec: np.ndarray, nsec: np.ndarray, values: list[np.ndarray]) -> np.ndarray:
+    """:func:`fill` as a uint8 array (K, message size): row i is message i's bytes."""
     k = sec.shape[0]
     size = layout.template.shape[0]
     rows = np.empty((k, size), np.uint8)
@@ -125,7 +131,7 @@ def fill(layout: Layout, sec: np.ndarray, nsec: np.ndarray, values: list[np.ndar
         n = v.shape[1]
         if n:
             rows[:, off:off + 8 * n].view("<f8")[:] = v
-    return rows.view(f"V{size}").ravel().tolist()     # one bytes object per row (NULs kept)
+    return rows
 
 
 def _prefixed(prefix: str, frame_id: str) -> str:
@@ -133,18 +139,21 @@ def _prefixed(prefix: str, frame_id: str) -> str:
     return prefix + frame_id if frame_id else frame_id
 
 
-def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "",
-                   frame_prefix: str = "") -> list[tuple[str, list[bytes]]]:
+def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix: str = "",
+                   arrays: bool = False) -> list[tuple[str, Any]]:
     """(absolute topic, CDR bytes of its K messages) for every per-instant output topic, in
     the order of :func:`gyro_platform.io.messages.output_messages`, from an ``OutputBlock``
     (arrays over K instants, see :mod:`gyro_platform.engine.outputs`) and the K header stamps
     (int64 ns). ``namespace`` resolves the topic names; ``frame_prefix`` is put before every
-    non-empty frame id. Byte-identical to rosbags ``serialize_cdr`` of those messages."""
+    non-empty frame id. Byte-identical to rosbags ``serialize_cdr`` of those messages.
+    ``arrays``: each topic's messages as one uint8 array (K, size) (:func:`fill_rows`;
+    a topic's messages all have one size) instead of K bytes objects."""
+    fill = fill_rows if arrays else _fill_list
     sec, nsec = stamp_columns(stamps_ns)
     k = sec.shape[0]
     if np.asarray(block.t).reshape(-1).shape[0] != k:
         raise ValueError(f"{k} stamps for {np.asarray(block.t).size} output instants")
-    res: list[tuple[str, list[bytes]]] = []
+    res: list[tuple[str, Any]] = []
     cols = msgs.joint_columns(block)
     res.append((msgs.resolve("gimbal/joint_states", namespace),
                 fill(joint_state_layout(cols.names, cols.velocity.shape[1]), sec, nsec,
@@ -180,4 +189,6 @@ def _bearing_torques(block: Any, k: int) -> dict[str, np.ndarray]:
     return {n: arr[:, i, :] for i, n in enumerate(BEARING_NAMES)}
 
 
-__all__ = ["encode_outputs", "stamp_columns", "fill", "stamped_layout", "joint_state_layout", "Layout"]
+_fill_list = fill
+
+__all__ = ["encode_outputs", "stamp_columns", "fill", "fill_rows", "stamped_layout", "joint_state_layout", "Layout"]

@@ -48,6 +48,7 @@ so invent the vehicle's motion; restarting is honest, and the outputs before the
 """
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -55,6 +56,7 @@ from enum import Enum
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numba import njit
 
 from ..engine.inputs import RateSample
 from .blocks import REJECT_REASONS
@@ -186,6 +188,36 @@ class GateBlock:
         return REASONS[int(self.reason[i])]
 
 
+#: intervals (ns) at most this long convert to float exactly: ``d / NS`` is then the same
+#: correctly rounded quotient in Python (int true division) and in compiled code
+_EXACT_NS = 2 ** 53
+
+
+def _ema(e: float | None, d_ns: np.ndarray, a: float) -> float | None:
+    """``e`` after ``e = dt if e is None else e + a·(dt − e)`` for every interval ``dt = d/NS``
+    of ``d_ns`` (int64 ns) in order: the same float operations as the scalar gate's."""
+    if not len(d_ns):
+        return e
+    if np.abs(d_ns).max() >= _EXACT_NS:
+        for dn in d_ns.tolist():
+            dt = dn / NS
+            e = dt if e is None else e + a * (dt - e)
+        return e
+    return float(_ema_kernel(np.nan if e is None else e, e is None, d_ns, a))
+
+
+@njit(cache=True)
+def _ema_kernel(e, unset, d_ns, a):  # pragma: no cover - compiled
+    for k in range(d_ns.shape[0]):
+        dt = d_ns[k] / 1_000_000_000
+        if unset:
+            e = dt
+            unset = False
+        else:
+            e = e + a * (dt - e)
+    return e
+
+
 def _ns_floor(seconds: float) -> int:
     """Largest integer ns ≤ ``seconds``·1e9, so that ``d > seconds*NS`` ⟺ ``d > _ns_floor`` for int d."""
     return min(math.floor(seconds * NS), 2**62)
@@ -215,6 +247,23 @@ class TimeGate:
         self.last: Decision | None = None
         self.last_drop: Decision | None = None
         self._undo: tuple | None = None           # time base before the last accepted sample
+
+    def __deepcopy__(self, memo: dict) -> "TimeGate":
+        """A copy whose state is independent of this gate's (what ``Pipeline.run_block`` keeps
+        to rewind it): the time base and counters copied; the config and the decisions are
+        shared (never changed once made)."""
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        for k, v in vars(self).items():
+            if k in ("config", "last", "last_drop", "_undo"):
+                new.__dict__[k] = v
+            elif k == "_s":
+                new.__dict__[k] = copy.copy(v)
+            elif type(v) is Counter:
+                new.__dict__[k] = v.copy()
+            else:
+                new.__dict__[k] = copy.deepcopy(v, memo)
+        return new
 
     # ---- properties -----------------------------------------------------------------
     @property
@@ -445,11 +494,7 @@ class TimeGate:
         ok = (d > 0) & (d <= _ns_floor(self.config.max_gap))
         if first is None:
             ok[0] = False
-        a, e = self.config.rate_smoothing, s.rx_dt_ema
-        for dn in d[ok].tolist():
-            dt = dn / NS
-            e = dt if e is None else e + a * (dt - e)
-        s.rx_dt_ema = e
+        s.rx_dt_ema = _ema(s.rx_dt_ema, d[ok], self.config.rate_smoothing)
         s.rx_last = int(rx_list[-1])
 
     def _accept_run(self, rb: "RateBlock", tn: np.ndarray, i: int, j: int, action: np.ndarray,
@@ -460,11 +505,7 @@ class TimeGate:
         prev = np.empty(m, np.int64)
         prev[0] = s.last_ns
         prev[1:] = run[:-1]
-        a, e = self.config.rate_smoothing, s.dt_ema
-        for dn in (run - prev).tolist():
-            dt = dn / NS
-            e = dt if e is None else e + a * (dt - e)
-        s.dt_ema = e
+        s.dt_ema = _ema(s.dt_ema, run - prev, self.config.rate_smoothing)
         s.last_ns = last_ns = int(run[-1])
         origin = s.origin_ns
         action[i:j] = ACCEPT

@@ -598,9 +598,16 @@ def bearing_wrenches(out: Outputs, types: MessageTypes, t_ns: int) -> dict[str, 
     return res
 
 
+#: value types that are never a Mapping (spares the slow ABC check on the common values)
+_PLAIN = frozenset({float, int, str, bool, type(None)})
+
+
 def _fmt(v: Any) -> str:
-    if isinstance(v, float):
+    t = type(v)
+    if t is float:
         return repr(v)
+    if t is int or t is str:
+        return str(v)
     if isinstance(v, (np.floating, np.integer)):
         return repr(v.item())
     if isinstance(v, Mapping):
@@ -659,7 +666,7 @@ def transport_status(types: MessageTypes, values: Mapping[str, Any], warn: str =
 def _flatten(d: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
     res: list[tuple[str, Any]] = []
     for k, v in d.items():
-        if isinstance(v, Mapping):
+        if type(v) not in _PLAIN and isinstance(v, Mapping):
             res += _flatten(v, f"{prefix}{k}.")
         else:
             res.append((f"{prefix}{k}", v))

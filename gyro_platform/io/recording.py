@@ -356,33 +356,29 @@ class Recorder:
     # ---- plot ---------------------------------------------------------------------------
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
         """:meth:`figure` written as PNG."""
-        import matplotlib.pyplot as plt
-
         path = Path(path_png)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fig = self.figure(title, summary)
-        try:
-            fig.savefig(path, dpi=100)
-        finally:
-            plt.close(fig)
+        self.figure(title, summary).savefig(path, dpi=100)
         return path
 
     def figure(self, title: str | None = None, summary: dict | None = None):
         """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
         vehicle rate against time (matplotlib Agg backend). Every panel has a title, axis
-        labels with units and a legend; ``title`` (wrapped, never cut) heads the figure."""
+        labels with units and a legend; ``title`` (wrapped, never cut) heads the figure. A plain
+        ``matplotlib.figure.Figure`` on an Agg canvas (no pyplot: nothing to close, ~0.1 s
+        less to import)."""
         import textwrap
 
-        import matplotlib
-
-        matplotlib.use("Agg", force=True)
-        import matplotlib.pyplot as plt
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
 
         s = summary if summary is not None else self.summary()
         t = self.t_rel
         has_vehicle = "vehicle_omega" in self._extra
         n = 4 if has_vehicle else 3
-        fig, axs = plt.subplots(n, 1, figsize=(10, 2.8 * n + 0.8), sharex=True, layout="constrained")
+        fig = Figure(figsize=(10, 2.8 * n + 0.8), layout="constrained")
+        FigureCanvasAgg(fig)                    # the Agg canvas: draw(), get_renderer(), savefig
+        axs = fig.subplots(n, 1, sharex=True)
         q = self.gimbal_angles
         for i, g in enumerate(GIMBAL_NAMES):
             axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)

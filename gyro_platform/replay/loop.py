@@ -20,14 +20,16 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagReadError, ReplayError, SimulationError, deferred_signals, stop_reason
+from ..engine.outputs import OutputBlock
 from ..io import messages as msgs
 from ..io.bag_reader import InputBag
 from ..io.bag_writer import OutputBag
 from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
+from ..io.typedefs import core_typestore
 from ..pipeline import (ADVANCED, DROP, NS, Pipeline, bag_chunks, copy_chunk, grid_index,
-                        grid_indices, judge, new_slots, no_sample_hint, rate_rows, write_many)
+                        grid_indices, judge, new_slots, no_sample_hint, rate_rows)
 from .stats import PlotSeries, Stats
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -140,7 +142,7 @@ class _Run:
 
     def __init__(self, bag: InputBag, out: OutputBag, sim: Any, cfg: ReplayConfig):
         self.bag, self.out, self.sim, self.cfg = bag, out, sim, cfg
-        self.types = MessageTypes.rosbags()
+        self.types = MessageTypes.rosbags(core_typestore())
         self.gate = TimeGate(cfg.gate)
         self.pipeline = Pipeline(sim, self.gate, cfg.output_rate, cfg.mounting)
         self.stats = Stats()
@@ -159,6 +161,7 @@ class _Run:
         self.interrupted: str | None = None             # "SIGINT" / "SIGTERM"
         self.identity_frames: list[str] = []
         self.diag_topic = msgs.resolve("/diagnostics")
+        self._queue: list[tuple] | None = None          # a chunk's outputs and diagnostics to write
 
     def loop(self) -> None:
         """All messages of the bag, chunk by chunk (``engine="chunked"``) or one by one
@@ -192,9 +195,15 @@ class _Run:
             self.first_ts = int(chunk.ts[0])
         self.last_ts = int(chunk.ts[-1])
         self.n_msgs += len(chunk.ts)
-        copy_chunk(self.out, chunk, self.bag)
-        for rows, rb in self.pipeline.decode(self.bag, chunk):
-            self._input_block(rb, chunk.ts[rows])
+        with self.out.batched():            # the chunk's copies, outputs and diagnostics: one write
+            copy_chunk(self.out, chunk, self.bag)
+            self._queue = []
+            try:
+                for rows, rb in self.pipeline.decode(self.bag, chunk):
+                    self._input_block(rb, chunk.ts[rows])
+            finally:
+                queue, self._queue = self._queue, None
+                self._write_queue(queue)
 
     def _input_block(self, rb: Any, rx: np.ndarray) -> None:
         """Input rows received at ``rx``: cut at the diagnostics instants (1 Hz of receive
@@ -226,13 +235,32 @@ class _Run:
 
     def _write_block(self, run: Any, gb: Any, rx: np.ndarray) -> None:
         block = run.block
-        ts = rx[run.rows]
-        for topic, raws in encode_outputs(block, gb.stamp_ns[run.rows], self.cfg.namespace):
-            write_many(self.out, topic, ts, raws)
+        self._queue.append(("out", block, rx[run.rows], gb.stamp_ns[run.rows]))
         self.n_out += len(block)
         self.stats.add_block(block, run.new_segment)
         self.series.add_block(block)
         self.last_out = (block, len(block) - 1)
+
+    def _write_queue(self, queue: list[tuple]) -> None:
+        """A chunk's outputs and diagnostics in their order (the rows and order of writing each
+        at once); the outputs encoded together (an encoding error is raised where it was)."""
+        outs = [q for q in queue if q[0] == "out"]
+        enc = None
+        if len(outs) > 1:
+            try:
+                enc = encode_outputs(OutputBlock.concat([q[1] for q in outs]), np.concatenate([q[3] for q in outs]),
+                                     self.cfg.namespace, arrays=True)
+            except ValueError:
+                enc = None
+        at = 0
+        for kind, a, ts, b in queue:
+            if kind == "msg":
+                self.out.write_msg(a, ts, b)
+                continue
+            k = len(a)
+            self.out.write_topics(ts, [(t, rows[at:at + k]) for t, rows in enc] if enc is not None
+                                  else encode_outputs(a, b, self.cfg.namespace, arrays=True))
+            at += k
 
     # ---- per-message path (the reference) -----------------------------------------------------
     def _message(self, conn: Any, ts: int, raw: bytes) -> None:
@@ -293,8 +321,11 @@ class _Run:
         if self.last_out is not None:
             obj, i = self.last_out
             last = obj if i < 0 else obj[i]
-        self.out.write_msg(self.diag_topic, ts, msgs.diagnostic_array(
-            self.gate.snapshot(), last, self.types, ts, self._sim_figures()))
+        msg = msgs.diagnostic_array(self.gate.snapshot(), last, self.types, ts, self._sim_figures())
+        if self._queue is not None:         # chunked path: after the outputs queued before it
+            self._queue.append(("msg", self.diag_topic, ts, msg))
+        else:
+            self.out.write_msg(self.diag_topic, ts, msg)
 
     def _sim_figures(self) -> dict[str, Any]:
         return {"outputs": self.n_out, **{f"sim_{k}": v for k, v in self.outcomes.items()}}

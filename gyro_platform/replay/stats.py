@@ -23,10 +23,17 @@ class Stats:
         self.n = 0
         self.last = None
         self._fit = LineFit()
+        self._key: tuple | None = None          # block layout of _names/_idx (see _plain_columns)
+        self._names: tuple[str, ...] = ()
+        self._idx: np.ndarray | None = None
+        self._anames: tuple[str, ...] | None = None     # columns of the array ranges (add_block)
+        self._alo = self._ahi = np.zeros(0)
+        self._order: list[str] = []             # their names in the order they got a finite value
 
     def add(self, out: Any, new_segment: bool) -> None:
         from ..io.recording import csv_row
 
+        self._fold()
         self.n += 1
         for k, v in csv_row(out).items():
             if not math.isfinite(v):
@@ -44,26 +51,22 @@ class Stats:
 
     def add_block(self, block: Any, new_segment: bool) -> None:
         """K outputs of an ``OutputBlock`` at once (vectorised; ``new_segment``: the first of
-        them starts a new segment); the same ranges and counts as K calls of :meth:`add`."""
-        from ..io.recording import block_columns
-
+        them starts a new segment); the same ranges and counts as K calls of :meth:`add`.
+        The columns are read straight from ``block.rows`` where they are its columns
+        (:meth:`_plain_columns`); the ranges are kept as arrays until :meth:`ranges`."""
         k = len(block)
         if k == 0:
             return
         self.n += k
-        for name, v in block_columns(block).items():
-            ok = np.isfinite(v)
-            bad = k - int(np.count_nonzero(ok))
-            if bad:
-                self.non_finite[name] = self.non_finite.get(name, 0) + bad
-                v = v[ok]
-                if v.size == 0:
-                    continue
-            lo, hi = float(v.min()), float(v.max())
-            if name not in self.lo or lo < self.lo[name]:
-                self.lo[name] = lo
-            if name not in self.hi or hi > self.hi[name]:
-                self.hi[name] = hi
+        idx = self._plain_columns(block)
+        if idx is None:
+            from ..io.recording import block_columns
+
+            cols = block_columns(block)
+            names, m = tuple(cols), np.column_stack(list(cols.values()))
+        else:
+            names, m = self._names, block.rows[:, idx]
+        self._add_matrix(names, m)
         if new_segment or self.last is None:
             self._fit = LineFit()
         d = np.asarray(block.drift_angle, dtype=float)
@@ -72,7 +75,67 @@ class Stats:
             self._fit.add_many(np.asarray(block.t, dtype=float)[ok], d[ok])
         self.last = _Last(float(block.t[-1]), d[-1].copy())
 
+    def _plain_columns(self, block: Any) -> np.ndarray | None:
+        """Index into ``block.rows`` of every ``recording.block_columns`` column (names in
+        ``self._names``), found once per block layout by two probe blocks whose cells hold
+        their own column number; None when a column is not a plain column of ``rows``."""
+        key = (block.stabilised, block.status_keys, tuple(block.extra_status), block.rows.shape[1])
+        if key != self._key:
+            from ..io.recording import block_columns
+
+            n = block.rows.shape[1]
+            found = []
+            for scale, offset in ((1.0, 0.0), (3.0, 1000.0)):
+                probe = type(block)((np.arange(n) * scale + offset)[None, :], block.stabilised, block.status_keys,
+                                    {k: np.full(1, np.nan) for k in block.extra_status})
+                cols = block_columns(probe)
+                found.append((tuple(cols), [(float(v[0]) - offset) / scale for v in cols.values()]))
+            (names, a), (_, b) = found
+            plain = a == b and all(v == v and v == int(v) and 0 <= v < n for v in a)
+            self._key, self._names = key, names
+            self._idx = np.array(a, dtype=np.int64) if plain else None
+        return self._idx
+
+    def _add_matrix(self, names: tuple[str, ...], m: np.ndarray) -> None:
+        """Columns ``m`` (K, len(names)) into the ranges (arrays per ``names``) and counts."""
+        if names != self._anames:
+            self._fold()
+            self._anames = names
+            self._alo = np.full(len(names), np.nan)
+            self._ahi = np.full(len(names), np.nan)
+        ok = np.isfinite(m)
+        if ok.all():
+            lo, hi = m.min(axis=0), m.max(axis=0)
+            some = None
+        else:
+            k = m.shape[0]
+            bad = k - np.count_nonzero(ok, axis=0)
+            for j in np.flatnonzero(bad).tolist():
+                self.non_finite[names[j]] = self.non_finite.get(names[j], 0) + int(bad[j])
+            some = bad < k
+            lo = np.where(some, np.where(ok, m, np.inf).min(axis=0), np.nan)
+            hi = np.where(some, np.where(ok, m, -np.inf).max(axis=0), np.nan)
+        fresh = np.isnan(self._alo) if some is None else np.isnan(self._alo) & some
+        if fresh.any():                          # first finite values: the key order of add()
+            self._order += [names[j] for j in np.flatnonzero(fresh).tolist()]
+        self._alo = np.fmin(self._alo, lo)
+        self._ahi = np.fmax(self._ahi, hi)
+
+    def _fold(self) -> None:
+        """The array ranges of :meth:`add_block` into ``lo``/``hi``."""
+        if self._anames is None:
+            return
+        pos = {n: j for j, n in enumerate(self._anames)}
+        for name in self._order:
+            lo, hi = float(self._alo[pos[name]]), float(self._ahi[pos[name]])
+            if name not in self.lo or lo < self.lo[name]:
+                self.lo[name] = lo
+            if name not in self.hi or hi > self.hi[name]:
+                self.hi[name] = hi
+        self._anames, self._order = None, []
+
     def ranges(self) -> dict[str, list[float]]:
+        self._fold()
         return {k: [self.lo[k], self.hi[k]] for k in self.lo}
 
     def drift(self) -> dict[str, Any]:
@@ -158,26 +221,27 @@ class PlotSeries:
         """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each; the kept
         rows are copied out of the block at once (one fancy index per field)."""
         k, j = len(block), 0
-        mark = object()
+        new: list[int] = []             # block rows kept, in order: the last len(new) items
         while j < k:
             first = j + (-self.i) % self.stride     # the next index whose count is a multiple of the stride
             room = self.cap - len(self.items)
             take = range(first, k, self.stride)[:room]
-            self.items.extend((mark, int(m)) for m in take)
+            new += take
+            self.items += [None] * len(take)
             if len(self.items) >= self.cap:
                 stop = int(take[-1]) + 1            # halve after the item that filled it
                 self.i += stop - j
                 j = stop
+                at = len(self.items) - len(new)     # where the new rows start; even places stay
+                new = new[at % 2::2]
                 self.items = self.items[::2]
                 self.stride *= 2
             else:
                 self.i += k - j
                 j = k
-        pos = [n for n, it in enumerate(self.items) if type(it) is tuple and it[0] is mark]
-        if pos:
-            sub = take_rows(block, np.array([self.items[n][1] for n in pos], dtype=np.int64))
-            for r, n in enumerate(pos):
-                self.items[n] = (sub, r)
+        if new:
+            sub = take_rows(block, np.array(new, dtype=np.int64))
+            self.items[len(self.items) - len(new):] = [(sub, r) for r in range(len(new))]
 
     def outputs(self) -> list[Any]:
         """The kept outputs as ``Outputs``, in order."""

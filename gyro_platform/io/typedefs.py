@@ -1,0 +1,71 @@
+"""The ROS 2 Jazzy definitions of the message types this package reads and writes, and a small
+rosbags typestore of them (:func:`core_typestore`).
+
+rosbags' full Jazzy store (:func:`gyro_platform.io.messages.jazzy_typestore`) defines some
+hundred types and costs ~0.1 s to build; a replay needs ~15 of them. ``DEFINITIONS`` holds
+their ``.msg`` text as rosbags' Jazzy store generates it (one level each, constants included);
+the store parsed from it gives the same message definitions, RIHS01 hashes, classes and CDR
+bytes for these types as the full store (tested type by type against rosbags' Jazzy store).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+#: the input types (Imu, Twist, TwistStamped), the output types and what they contain
+DEFINITIONS: dict[str, str] = {
+    "sensor_msgs/msg/Imu": (
+        "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\nfloat64[9] orientation_covariance\n"
+        "geometry_msgs/Vector3 angular_velocity\nfloat64[9] angular_velocity_covariance\n"
+        "geometry_msgs/Vector3 linear_acceleration\nfloat64[9] linear_acceleration_covariance\n"),
+    "std_msgs/msg/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
+    "builtin_interfaces/msg/Time": "int32 sec\nuint32 nanosec\n",
+    "geometry_msgs/msg/Quaternion": "float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+    "geometry_msgs/msg/Vector3": "float64 x\nfloat64 y\nfloat64 z\n",
+    "geometry_msgs/msg/Twist": "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n",
+    "geometry_msgs/msg/TwistStamped": "std_msgs/Header header\ngeometry_msgs/Twist twist\n",
+    "sensor_msgs/msg/JointState": (
+        "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n"),
+    "geometry_msgs/msg/Vector3Stamped": "std_msgs/Header header\ngeometry_msgs/Vector3 vector\n",
+    "geometry_msgs/msg/QuaternionStamped": "std_msgs/Header header\ngeometry_msgs/Quaternion quaternion\n",
+    "geometry_msgs/msg/WrenchStamped": "std_msgs/Header header\ngeometry_msgs/Wrench wrench\n",
+    "geometry_msgs/msg/Wrench": "geometry_msgs/Vector3 force\ngeometry_msgs/Vector3 torque\n",
+    "diagnostic_msgs/msg/DiagnosticArray": "std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status\n",
+    "diagnostic_msgs/msg/DiagnosticStatus": (
+        "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
+        "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n"),
+    "diagnostic_msgs/msg/KeyValue": "string key\nstring value\n",
+}
+
+_CORE = None
+
+
+def core_typestore() -> Any:
+    """A rosbags typestore of the types in :data:`DEFINITIONS` (built once, ~10 ms)."""
+    global _CORE
+    if _CORE is None:
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        (first, text), *rest = DEFINITIONS.items()
+        sep = "=" * 80 + "\n"
+        combined = text + "".join(f"{sep}MSG: {name.replace('/msg/', '/')}\n{body}" for name, body in rest)
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(combined, first))
+        _CORE = store
+    return _CORE
+
+
+_MSGDEFS: dict[str, str] = {}
+
+
+def core_msgdef(msgtype: str) -> str:
+    """The message definition text (``.msg``, dependencies appended) that rosbags writes for
+    ``msgtype`` (a type of :data:`DEFINITIONS`) into a bag."""
+    text = _MSGDEFS.get(msgtype)
+    if text is None:
+        text = _MSGDEFS[msgtype] = core_typestore().generate_msgdef(msgtype, ros_version=2)[0]
+    return text
+
+
+def has_type(msgtype: str) -> bool:
+    """True when :func:`core_typestore` defines ``msgtype``."""
+    return msgtype in DEFINITIONS
