@@ -51,6 +51,28 @@ def push_block(sim: Any, t: Any, omega: Any, force: Any, out_idx: Any) -> Any:
 
 #: outcomes of :func:`apply_decision` after which the simulator holds a new instant
 ADVANCED = ("pushed", "reset", "restarted")
+
+
+class ChunkPacer:
+    """Rows in the next chunk, so that a chunk takes about ``target`` s of wall time whatever a
+    row costs (signals are taken and outputs committed between chunks; a slow model — full tree,
+    micro-steps — must not hold a Ctrl-C or the output for many seconds). Starts at
+    ``START_ROWS``, grows at most 4× a chunk, never above ``max_rows`` or below ``START_ROWS``.
+    Call it for the size; ``observe(rows, seconds)`` after each chunk."""
+
+    START_ROWS = 64
+
+    def __init__(self, max_rows: int, target: float = 0.25) -> None:
+        self.max_rows, self.target = int(max_rows), float(target)
+        self.rows = min(self.START_ROWS, self.max_rows)
+
+    def __call__(self) -> int:
+        return self.rows
+
+    def observe(self, rows: int, seconds: float) -> None:
+        """The chunk just done had ``rows`` rows and took ``seconds`` s."""
+        fit = self.target * rows / seconds if seconds > 0 else float("inf")
+        self.rows = int(max(min(self.START_ROWS, self.max_rows), min(self.max_rows, 4 * self.rows, fit)))
 # the members as plain globals: an Enum attribute lookup costs ~60 ns, several per message
 _ACT_DROP, _ACT_RESET = Action.DROP, Action.RESET
 

@@ -8,7 +8,7 @@ A bag that rosbags cannot open is handed to :mod:`.bag_salvage`. Errors: ``BagPa
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -204,12 +204,14 @@ class InputBag:
         conns = self._selected(input_only)
         return self._guarded(self._source(conns), conns, lambda _: 1)
 
-    def chunks(self, max_rows: int = 4096, input_only: bool = False) -> Iterator[RowChunk]:
+    def chunks(self, max_rows: int = 4096, input_only: bool = False,
+               pace: Callable[[], int] | None = None) -> Iterator[RowChunk]:
         """The rows of :meth:`messages` in blocks of at most ``max_rows`` (:class:`RowChunk`:
         connection ids, receive times ns, CDR bytes): same rows, same order, same errors (every
-        row before a damage is yielded, then BagReadError). Intact sqlite3 and indexed MCAP bags
-        are read by :mod:`.bag_fast` (no Python object per row); the rest through rosbags or
-        the salvage reader."""
+        row before a damage is yielded, then BagReadError). ``pace``: asked before each block
+        for its size (≤ ``max_rows``; e.g. ``pipeline.ChunkPacer``). Intact sqlite3 and indexed
+        MCAP bags are read by :mod:`.bag_fast` (no Python object per row); the rest through
+        rosbags or the salvage reader."""
         if max_rows < 1:
             raise ValueError(f"max_rows = {max_rows}; must be >= 1")
         conns = self._selected(input_only)
@@ -222,7 +224,8 @@ class InputBag:
         if batches is None:
             self.chunk_source = "salvage" if self._salvage is not None else "rosbags"
             batches = _batches(self._source(conns), max_rows)
-        return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])), max_rows)
+        return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])),
+                        (lambda: max_rows) if pace is None else (lambda: max(1, min(max_rows, pace()))))
 
     def store_for(self, conn: Any) -> Any:
         """Typestore to decode ``conn``: the bag's own definition if it has one, else Jazzy."""
@@ -296,18 +299,18 @@ def _batches(src: Iterator[tuple[Any, int, bytes]], max_rows: int) -> Iterator[B
         yield batch()
 
 
-def _rechunk(batches: Iterator[Batch], max_rows: int) -> Iterator[RowChunk]:
-    """RowChunks of exactly ``max_rows`` rows (the last one shorter) from batches of any size;
-    rows collected before an error are yielded before it propagates."""
+def _rechunk(batches: Iterator[Batch], rows: Callable[[], int]) -> Iterator[RowChunk]:
+    """RowChunks of exactly ``rows()`` rows (asked before each; the last one shorter) from
+    batches of any size; rows collected before an error are yielded before it propagates."""
     parts: list[Batch] = []
     have = 0
     try:
         for b in batches:
             parts.append(b)
             have += len(b[1])
-            while have >= max_rows:
-                chunk, parts = _take(parts, max_rows)
-                have -= max_rows
+            while have >= (m := rows()):
+                chunk, parts = _take(parts, m)
+                have -= m
                 yield chunk
     except Exception:
         if have:

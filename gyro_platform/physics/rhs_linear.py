@@ -18,7 +18,7 @@ from . import effects as fx
 from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_Z
 from .rotations import quat_matrix_elems, quat_rate_at
 
-__all__ = ["stabilised_linear_rhs", "takes_linear_path"]
+__all__ = ["stabilised_linear_rhs", "takes_linear_path", "rest_model_accel"]
 
 
 @njit(cache=True, inline="always")
@@ -27,6 +27,24 @@ def takes_linear_path(fid_linear, I):
     the fidelity is linear."""
     return (fid_linear and I[0, 5] == 1 and I[1, fx.UNBALANCE] == 0 and I[1, fx.ANISO] == 0
             and I[1, fx.EARTH] == 0)
+
+
+@njit(cache=True, inline="always")
+def rest_model_accel(mats, y, F, gyro, out, off):
+    """Accelerations of spec 6.3, M0 v̇ = F − G0 v over v = (Ω, q̇) = y[5:13], into
+    ``out[off:off + 8]`` (``mats[0]`` = M0⁻¹, ``mats[1]`` = G0; the G0 term only with ``gyro``;
+    ``F`` (8,) generalised forces, changed in place)."""
+    if gyro:
+        for i in range(8):
+            acc = 0.0
+            for j in range(8):
+                acc += mats[1, i, j] * y[5 + j]
+            F[i] -= acc
+    for i in range(8):
+        acc = 0.0
+        for j in range(8):
+            acc += mats[0, i, j] * F[j]
+        out[off + i] = acc
 
 
 @njit(cache=True, inline="always")
@@ -82,18 +100,7 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     else:
         yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
     F[0], F[1], F[2] = MP0, MP1, MP2
-    # M0 v̇ = F − G0 v over v = (Ω, q̇)
-    if I[1, fx.GYRO]:
-        for i in range(8):
-            acc = 0.0
-            for j in range(8):
-                acc += mats[1, i, j] * y[5 + j]
-            F[i] -= acc
-    for i in range(8):
-        acc = 0.0
-        for j in range(8):
-            acc += mats[0, i, j] * F[j]
-        yd[5 + i] = acc
+    rest_model_accel(mats, y, F, I[1, fx.GYRO], yd, 5)
     for i in range(5):
         yd[i] = y[iqd + i]
     quat_rate_at(y, iqp, Om0, Om1, Om2, yd)

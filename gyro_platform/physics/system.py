@@ -18,7 +18,7 @@ from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, L
                     linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
-from .rhs_linear import stabilised_linear_rhs, takes_linear_path
+from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
 from .rotations import quat_matrix, quat_rate_at, quat_to_matrix_at
 from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
 
@@ -275,17 +275,7 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
             F[0], F[1], F[2] = MP0, MP1, MP2
             for i in range(5):
                 F[3 + i] = Q[i]
-            if on[fx.GYRO]:
-                for i in range(8):
-                    sacc = 0.0
-                    for j in range(8):
-                        sacc += mats[1, i, j] * y[5 + j]
-                    F[i] -= sacc
-            for i in range(8):
-                sacc = 0.0
-                for j in range(8):
-                    sacc += mats[0, i, j] * F[j]
-                a[i] = sacc
+            rest_model_accel(mats, y, F, on[fx.GYRO], a, 0)
         else:
             linear_gimbal_accel(lc, L, y, qd, V[V_OM], V[V_OMD], Q, on[fx.GYRO], on[fx.CORIOLIS],
                                 on[fx.VEHICLE_ACC], a)

@@ -28,7 +28,7 @@ from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..io.typedefs import core_typestore
-from ..pipeline import (ADVANCED, DROP, NS, Pipeline, bag_chunks, copy_chunk, grid_index,
+from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, bag_chunks, copy_chunk, grid_index,
                         grid_indices, judge, new_slots, no_sample_hint, rate_rows)
 from .stats import PlotSeries, Stats
 
@@ -177,9 +177,12 @@ class _Run:
                         self._message(conn, ts, raw)
                     progress.update()
             else:
-                for chunk in bag_chunks(self.bag, self.cfg.chunk_rows):
+                pace = ChunkPacer(self.cfg.chunk_rows)     # ~0.25 s a chunk, however slow the model
+                for chunk in bag_chunks(self.bag, self.cfg.chunk_rows, pace=pace):
+                    t0 = time.perf_counter()
                     with deferred_signals():        # a signal stops between chunks: what is
                         self._chunk(chunk)          # counted is what was simulated
+                    pace.observe(len(chunk.ts), time.perf_counter() - t0)
                     progress.update(len(chunk.ts))
         except BagReadError as e:
             self.error = str(e)

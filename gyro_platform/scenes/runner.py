@@ -21,7 +21,7 @@ from ..errors import BagReadError, SimulationError, deferred_signals
 from ..io.bag_reader import InputBag
 from ..io.gate import TimeGate
 from ..io.recording import CsvWriter, Recorder
-from ..pipeline import (ADVANCED, OUTCOMES, Pipeline, bag_chunks, new_slots, no_sample_hint,
+from ..pipeline import (ADVANCED, OUTCOMES, ChunkPacer, Pipeline, bag_chunks, new_slots, no_sample_hint,
                         push_block)
 from .schema import Check, ScenarioError, Scene, load_scene, scene_info
 
@@ -52,8 +52,11 @@ def _synthetic_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any
     quat = gen.quaternion(t)
     emit = new_slots(np.floor((t - t[0]) / (1.0 / scene.output_rate) + 1e-9).astype(np.int64), None)
     emit[-1] = True                         # always record the last instant
-    for a in range(0, n, CHUNK):
-        b = min(a + CHUNK, n)
+    pace = ChunkPacer(CHUNK)
+    a = 0
+    while a < n:
+        b = min(a + pace(), n)
+        t0 = time.perf_counter()
         idx = np.flatnonzero(emit[a:b])
         try:
             block = push_block(sim, t[a:b], w[a:b], f[a:b], idx)
@@ -64,7 +67,9 @@ def _synthetic_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any
                                 "vehicle_attitude": quat[a:b][idx[:len(e.block)]]}
             raise
         feed.n_in += b - a
+        pace.observe(b - a, time.perf_counter() - t0)
         yield block, {"vehicle_omega": w[a:b][idx], "vehicle_attitude": quat[a:b][idx]}
+        a = b
 
 
 def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict]]:
@@ -75,7 +80,8 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
     pipe.duration = scene.duration
     kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
     with InputBag(scene.motion.path, **kw) as bag:
-        chunks = bag_chunks(bag, CHUNK, input_only=True)
+        pace = ChunkPacer(CHUNK)
+        chunks = bag_chunks(bag, CHUNK, input_only=True, pace=pace)
         while not pipe.stopped:
             try:
                 chunk = next(chunks)
@@ -86,6 +92,7 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
                     raise
                 feed.error = str(e)
                 break
+            t0 = time.perf_counter()
             for _, rb, res in pipe.run_chunk(bag, chunk):
                 advanced = np.isin(res.outcome, [OUTCOMES.index(k) for k in ADVANCED])
                 feed.n_in += int(np.count_nonzero(advanced))
@@ -96,6 +103,7 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
                     yield run.block, {"vehicle_omega": rb.omega[run.rows]}
                 if last is not None:
                     feed.pending = None if last in emitted else {"vehicle_omega": rb.omega[last].copy()}
+            pace.observe(len(chunk.ts), time.perf_counter() - t0)
     feed.counts = {k: v for k, v in pipe.outcomes.items()}
 
 
