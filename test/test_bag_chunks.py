@@ -299,3 +299,43 @@ def test_imu_and_twist_stamped_on_one_topic_are_not_merged(tmp_path):
         ref, _ = assert_same_rows(bag, expect_source="fast")
         only, _ = read_messages(bag, input_only=True)
         assert len(only) == 200 and {c for c, _, _ in only} == imu_ids
+
+
+# ---- paced chunks (pipeline.ChunkPacer) ------------------------------------------------------
+def test_paced_chunks_have_the_asked_sizes_and_the_same_rows(tmp_path):
+    """``chunks(pace=…)`` cuts each block at the size asked just before it (the replay asks a
+    ChunkPacer); the rows and their order are those of unpaced reading."""
+    bag = write_rosbags(tmp_path / "b", mixed_rows(), "mcap")
+    sizes = iter([5, 1, 64, 3, 10_000, 17] + [50] * 100)
+    asked: list[int] = []
+
+    def pace():
+        asked.append(next(sizes))
+        return asked[-1]
+
+    with InputBag(bag, "/imu") as b:
+        got = list(b.chunks(max_rows=200, pace=pace))
+        plain = list(b.chunks(max_rows=4096))
+    lens = [len(c.ts) for c in got]
+    assert lens[:6] == [5, 1, 64, 3, 200, 17]                  # capped at max_rows
+    assert sum(lens) == sum(len(c.ts) for c in plain)
+    np.testing.assert_array_equal(np.concatenate([c.ts for c in got]), np.concatenate([c.ts for c in plain]))
+    assert [r for c in got for r in c.raws] == [r for c in plain for r in c.raws]
+
+
+def test_chunk_pacer_aims_at_its_wall_time_per_chunk():
+    """Starts small, grows at most 4x a chunk up to max_rows while rows are cheap, and shrinks to
+    ~target/seconds-per-row when they are slow (never below its start size)."""
+    from gyro_platform.pipeline import ChunkPacer
+
+    p = ChunkPacer(4096, target=0.25)
+    seen = [p()]
+    for _ in range(6):                       # 1 µs a row: grows 64, 256, 1024, 4096, 4096
+        p.observe(p(), p() * 1e-6)
+        seen.append(p())
+    assert seen == [64, 256, 1024, 4096, 4096, 4096, 4096]
+    p.observe(4096, 4096 * 2e-3)             # 2 ms a row: 0.25 s is 125 rows
+    assert p() == 125
+    p.observe(125, 125 * 1.0)                # 1 s a row: not below the start size
+    assert p() == ChunkPacer.START_ROWS
+    assert ChunkPacer(10)() == 10            # a small maximum is the size from the start
