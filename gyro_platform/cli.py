@@ -77,13 +77,17 @@ def _quiet_broken_pipe() -> None:
 
 def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """argparse turns ``--flag=--`` into ``[]`` without calling the flag's type: refuse any
-    single-valued typed option whose value is not of its type (argparse's one-line error, exit 2)."""
+    single-valued option (int, float or text) whose value is not of its type (argparse's
+    one-line error, exit 2)."""
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
     for action in sub._actions:
-        if action.nargs is None and action.type in (int, float) and action.option_strings:
+        typ = str if action.type is None else action.type
+        if (action.nargs is None and typ in (int, float, str) and action.option_strings
+                and isinstance(action, argparse._StoreAction)):
             value = getattr(args, action.dest, None)
-            if value is not None and value is not action.default and not isinstance(value, action.type):
-                sub.error(f"argument {'/'.join(action.option_strings)}: expected one {action.type.__name__} value")
+            if value is not None and value is not action.default and not isinstance(value, typ):
+                kind = "" if typ is str else f" {typ.__name__}"
+                sub.error(f"argument {'/'.join(action.option_strings)}: expected one{kind} value")
 
 
 def command_of(argv: list[str]) -> str:

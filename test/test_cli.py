@@ -517,6 +517,19 @@ def test_bad_replay_arguments_are_exit_2_and_write_nothing(args, words, tmp_path
     assert not out.exists() and not rp.sidecar_paths(out)[0].exists()
 
 
+@pytest.mark.parametrize("flag", ["--namespace", "--topic", "--out"])
+def test_a_text_option_given_as_double_dash_is_one_usage_error(flag, tmp_path, capsys):
+    """argparse makes ``--flag=--`` an empty list without a word: refused as a usage error
+    (exit 2, one line naming the flag), not a traceback."""
+    bag = small_bag(tmp_path / "b")
+    args = ["replay", str(bag), "--out", str(tmp_path / "o"), "--quiet", f"{flag}=--"]
+    with pytest.raises(SystemExit) as e:
+        cli.main(args)
+    assert e.value.code == cli.EXIT_USAGE
+    assert f"argument {flag}: expected one value" in one_line_error(capsys.readouterr().err, "replay")
+    assert not (tmp_path / "o").exists()
+
+
 def test_namespaces_that_are_valid_pass():
     for ns in ("", "/", "robot1", "/robot1/", "a/b_c", "_x"):
         assert rp.NAMESPACE_RE.fullmatch(ns), ns
