@@ -19,7 +19,8 @@ regime, level, grid step), built on demand): the results equal the Python integr
 round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
 last stage across intervals (first same as last: the next interval's input starts where this
 one ends and the right-hand side does not see its slope), one right-hand side fewer per
-interval; the check ``_k1_carried`` makes any change of state or input row recompute it. A sample is committed (state, time, input, counters)
+interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
+A sample is committed (state, time, input, counters)
 only when its interval succeeded; otherwise everything — ``seg`` included — is as before.
 """
 from __future__ import annotations
@@ -181,8 +182,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
     (``NEED_REGIME``). Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
-    counting of array arguments would cost more than the step).
-"""
+    counting of array arguments would cost more than the step)."""
     fh = _f1(fb, ib, F_HDR)
     ih = _i1(ib, I_HDR)
     I = _i2(ib, I_I)
