@@ -34,7 +34,7 @@ from .integrators import COARSEN, MAX_JUMP
 from .integrators import ETD2
 from .views import view2, view3
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import FASTMATH, SEG_N, platform_rhs, support_regime
+from ..physics.system import FASTMATH, LAY_STAB, SEG_N, platform_rhs, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
 #: integrators with a compiled path → method code
@@ -478,7 +478,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 return ST_NONFINITE
         ih[J_NSTEPS] += steps
         ih[J_LEVEL] = level
-        if method == RK4 and I[0, 5] == 1 and have_k1:
+        if method == RK4 and I[0, LAY_STAB] == 1 and have_k1:
             # FSAL across intervals: K[0] = f(t1, y1) holds for the next interval, whose input
             # starts where this one ends; stabilised only (the right-hand side does not see the
             # input's slope). Valid while the committed state and input row equal yk.

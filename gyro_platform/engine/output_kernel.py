@@ -248,7 +248,7 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
         if on[fx.SERVO]:
             iz = lay[LAY_Z]
             for ax in range(3):
-                gi = 4 if ax == 0 else (0 if ax == 1 else 3)
+                gi = fx.servo_pickoff(ax)
                 out[C_SERVO + ax] = fx.servo_axis(k, y[gi], qd[gi], y[iz + ax])[0]
         _mtm(R_IB, R_IP, T2)            # R_BP (actual)
         _mm(R_PB, T2, T1)

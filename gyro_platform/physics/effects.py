@@ -92,9 +92,8 @@ def gimbal_axis_torque(springs, dampers, friction, bias, k, i, q, qd):
 def gimbal_friction(k, qd, Q):
     """Gimbal bearing friction alone: Q_k −= b_k q̇_k + μ_k sat(q̇_k/ε) (the precession model
     iterates it)."""
-    eps = k[K_EPS]
     for i in range(5):
-        Q[i] -= k[K_VISC + i] * qd[i] + k[K_COULOMB + i] * sat(qd[i] / eps)
+        Q[i] += gimbal_axis_torque(False, False, True, False, k, i, 0.0, qd[i])
 
 
 @njit(cache=True)
@@ -108,6 +107,13 @@ def gyro_torquers(L, wc, Q):
     Q[4] -= L[2] * wc[2]
 
 
+@njit(cache=True, inline="always")
+def servo_pickoff(ax):
+    """Index (in q = α4, β5, β7, α9, β10) of the gimbal whose angle is mount axis ``ax``'s
+    pick-off (spec 9.3): β10, α4, α9 drive mount axes 1, 2, 3."""
+    return 4 if ax == 0 else (0 if ax == 1 else 3)
+
+
 @njit(cache=True)
 def servo_axis(k, y, yd, z):
     """PID pick-off servo of one mount axis (spec 9.3): M = sat(K_P y + K_D ẏ + K_I z) (N m),
@@ -119,6 +125,26 @@ def servo_axis(k, y, yd, z):
     if m < -lim:
         return -lim, True
     return m, False
+
+
+@njit(cache=True, inline="always")
+def servo_mount_torques(k, y, qd, qd_off, z_off, yd):
+    """The servo of the three mount axes (spec 9.3) on state ``y``: their torques (N m,
+    platform axes 1, 2, 3) from the pick-offs ``y[servo_pickoff(ax)]``, gimbal rates
+    ``qd[qd_off + g]`` and integrals ``y[z_off + ax]``; the integrals' rates go to
+    ``yd[z_off:z_off + 3]`` (0 on a saturated axis: conditional integration, anti-windup)."""
+    m0, m1, m2 = 0.0, 0.0, 0.0
+    for ax in range(3):
+        g = servo_pickoff(ax)
+        m, saturated = servo_axis(k, y[g], qd[qd_off + g], y[z_off + ax])
+        yd[z_off + ax] = 0.0 if saturated else y[g]
+        if ax == 0:
+            m0 = m
+        elif ax == 1:
+            m1 = m
+        else:
+            m2 = m
+    return m0, m1, m2
 
 
 @njit(cache=True)

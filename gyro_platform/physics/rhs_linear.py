@@ -15,7 +15,7 @@ from __future__ import annotations
 from numba import njit
 
 from . import effects as fx
-from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_Z
+from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z
 from .rotations import quat_matrix_elems, quat_rate_at
 
 __all__ = ["stabilised_linear_rhs", "takes_linear_path", "rest_model_accel"]
@@ -25,7 +25,7 @@ __all__ = ["stabilised_linear_rhs", "takes_linear_path", "rest_model_accel"]
 def takes_linear_path(fid_linear, I):
     """True when ``stabilised_linear_rhs`` is the model (see module doc); ``fid_linear``:
     the fidelity is linear."""
-    return (fid_linear and I[0, 5] == 1 and I[1, fx.UNBALANCE] == 0 and I[1, fx.ANISO] == 0
+    return (fid_linear and I[0, LAY_STAB] == 1 and I[1, fx.UNBALANCE] == 0 and I[1, fx.ANISO] == 0
             and I[1, fx.EARTH] == 0)
 
 
@@ -87,16 +87,10 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     for i in range(5):
         F[3 + i] = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, i, y[i], y[iqd + i])
     if I[1, fx.SERVO]:
-        # pick-offs (β10, α4, α9) drive mount axes 1, 2, 3 (spec 9.3); anti-windup
-        m, sat0 = fx.servo_axis(P, y[4], y[iqd + 4], y[iz])
-        MP0 += m
-        yd[iz] = 0.0 if sat0 else y[4]
-        m, sat1 = fx.servo_axis(P, y[0], y[iqd], y[iz + 1])
-        MP1 += m
-        yd[iz + 1] = 0.0 if sat1 else y[0]
-        m, sat2 = fx.servo_axis(P, y[3], y[iqd + 3], y[iz + 2])
-        MP2 += m
-        yd[iz + 2] = 0.0 if sat2 else y[3]
+        s0, s1, s2 = fx.servo_mount_torques(P, y, y, iqd, iz, yd)
+        MP0 += s0
+        MP1 += s1
+        MP2 += s2
     else:
         yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
     F[0], F[1], F[2] = MP0, MP1, MP2

@@ -14,8 +14,9 @@ from numba import njit
 
 from . import effects as fx
 from ..errors import GimbalLockError, SimulationError
-from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LOCK_COS, StateLayout, check_precession_valid, linear_coefficients,
-                    linear_gimbal_accel, platform_tree, precession_rates, rest_matrices, spin_momentum)
+from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LOCK_COS, StateLayout,
+                    check_precession_valid, linear_coefficients, linear_gimbal_accel, platform_tree,
+                    precession_rates, rest_matrices, spin_momentum)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
@@ -238,16 +239,10 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
         iz = lay[LAY_Z]
         if on[fx.SERVO]:
             # pick-offs y = (β10, α4, α9) drive mount axes 1, 2, 3 (spec 9.3)
-            for ax in range(3):
-                g = 4 if ax == 0 else (0 if ax == 1 else 3)
-                m, saturated = fx.servo_axis(k, y[g], qd[g], y[iz + ax])
-                yd[iz + ax] = 0.0 if saturated else y[g]     # conditional integration (anti-windup)
-                if ax == 0:
-                    MP0 += m
-                elif ax == 1:
-                    MP1 += m
-                else:
-                    MP2 += m
+            s0, s1, s2 = fx.servo_mount_torques(k, y, qd, 0, iz, yd)
+            MP0 += s0
+            MP1 += s1
+            MP2 += s2
         else:
             yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
     # --- fidelities ----------------------------------------------------------------------
