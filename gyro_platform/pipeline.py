@@ -53,6 +53,10 @@ def push_block(sim: Any, t: Any, omega: Any, force: Any, out_idx: Any) -> Any:
 ADVANCED = ("pushed", "reset", "restarted")
 
 
+# the members as plain globals: an Enum attribute lookup costs ~60 ns, several per message
+_ACT_DROP, _ACT_RESET = Action.DROP, Action.RESET
+
+
 class ChunkPacer:
     """Rows in the next chunk, so that a chunk takes about ``target`` s of wall time whatever a
     row costs (signals are taken and outputs committed between chunks; a slow model — full tree,
@@ -64,7 +68,7 @@ class ChunkPacer:
 
     def __init__(self, max_rows: int, target: float = 0.25) -> None:
         self.max_rows, self.target = int(max_rows), float(target)
-        self.rows = min(self.START_ROWS, self.max_rows)
+        self.min_rows = self.rows = min(self.START_ROWS, self.max_rows)
 
     def __call__(self) -> int:
         return self.rows
@@ -72,9 +76,7 @@ class ChunkPacer:
     def observe(self, rows: int, seconds: float) -> None:
         """The chunk just done had ``rows`` rows and took ``seconds`` s."""
         fit = self.target * rows / seconds if seconds > 0 else float("inf")
-        self.rows = int(max(min(self.START_ROWS, self.max_rows), min(self.max_rows, 4 * self.rows, fit)))
-# the members as plain globals: an Enum attribute lookup costs ~60 ns, several per message
-_ACT_DROP, _ACT_RESET = Action.DROP, Action.RESET
+        self.rows = int(max(self.min_rows, min(self.max_rows, 4 * self.rows, fit)))
 
 
 @dataclass(frozen=True, slots=True)

@@ -342,8 +342,9 @@ def storage_classes():
                 buf.extend(parts, int(lens.sum()))
                 # per channel in order of first appearance (as rosbags' dict), rows in order
                 for c, rows in groups:
-                    self._index.setdefault(c, []).append((ts[rows], offsets[rows]))
-                    self.channel_stats[c] += len(ts[rows])
+                    t_c = ts[rows]
+                    self._index.setdefault(c, []).append((t_c, offsets[rows]))
+                    self.channel_stats[c] += len(t_c)
                 self.message_start_time = min(lo, self.message_start_time)
                 self.message_end_time = max(hi, self.message_end_time)
                 self.chunk.message_start_time = min(lo, self.chunk.message_start_time)
