@@ -167,7 +167,7 @@ def _k1_carried(ih, yk, y, tr, wr, fr, n):
     return True
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, nogil=True)
 def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_out, ns_out):
     """Samples ``first…N−1`` of a chunk (ts (N,) s in the samples' time base, ws (N, 3) rad/s,
     fs (N, 3) m/s², vehicle axes; ``fs`` ignored unless ``has_f``); after each sample listed in

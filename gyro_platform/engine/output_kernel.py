@@ -362,7 +362,7 @@ def work_size(n, nb, nv, nr):
         + 5 * 8 + nr * 3 + N_X * 3 + N_MM * 9
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
     """Outputs of K instants (t (K,) s, t_rel (K,) s, n_steps (K,), states Y (K, n), input
     segments SEG (K, 14)) into OUT (K, N_COL); WK: work (``work_size`` floats). Returns

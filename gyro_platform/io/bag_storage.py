@@ -167,12 +167,16 @@ def storage_classes():
         def __init__(self, path: Path, compression: Any) -> None:
             super().__init__(path, compression)
             self.conn.commit()
+            # reopened for the writer thread of OutputBag.batched (one user at a time: a write
+            # is waited for before the next storage call)
+            self.conn.close()
+            self.conn = sqlite3.connect(f"file:{self.path}", uri=True, check_same_thread=False)
             self.conn.isolation_level = None          # explicit transactions only
             # rollback journal (a failed or killed transaction is undone; the .db3 alone holds
             # every committed row); no cache spill: nothing of an open transaction reaches the
             # .db3 before its commit
             self.conn.execute("PRAGMA cache_spill=OFF")
-            self.conn.execute("PRAGMA synchronous=NORMAL")
+            self.conn.execute("PRAGMA synchronous=OFF")
             self.cursor = self.conn.cursor()
             self.pending: list[tuple[np.ndarray, np.ndarray, Sequence[Any]]] = []
             self.n_pending = 0
