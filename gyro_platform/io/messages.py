@@ -32,13 +32,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..engine.outputs import (BEARING_FRAMES, BEARING_NAMES, C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MOTOR,
                               C_MOUNT, C_MRATE, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, GIMBAL_NAMES, MOUNT_NAMES,
                               Outputs)
 
 if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
     from .blocks import RateBlock
 
 # ---- names -------------------------------------------------------------------------------
@@ -186,7 +187,7 @@ class Mounting:
             raise ValueError(f"unknown_frame = {unknown_frame!r}; allowed: {', '.join(self.UNKNOWN_POLICIES)}")
         self.vehicle_frame = vehicle_frame
         self.unknown_frame = unknown_frame
-        self._rot: dict[str, Rotation] = {vehicle_frame: Rotation.identity()}
+        self._rot: dict[str, Rotation | None] = {vehicle_frame: None}      # None: identity
         self._mat: dict[str, np.ndarray] = {vehicle_frame: np.eye(3)}
         self._rows: dict[str, tuple[float, ...] | None] = {vehicle_frame: None}   # None: identity
         for frame, rot in (frames or {}).items():
@@ -201,7 +202,8 @@ class Mounting:
 
     def frames(self) -> dict[str, tuple[float, float, float, float]]:
         """Configured frames → quaternion (x, y, z, w)."""
-        return {f: tuple(float(x) for x in r.as_quat()) for f, r in self._rot.items()}
+        return {f: (0.0, 0.0, 0.0, 1.0) if r is None else tuple(float(x) for x in r.as_quat())
+                for f, r in self._rot.items()}
 
     def matrix(self, frame_id: str) -> np.ndarray | None:
         """3×3 matrix sensor → vehicle, or None when the frame is unknown (whatever the policy)."""
@@ -282,6 +284,8 @@ def _group(frames: list[str]) -> dict[str, np.ndarray]:
 
 def as_rotation(value: Any) -> Rotation:
     """Rotation from a Rotation, a unit quaternion (x, y, z, w) or roll, pitch, yaw (rad)."""
+    from scipy.spatial.transform import Rotation      # here: 0.2 s of import a replay without mounting skips
+
     if isinstance(value, Rotation):
         return value
     v = np.asarray(value, dtype=float).reshape(-1)
