@@ -28,9 +28,12 @@ FIDELITY_CODE = {"full": FULL, "linear": LINEAR, "precession": PRECESSION}
 # segment array: [t0, dt, w0(3), w1(3), f0(3), f1(3)]
 SEG_N = 14
 STATUS_OK, STATUS_LOCK, STATUS_NOT_PD = 0, 1, 2
-#: LLVM fast-math flags for the hot kernels: reassociation and fused multiply-add only; NaN and
-#: Inf keep their IEEE meaning (the finiteness checks must not be optimised away)
-FASTMATH = {"reassoc", "contract", "arcp"}
+#: LLVM fast-math flags of the hot kernels: none. Reassociation and fused multiply-add made
+#: the last bits depend on how LLVM inlined a callee, i.e. on which kernels a process compiled
+#: itself and which it loaded from numba's cache (outputs 1e-20 rad apart between runs, the
+#: per-message and chunked replays no longer byte-identical); they gained nothing measurable
+#: (1.0 µs/sample either way on the 1 kHz bench signal)
+FASTMATH = False
 # rows of the small-vector work array V
 V_OM, V_OMD, V_WC, V_TMP, V_FP, V_MP, V_H, V_HD, V_ZERO = range(9)
 N_V = 9
