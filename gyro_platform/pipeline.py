@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -229,6 +229,8 @@ class BlockResult:
     outcome: np.ndarray
     outputs: list[RunOutputs]
     output_failed: list[int]
+    #: row → (gate snapshot, ``outcomes``) after that row, for the ``snap_rows`` of run_block
+    snapshots: dict = field(default_factory=dict)
 
     @property
     def n_outputs(self) -> int:
@@ -245,11 +247,17 @@ class _Refused(Exception):
 def _concat_results(parts: list[tuple[int, BlockResult]]) -> BlockResult:
     """One BlockResult of consecutive parts ``(first row, result)``."""
     gbs = [r.gate for _, r in parts]
-    arrays = {f.name: np.concatenate([getattr(g, f.name) for g in gbs]) for f in fields(gbs[0])
-              if isinstance(getattr(gbs[0], f.name), np.ndarray)}
-    return BlockResult(replace(gbs[0], **arrays), np.concatenate([r.outcome for _, r in parts]),
+    return BlockResult(_concat_gate(gbs), np.concatenate([r.outcome for _, r in parts]),
                        [replace(o, rows=o.rows + a) for a, r in parts for o in r.outputs],
                        [i + a for a, r in parts for i in r.output_failed])
+
+
+def _concat_gate(gbs: list[Any]) -> Any:
+    """One GateBlock of consecutive ones."""
+    if len(gbs) == 1:
+        return gbs[0]
+    return replace(gbs[0], **{f.name: np.concatenate([getattr(g, f.name) for g in gbs]) for f in fields(gbs[0])
+                              if isinstance(getattr(gbs[0], f.name), np.ndarray)})
 
 
 @dataclass(slots=True)
@@ -348,11 +356,14 @@ class Pipeline:
             yield rows, rb, self.run_block(rb, chunk.ts[rows])
 
 
-    def run_block(self, rb: Any, receive_ns: np.ndarray) -> BlockResult:
+    def run_block(self, rb: Any, receive_ns: np.ndarray, snap_rows: Any = ()) -> BlockResult:
         """N decoded rows (a rotated RateBlock) received at ``receive_ns`` (int64 ns): one
         ``offer_block``, then one ``push_block`` per run of accepted rows (a RESET starts a run:
         new time base, new output grid segment) with the output indices of the grid; the same
         decisions, outcomes and outputs as :meth:`feed` on each message (the reference).
+        ``snap_rows`` (increasing): rows after which the gate snapshot and ``outcomes`` are kept
+        in ``snapshots`` (what they are after a ``run_block`` ending at that row: the gate is
+        cut there, the simulator is not).
 
         A sample the simulator refuses (``rejected``) is handed back to the gate when it can
         take it back (``TimeGate.refuse``): the gate is rewound to before the block, judges the
@@ -360,11 +371,14 @@ class Pipeline:
         rx = np.asarray(receive_ns, dtype=np.int64)
         refuse = getattr(self.gate, "refuse", None)
         parts: list[tuple[int, BlockResult]] = []
+        snaps = np.asarray(snap_rows, np.int64)
+        gate_snaps: dict[int, dict] = {}
         a, n = 0, len(rx)
         while a < n or not parts:
             part = rate_rows(rb, a, n)
             saved = copy.deepcopy(self.gate) if refuse is not None else None
-            res = BlockResult(offer_block(self.gate, part, rx[a:]), np.full(n - a, O_DROPPED, np.int8), [], [])
+            res = BlockResult(self._offer(part, rx[a:], snaps - a, gate_snaps, a),
+                              np.full(n - a, O_DROPPED, np.int8), [], [])
             try:
                 self._simulate(res, part, refuse is not None)
             except _Refused as r:
@@ -373,9 +387,11 @@ class Pipeline:
                 vars(self.gate).update(vars(copy.deepcopy(saved)))
                 res.gate = offer_block(self.gate, rate_rows(part, 0, j + 1), rx[a:a + j + 1])
                 vars(self.gate).update(vars(saved))
-                offer_block(self.gate, rate_rows(part, 0, j), rx[a:a + j])
+                self._offer(rate_rows(part, 0, j), rx[a:a + j], snaps - a, gate_snaps, a)
                 self.gate.offer(reading_of(part, j), int(rx[a + j]))
                 refuse("the simulator refused the sample")
+                if a + j in gate_snaps:
+                    gate_snaps[a + j] = self.gate.snapshot()
                 res.gate.action[j] = DROP
                 if "refused" in ALL_REASONS:
                     res.gate.reason[j] = ALL_REASONS.index("refused")
@@ -386,8 +402,26 @@ class Pipeline:
             parts.append((a, res))
             break
         res = parts[0][1] if len(parts) == 1 else _concat_results(parts)
+        for r in snaps.tolist():
+            res.snapshots[r] = (gate_snaps[r], self._count(res, r + 1, dict(self.outcomes)))
         self._count(res)
         return res
+
+    def _offer(self, rb: Any, rx: np.ndarray, snaps: np.ndarray, into: dict[int, dict], at: int) -> Any:
+        """``offer_block`` of ``rb`` cut after each row of ``snaps`` inside it, the gate's
+        snapshot there kept in ``into`` (keyed by row + ``at``); one GateBlock."""
+        n = len(rx)
+        cuts = snaps[(snaps >= 0) & (snaps < n)]
+        if not len(cuts):
+            return offer_block(self.gate, rb, rx)
+        gbs, lo = [], 0
+        for c in cuts.tolist():
+            gbs.append(offer_block(self.gate, rate_rows(rb, lo, c + 1), rx[lo:c + 1]))
+            into[c + at] = self.gate.snapshot()
+            lo = c + 1
+        if lo < n:
+            gbs.append(offer_block(self.gate, rate_rows(rb, lo, n), rx[lo:]))
+        return _concat_gate(gbs)
 
     def _simulate(self, res: BlockResult, rb: Any, refusable: bool) -> None:
         """The accepted rows of a gated block through the simulator, run by run."""
@@ -490,17 +524,21 @@ class Pipeline:
                 self.new_segment = False
 
 
-    def _count(self, res: BlockResult) -> None:
-        """Add a block's outcomes to ``outcomes`` (new keys in the order the per-message path
-        would have added them)."""
+    def _count(self, res: BlockResult, rows: int | None = None, into: dict | None = None) -> dict:
+        """Add a block's outcomes (of its first ``rows`` rows; None: all) to ``into`` (default
+        ``outcomes``; new keys in the order the per-message path would have added them)."""
+        into = self.outcomes if into is None else into
         events = []
-        for code in np.unique(res.outcome[res.outcome >= 0]):
-            hit = res.outcome == code
+        outcome = res.outcome if rows is None else res.outcome[:rows]
+        failed = res.output_failed if rows is None else [i for i in res.output_failed if i < rows]
+        for code in np.unique(outcome[outcome >= 0]):
+            hit = outcome == code
             events.append((float(np.argmax(hit)), OUTCOMES[code], int(np.count_nonzero(hit))))
-        if res.output_failed:
-            events.append((res.output_failed[0] + 0.5, "output_failed", len(res.output_failed)))
+        if failed:
+            events.append((failed[0] + 0.5, "output_failed", len(failed)))
         for _, key, n in sorted(events):
-            self.outcomes[key] = self.outcomes.get(key, 0) + n
+            into[key] = into.get(key, 0) + n
+        return into
 
 
     def _error(self, text: str) -> None:

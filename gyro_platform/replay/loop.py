@@ -28,8 +28,8 @@ from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..io.typedefs import core_typestore
-from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, bag_chunks, copy_chunk, grid_index,
-                        grid_indices, judge, new_slots, no_sample_hint, rate_rows)
+from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, RunOutputs, bag_chunks, copy_chunk,
+                        grid_index, grid_indices, judge, new_slots, no_sample_hint)
 from .stats import PlotSeries, Stats
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -209,8 +209,9 @@ class _Run:
                 self._write_queue(queue)
 
     def _input_block(self, rb: Any, rx: np.ndarray) -> None:
-        """Input rows received at ``rx``: cut at the diagnostics instants (1 Hz of receive
-        time: the gate snapshot and the last output at that row), each part one block."""
+        """Input rows received at ``rx``, one block; at each diagnostics instant (1 Hz of
+        receive time) the gate snapshot and outcomes after that row (``run_block``'s
+        snapshots) and the last output up to it; outputs and diagnostics queued in row order."""
         n = len(rx)
         self.n_in += n
         if self.first_rx is None:
@@ -219,15 +220,24 @@ class _Run:
         diag = new_slots(dslot, self.diag_slot)
         if diag.any():
             self.diag_slot = int(dslot[diag][-1])
-        bounds = np.unique(np.concatenate([[0], np.flatnonzero(diag) + 1, [n]]))
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            part = rate_rows(rb, int(a), int(b))
-            res = self.pipeline.run_block(part, rx[a:b])
-            self._identity(part, res.gate)
-            for run in res.outputs:
-                self._write_block(run, res.gate, rx[a:b])
-            if diag[b - 1]:
-                self._diagnostics(int(rx[b - 1]))
+        snaps = np.flatnonzero(diag)
+        res = self.pipeline.run_block(rb, rx, snaps)
+        self._identity(rb, res.gate)
+        runs = iter(res.outputs)
+        run = next(runs, None)
+        for r in snaps.tolist() + ([n - 1] if not diag[-1] else []):
+            while run is not None:              # the outputs up to row r
+                k = int(np.searchsorted(run.rows, r, side="right"))
+                if k:
+                    self._write_block(run if k == len(run.rows) else RunOutputs(run.rows[:k], run.block[:k],
+                                                                                run.new_segment), res.gate, rx)
+                if k < len(run.rows):
+                    run = RunOutputs(run.rows[k:], run.block[k:], False) if k else run
+                    break
+                run = next(runs, None)
+            if r in res.snapshots:
+                gate, outcomes = res.snapshots[r]
+                self._diagnostics(int(rx[r]), gate, outcomes)
 
     def _identity(self, rb: Any, gb: Any) -> None:
         if rb.identity is None or not rb.identity.any():
@@ -319,19 +329,23 @@ class _Run:
                   f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
                   file=sys.stderr)
 
-    def _diagnostics(self, ts: int) -> None:
+    def _diagnostics(self, ts: int, gate: dict | None = None, outcomes: dict | None = None) -> None:
+        """``/diagnostics`` at ``ts``: the gate snapshot and simulator outcomes given (default:
+        as they are now) and the last output."""
         last = None
         if self.last_out is not None:
             obj, i = self.last_out
             last = obj if i < 0 else obj[i]
-        msg = msgs.diagnostic_array(self.gate.snapshot(), last, self.types, ts, self._sim_figures())
+        msg = msgs.diagnostic_array(self.gate.snapshot() if gate is None else gate, last, self.types, ts,
+                                    self._sim_figures(outcomes))
         if self._queue is not None:         # chunked path: after the outputs queued before it
             self._queue.append(("msg", self.diag_topic, ts, msg))
         else:
             self.out.write_msg(self.diag_topic, ts, msg)
 
-    def _sim_figures(self) -> dict[str, Any]:
-        return {"outputs": self.n_out, **{f"sim_{k}": v for k, v in self.outcomes.items()}}
+    def _sim_figures(self, outcomes: dict | None = None) -> dict[str, Any]:
+        return {"outputs": self.n_out,
+                **{f"sim_{k}": v for k, v in (self.outcomes if outcomes is None else outcomes).items()}}
 
     # ---- results --------------------------------------------------------------------------
     @property
