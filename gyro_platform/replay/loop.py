@@ -255,25 +255,29 @@ class _Run:
         self.last_out = (block, len(block) - 1)
 
     def _write_queue(self, queue: list[tuple]) -> None:
-        """A chunk's outputs and diagnostics in their order (the rows and order of writing each
-        at once); the outputs encoded together (an encoding error is raised where it was)."""
+        """A chunk's outputs, then its diagnostics: the outputs encoded and written together,
+        topic by topic (readers order a bag by record time, and an output and the diagnostics
+        of the same row keep that order). If the encoding fails, each queued item is written
+        in its order and the error is raised where it was."""
         outs = [q for q in queue if q[0] == "out"]
         enc = None
-        if len(outs) > 1:
+        if outs:
             try:
-                enc = encode_outputs(OutputBlock.concat([q[1] for q in outs]), np.concatenate([q[3] for q in outs]),
-                                     self.cfg.namespace, arrays=True)
+                enc = encode_outputs(OutputBlock.concat([q[1] for q in outs]) if len(outs) > 1 else outs[0][1],
+                                     np.concatenate([q[3] for q in outs]), self.cfg.namespace, arrays=True)
             except ValueError:
                 enc = None
-        at = 0
+        if enc is not None or not outs:
+            if outs:
+                self.out.write_topics(np.concatenate([q[2] for q in outs]), enc)
+            for _, a, ts, b in (q for q in queue if q[0] == "msg"):
+                self.out.write_msg(a, ts, b)
+            return
         for kind, a, ts, b in queue:
             if kind == "msg":
                 self.out.write_msg(a, ts, b)
-                continue
-            k = len(a)
-            self.out.write_topics(ts, [(t, rows[at:at + k]) for t, rows in enc] if enc is not None
-                                  else encode_outputs(a, b, self.cfg.namespace, arrays=True))
-            at += k
+            else:
+                self.out.write_topics(ts, encode_outputs(a, b, self.cfg.namespace, arrays=True))
 
     # ---- per-message path (the reference) -----------------------------------------------------
     def _message(self, conn: Any, ts: int, raw: bytes) -> None:
