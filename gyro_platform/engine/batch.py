@@ -14,9 +14,10 @@ Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (`
 M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The
 step-size controller is the one of ``integrators.base.Controlled`` (levels of ``nsub·2^level``
 substeps per interval, the same acceptance test and level updates) and, for the exponential
-methods, the step grid with the carried remainder of ``_ETD._base`` (matrices per (friction
-regime, level, grid step), built on demand): the results equal the Python integrators' to
-round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
+methods, the plan of ``_ETD._plan``: whole grid steps (matrices per (friction regime, level,
+grid step), built on demand, :mod:`.stages`) and a last short etd2 step to the sample time
+(φ-functions by Taylor series; slot (regime, 0, 0) holds A): the results equal the Python
+integrators' to round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
 last stage across intervals (first same as last: the next interval's input starts where this
 one ends and the right-hand side does not see its slope), one right-hand side fewer per
 interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
@@ -31,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from .integrators import COARSEN, MAX_JUMP
-from .integrators import ETD2, TAIL_MIN, TAIL_ULP, TAYLOR_MAX, TAYLOR_TOL
+from .integrators import ETD2, TAIL_MIN, TAIL_ULP
+from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.system import FASTMATH, LAY_STAB, SEG_N, platform_rhs, support_regime
@@ -129,66 +131,6 @@ def _quat_ok(x, y, z, w):
     return s > 0.0 and s < math.inf
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def _csr(mi, po, row, io, md, do, x, y, out):
-    """out = y + M_row x for the CSR set at (pointers mi[po:], indices mi[io:], values md[do:])."""
-    n = out.shape[0]
-    base = po + row * (n + 1)
-    for r in range(n):
-        acc = 0.0
-        for e in range(mi[base + r], mi[base + r + 1]):
-            acc += md[do + e] * x[mi[io + e]]
-        out[r] = y[r] + acc
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _csr_mv(mi, po, row, io, md, do, x, out):
-    """out = M_row x."""
-    n = out.shape[0]
-    base = po + row * (n + 1)
-    for r in range(n):
-        acc = 0.0
-        for e in range(mi[base + r], mi[base + r + 1]):
-            acc += md[do + e] * x[mi[io + e]]
-        out[r] = acc
-
-
-@njit(cache=True, inline="always")
-def _phi_taylor(mi, po, io, md, do, x2, h, k, v, base, out, T, T2):
-    """out = base + h φ_k(hA) v (k = 1, 2; A: row 0 of the CSR set at po/io/do) by the series
-    and stopping rule of ``integrators.exponential._phi_taylor`` (x2 = h²·‖|A|²·1‖∞); v may be
-    T2. False when it did not converge within ``TAYLOR_MAX`` terms."""
-    n = out.shape[0]
-    c0 = h if k == 1 else 0.5 * h
-    prev = 0.0
-    for m in range(n):
-        T[m] = c0 * v[m]
-        out[m] = T[m]
-        prev = max(prev, abs(T[m]))
-    ok = False
-    for j in range(1, TAYLOR_MAX + 1):
-        for r in range(n):
-            acc = 0.0
-            for e in range(mi[po + r], mi[po + r + 1]):
-                acc += md[do + e] * T[mi[io + e]]
-            T2[r] = acc
-        f = h / (j + k)
-        cur = 0.0
-        smax = 0.0
-        for m in range(n):
-            T[m] = f * T2[m]
-            out[m] += T[m]
-            cur = max(cur, abs(T[m]))
-            smax = max(smax, abs(out[m]))
-        if cur + prev <= TAYLOR_TOL * smax and 4.0 * x2 <= (j + k) * (j + k + 1):
-            ok = True
-            break
-        prev = cur
-    for m in range(n):
-        out[m] += base[m]
-    return ok
-
-
 @njit(cache=True, inline="always")
 def _k1_carried(ih, yk, y, tr, wr, fr, n):
     """The last interval left K[0] = f(t, y) for exactly this state and input row 0."""
@@ -212,9 +154,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     then the index of that sample (all before it are committed).
 
     One interval per sample: integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``,
-    ``F_FR``) with the controller of ``Controlled``. On success the state, level, carry,
-    counters and input rows are committed and ``seg`` is the interval's; otherwise the state,
-    level and carry are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
+    ``F_FR``) with the controller of ``Controlled``. On success the state, level,
+    counters and input rows are committed and ``seg`` is the interval's; otherwise the state
+    and level are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
     describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
     (``NEED_REGIME``). Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
@@ -434,14 +376,14 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             elif in_tail:       # y1 = U + hφ2(hA)(f1 − f0 − A(U − y))
                                 for m in range(n):
                                     Ul[m] = U[m] - yw[m]
-                                _csr_mv(mi, po, 0, io, md, do, Ul, AU)
+                                csr_mv(mi, po, 0, io, md, do, Ul, AU)
                                 for m in range(n):
                                     Tb[m] = (K[1, m] - K[0, m]) - AU[m]
-                                if not _phi_taylor(mi, po, io, md, do, h * h * a2, h, 2, Tb, U, y1, Ta, Tb):
+                                if not phi_taylor(mi, po, io, md, do, h * h * a2, h, 2, Tb, U, y1, Ta, Tb):
                                     status |= ST_NONFINITE
                                     break
                             else:
-                                _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                                csr_axpy(mi, po, s - 1, io, md, do, Kf, yw, y1)
                             for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
                                 Ul[m] = U[m]
                                 U[m] = y1[m]
@@ -450,11 +392,11 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             for m in range(n):
                                 U[m] = yw[m] + cj * K[j - 1, m]
                         elif in_tail:           # U = y + hφ1(hA) f0
-                            if not _phi_taylor(mi, po, io, md, do, h * h * a2, h, 1, K[0], yw, U, Ta, Tb):
+                            if not phi_taylor(mi, po, io, md, do, h * h * a2, h, 1, K[0], yw, U, Ta, Tb):
                                 status |= ST_NONFINITE
                                 break
                         else:
-                            _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
+                            csr_axpy(mi, po, j - 1, io, md, do, Kf, yw, U)
                         if not ((qa < 0 or _quat_ok(U[qa], U[qa + 1], U[qa + 2], U[qa + 3]))
                                     and (qp < 0 or _quat_ok(U[qp], U[qp + 1], U[qp + 2], U[qp + 3]))):
                             status |= ST_NONFINITE
@@ -476,12 +418,12 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         break
                     if meth == EXPRK:
                         # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
-                        _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                        csr_axpy(mi, po, s - 1, io, md, do, Kf, yw, y1)
                     elif meth == EXPRK_D:
                         # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row arow
                         for m in range(n):
                             U[m] = y1[m] - Ul[m]
-                        _csr_mv(mi, po, arow, io, md, do, U, AU)
+                        csr_mv(mi, po, arow, io, md, do, U, AU)
                     # error estimate and its weighted RMS norm
                     acc = 0.0
                     emax = 0.0
@@ -624,31 +566,6 @@ def push_kernel(fb, ib, mi, md, t, w, f, has_f):
 
 
 # ---------------------------------------------------------------------------- Python side
-def stage_matrices(integrator, system, h: float):
-    """CSR stage matrices (ptr (s', n+1), idx, data) of an exponential integrator for step h,
-    relative offsets: stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to
-    U_j − y; etd2 adds the linear part A as a last row (for its defect estimate). h = 0: the
-    linear part A alone (for the tail step)."""
-    n = system.layout.n
-    if integrator.name not in ("etd2", "etd4"):
-        raise ValueError(f"integrator {integrator.name!r} has no stage matrices (etd2, etd4 have)")
-    A, key = system.linear_part()
-    Ms = list(integrator.matrices(np.asarray(A, float), key, h)) if h > 0 else []
-    if integrator.defect or h == 0:
-        Ms.append(np.asarray(A, float))
-    ptr = np.zeros((len(Ms), n + 1), np.int64)
-    idx: list[int] = []
-    dat: list[float] = []
-    for j, Mj in enumerate(Ms):
-        for r in range(n):
-            cols = np.nonzero(Mj[r])[0]
-            ptr[j, r] = len(idx)
-            idx.extend(cols.tolist())
-            dat.extend(Mj[r, cols].tolist())
-        ptr[j, n] = len(idx)
-    return ptr, np.asarray(idx, np.int64), np.asarray(dat, float)
-
-
 class Engine:
     """The compiled integration state of one simulator (see module doc).
 
