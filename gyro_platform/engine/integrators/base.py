@@ -20,7 +20,9 @@ next chunk goes as many levels coarser as keep the predicted worst error ``‖er
 level ≤ ``COARSEN``. So
 a brief hard stretch (a friction reversal inside a 33 ms interval) costs fine substeps only
 in its own chunk, not over the whole interval; at one chunk per interval (samples at
-≤ max_step) chunk and interval coincide. The compiled batch loop
+≤ max_step) chunk and interval coincide. A method may plan its chunks itself (``_plan``: the
+exponential ones cut whole steps of a grid and end the interval with a short last step
+``_tail``, controlled alike from level 0). The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
 Non-finite results are never returned: ``SimulationError``.

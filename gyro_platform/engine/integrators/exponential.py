@@ -8,8 +8,10 @@
   re-linearised at every step (``system.jacobian`` and ∂f/∂t), embedded order-2 estimate.
   Valid at large angles and for fast rotors: its cost does not depend on the spin.
 
-The stage matrices of etd2/etd4 (``_ETD.matrices``) are also what the compiled batch loop
-(:mod:`gyro_platform.engine.batch`) steps with.
+etd2/etd4 take whole steps of a grid max_step/256 (cached stage matrices) and end every
+interval exactly at t1 with a short etd2 step whose φ-functions are Taylor series
+(``_ETD._plan``, ``_ETD._tail``, ``_phi_taylor``). The stage matrices (``_ETD.matrices``) and
+this plan are also what the compiled batch loop (:mod:`gyro_platform.engine.batch`) steps with.
 """
 from __future__ import annotations
 
