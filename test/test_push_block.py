@@ -43,11 +43,13 @@ def _push_all(sim, t, w, f=None):
     return outs
 
 
-@pytest.mark.parametrize("mode,integ", CASES)
-def test_compiled_push_equals_python_integrators(mode, integ):
+@pytest.mark.parametrize("dt,jitter", [(2.5e-3, 2e-4), (0.95e-3, 1e-4)])
+@pytest.mark.parametrize("mode,integ", CASES + [("carried", "etd2")])
+def test_compiled_push_equals_python_integrators(mode, integ, dt, jitter):
     """One compiled call per sample gives the Python integrators' states (same controller,
-    same carried step grid of etd) to round-off, with the same work counted."""
-    t, w, f = _signal(150, 1, dt=2.5e-3)        # 2–3 chunks per interval: the chunk controller
+    same grid chunks and last short step of etd) to round-off, with the same work counted.
+    Jittered samples: 2–3 chunks per interval (the chunk controller), or 1–2 around max_step."""
+    t, w, f = _signal(150, 1, dt=dt, jitter=jitter)
     opt = ModelOptions.make(mode, integrator=integ)
     fast, ref = Simulator(options=opt), Simulator(options=opt, compiled=False)
     for i in range(len(t)):

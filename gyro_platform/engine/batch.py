@@ -14,9 +14,10 @@ Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (`
 M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The
 step-size controller is the one of ``integrators.base.Controlled`` (levels of ``nsub·2^level``
 substeps per interval, the same acceptance test and level updates) and, for the exponential
-methods, the step grid with the carried remainder of ``_ETD._base`` (matrices per (friction
-regime, level, grid step), built on demand): the results equal the Python integrators' to
-round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
+methods, the plan of ``_ETD._plan``: whole grid steps (matrices per (friction regime, level,
+grid step), built on demand, :mod:`.stages`) and a last short etd2 step to the sample time
+(φ-functions by Taylor series; slot (regime, 0, 0) holds A): the results equal the Python
+integrators' to round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
 last stage across intervals (first same as last: the next interval's input starts where this
 one ends and the right-hand side does not see its slope), one right-hand side fewer per
 interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
@@ -31,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from .integrators import COARSEN, MAX_JUMP
-from .integrators import ETD2
+from .integrators import ETD2, TAIL_MIN, TAIL_ULP
+from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.system import FASTMATH, LAY_STAB, SEG_N, platform_rhs, support_regime
@@ -49,16 +51,16 @@ GRID = ETD2.GRID
 # ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
 (F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
  F_F, F_A, F_Q, F_RR, F_V, F_W,
- F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK, F_PUSH) = range(39)
-N_FSLOT = 39
+ F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK, F_PUSH,
+ F_TW) = range(40)
+N_FSLOT = 40
 I_I, I_RHOST, I_HDR, I_TABLE = range(4)
 N_ISLOT = 4
 SLOT_W = 4                          # table entry: offset, d0, d1, d2
 TABLE_LEN = SLOT_W * (N_FSLOT + N_ISLOT)
 # float header
-(H_MAX_STEP, H_RTOL, H_ATOL, H_T_START, H_T_REL, H_CARRY, H_EST, H_NORM, H_T_BAD, H_E_BAD, H_N_BAD,
- H_H_BAD) = range(12)
-N_FH = 12
+(H_MAX_STEP, H_RTOL, H_ATOL, H_T_START, H_T_REL, H_EST, H_NORM, H_T_BAD, H_E_BAD, H_N_BAD, H_H_BAD) = range(11)
+N_FH = 11
 # int header
 (J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_LEVEL, J_NSAMP, J_NSTEPS, J_NRHS, J_NEED_R, J_NEED_L, J_NEED_H,
  J_STARTED, J_HAS_F, J_NLEV, J_REJ, J_DONE, J_JOUT, J_K1) = range(18)
@@ -129,30 +131,6 @@ def _quat_ok(x, y, z, w):
     return s > 0.0 and s < math.inf
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def _csr(mi, po, row, io, md, do, x, y, out):
-    """out = y + M_row x for the CSR set at (pointers mi[po:], indices mi[io:], values md[do:])."""
-    n = out.shape[0]
-    base = po + row * (n + 1)
-    for r in range(n):
-        acc = 0.0
-        for e in range(mi[base + r], mi[base + r + 1]):
-            acc += md[do + e] * x[mi[io + e]]
-        out[r] = y[r] + acc
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _csr_mv(mi, po, row, io, md, do, x, out):
-    """out = M_row x."""
-    n = out.shape[0]
-    base = po + row * (n + 1)
-    for r in range(n):
-        acc = 0.0
-        for e in range(mi[base + r], mi[base + r + 1]):
-            acc += md[do + e] * x[mi[io + e]]
-        out[r] = acc
-
-
 @njit(cache=True, inline="always")
 def _k1_carried(ih, yk, y, tr, wr, fr, n):
     """The last interval left K[0] = f(t, y) for exactly this state and input row 0."""
@@ -176,9 +154,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     then the index of that sample (all before it are committed).
 
     One interval per sample: integrate the state from input row 0 to row 1 (``F_TR``, ``F_WR``,
-    ``F_FR``) with the controller of ``Controlled``. On success the state, level, carry,
-    counters and input rows are committed and ``seg`` is the interval's; otherwise the state,
-    level and carry are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
+    ``F_FR``) with the controller of ``Controlled``. On success the state, level,
+    counters and input rows are committed and ``seg`` is the interval's; otherwise the state
+    and level are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
     describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
     (``NEED_REGIME``). Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
@@ -224,6 +202,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     segsave = _f1(fb, ib, F_SEGSAVE)
     yc = _f1(fb, ib, F_YC)
     yk = _f1(fb, ib, F_YK)
+    TW = _f2(fb, ib, F_TW)
+    Ta = TW[0]
+    Tb = TW[1]
     table = _i1(ib, I_TABLE)
     method = ih[J_METHOD]
     fid = ih[J_FID]
@@ -277,26 +258,31 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             seg[5 + m] = wr[1, m]
             seg[8 + m] = fr[0, m]
             seg[11 + m] = fr[1, m]
-        carry = 0.0
         hq = 0
+        extra = 0
+        q = 0.0
+        tail = 0
+        t_tail = t1
+        nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
+        if nsub0 < 1:
+            nsub0 = 1
+        nchunk = nsub0
         if method == RK4:
-            nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
-            if nsub0 < 1:
-                nsub0 = 1
             h0 = (t1 - t0) / nsub0
             r = 0
         else:
-            # the step grid of _ETD._base: h a multiple of q, the remainder carried to the next interval
-            dt = (t1 - t0) + fh[H_CARRY]
+            # the plan of _ETD._plan: nsub0 chunks of G grid steps q in all, then a tail to t1
             q = max_step / GRID
-            nsub0 = int(math.ceil(dt / max_step - 1e-9))
-            if nsub0 < 1:
-                nsub0 = 1
-            hq = int(np.rint(dt / nsub0 / q))
-            if hq < 1:
-                hq = 1
+            eps = max(TAIL_MIN * max_step, TAIL_ULP * abs(t1))
+            G = int(math.floor(((t1 - t0) + eps) / q))
+            hq = G // nsub0
+            extra = G - hq * nsub0
             h0 = hq * q
-            carry = dt - nsub0 * h0
+            if G == 0:
+                nchunk = 0
+            t_tail = t0 + (nsub0 * h0 + extra * q)
+            if t1 - t_tail > eps:
+                tail = 1
             r = support_regime(y, I, P, seg, RR)
         level = ih[J_LEVEL]
         po = 0
@@ -311,26 +297,61 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             yw[m] = y[m]
         have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
         ih[J_K1] = 0                          # K[0] is overwritten from here on
-        for chunk in range(nsub0):
-            tc = t0 + chunk * h0
+        main_level = level
+        for chunk in range(nchunk + tail):
+            # the tail (last chunk, exponential methods): etd2 steps to t1 exactly with the
+            # φ-functions by Taylor series (_ETD._tail), its own level from 0; stage matrix
+            # slot (r, 0, 0) holds the linear part A alone
+            in_tail = chunk == nchunk
+            meth = EXPRK_D if in_tail else method
+            ss = 2 if in_tail else s
+            arow = 0 if in_tail else s
+            hqc = hq
+            if in_tail:
+                tc = t_tail
+                hc = t1 - t_tail
+                hqc = 0
+                main_level = level
+                level = 0
+            elif extra == 0:
+                tc = t0 + chunk * h0
+                hc = h0
+            else:
+                tc = t0 + (chunk * h0 + min(chunk, extra) * q)
+                hc = h0
+                if chunk < extra:
+                    hqc = hq + 1
+                    hc = hqc * q
             for m in range(n):
                 yc[m] = yw[m]
+            a2 = 0.0
             while True:
                 if method != RK4:
-                    key = 2 * ((r * nlev + level) * (GRID + 1) + hq)
+                    key = 2 * ((r * nlev + (0 if in_tail else level)) * (GRID + 1) + hqc)
                     po = table[key]
                     if po < 0:
                         ih[J_NEED_R] = r
-                        ih[J_NEED_L] = level
-                        ih[J_NEED_H] = hq
+                        ih[J_NEED_L] = 0 if in_tail else level
+                        ih[J_NEED_H] = hqc
                         for m in range(SEG_N):
                             seg[m] = segsave[m]
                         ih[J_JOUT] = jo
                         return NEED_REGIME
                     do = table[key + 1]
-                    io = po + (s + (1 if method == EXPRK_D else 0)) * (n + 1)
+                    io = po + (1 if in_tail else s + (1 if method == EXPRK_D else 0)) * (n + 1)
+                    if in_tail and a2 == 0.0:
+                        for m in range(n):          # a2 = ‖|A|²·1‖∞ (the Taylor series' bound)
+                            acc = 0.0
+                            for e in range(mi[po + m], mi[po + m + 1]):
+                                acc += abs(md[do + e])
+                            Ta[m] = acc
+                        for m in range(n):
+                            acc = 0.0
+                            for e in range(mi[po + m], mi[po + m + 1]):
+                                acc += abs(md[do + e]) * Ta[mi[io + e]]
+                            a2 = max(a2, acc)
                 nsub = 1 << level
-                h = h0 / nsub
+                h = hc / nsub
                 est = 0.0
                 worst = 0.0
                 bad = False
@@ -340,39 +361,52 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 for sub in range(nsub):
                     t = tc + sub * h
                     # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
-                    for j in range(s + 1):
+                    for j in range(ss + 1):
                         if j == 0:
                             if have_k1:
                                 continue
                             for m in range(n):
                                 U[m] = yw[m]
-                        elif j == s:
-                            if method == EXPRK:
+                        elif j == ss:
+                            if meth == EXPRK:
                                 break
-                            if method == RK4:
+                            if meth == RK4:
                                 for m in range(n):
                                     y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
+                            elif in_tail:       # y1 = U + hφ2(hA)(f1 − f0 − A(U − y))
+                                for m in range(n):
+                                    Ul[m] = U[m] - yw[m]
+                                csr_mv(mi, po, 0, io, md, do, Ul, AU)
+                                for m in range(n):
+                                    Tb[m] = (K[1, m] - K[0, m]) - AU[m]
+                                if not phi_taylor(mi, po, io, md, do, h * h * a2, h, 2, Tb, U, y1, Ta, Tb):
+                                    status |= ST_NONFINITE
+                                    break
                             else:
-                                _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                                csr_axpy(mi, po, s - 1, io, md, do, Kf, yw, y1)
                             for m in range(n):   # FSAL stage k5 = f(t + h, y1); Ul keeps the last stage
                                 Ul[m] = U[m]
                                 U[m] = y1[m]
-                        elif method == RK4:
+                        elif meth == RK4:
                             cj = c[j] * h
                             for m in range(n):
                                 U[m] = yw[m] + cj * K[j - 1, m]
+                        elif in_tail:           # U = y + hφ1(hA) f0
+                            if not phi_taylor(mi, po, io, md, do, h * h * a2, h, 1, K[0], yw, U, Ta, Tb):
+                                status |= ST_NONFINITE
+                                break
                         else:
-                            _csr(mi, po, j - 1, io, md, do, Kf, yw, U)
+                            csr_axpy(mi, po, j - 1, io, md, do, Kf, yw, U)
                         if not ((qa < 0 or _quat_ok(U[qa], U[qa + 1], U[qa + 2], U[qa + 3]))
                                     and (qp < 0 or _quat_ok(U[qp], U[qp + 1], U[qp + 2], U[qp + 3]))):
                             status |= ST_NONFINITE
                             break
                         nrhs += 1
+                        tj = h if j == ss or (in_tail and j == 1) else c[j] * h
                         if lin:     # the same model without the general kernel's 28 arguments
-                            status |= stabilised_linear_rhs(t + (h if j == s else c[j] * h), U,
-                                                            k5 if j == s else K[j], I, P, seg, mats, F)
+                            status |= stabilised_linear_rhs(t + tj, U, k5 if j == ss else K[j], I, P, seg, mats, F)
                         else:
-                            status |= platform_rhs(t + (h if j == s else c[j] * h), U, k5 if j == s else K[j], fid, I,
+                            status |= platform_rhs(t + tj, U, k5 if j == ss else K[j], fid, I,
                                                    P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm,
                                                    cc, tau_ext, fbb, chol, F, a, Q, RR, V, W)
                     if status & (ST_LOCK | ST_NOT_PD):
@@ -382,22 +416,22 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         bad = True
                         t_bad = t
                         break
-                    if method == EXPRK:
+                    if meth == EXPRK:
                         # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
-                        _csr(mi, po, s - 1, io, md, do, Kf, yw, y1)
-                    elif method == EXPRK_D:
-                        # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row s
+                        csr_axpy(mi, po, s - 1, io, md, do, Kf, yw, y1)
+                    elif meth == EXPRK_D:
+                        # defect estimate (h/3)(f(y1) − f(U) − A (y1 − U)); A is matrix row arow
                         for m in range(n):
                             U[m] = y1[m] - Ul[m]
-                        _csr_mv(mi, po, s, io, md, do, U, AU)
+                        csr_mv(mi, po, arow, io, md, do, U, AU)
                     # error estimate and its weighted RMS norm
                     acc = 0.0
                     emax = 0.0
                     for m in range(n):
-                        if method == RK4:
+                        if meth == RK4:
                             ee = h / 6.0 * (K[3, m] - k5[m])
-                        elif method == EXPRK_D:
-                            ee = h / 3.0 * (k5[m] - K[s - 1, m] - AU[m])
+                        elif meth == EXPRK_D:
+                            ee = h / 3.0 * (k5[m] - K[ss - 1, m] - AU[m])
                         else:
                             ee = y1[m] - U[m]
                         sc = atol + rtol * max(abs(yw[m]), abs(y1[m]))
@@ -419,7 +453,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         worst = nrm
                     for m in range(n):
                         yw[m] = y1[m]
-                    if method != EXPRK:
+                    if meth != EXPRK:
                         for m in range(n):
                             K[0, m] = k5[m]
                         have_k1 = True
@@ -462,7 +496,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 est_all = est
             if worst > worst_all:
                 worst_all = worst
-            while level > 0 and worst * 2.0 ** q1 <= COARSEN:     # as base.coarser_level
+            if in_tail:
+                level = main_level
+            while level > 0 and worst * 2.0 ** q1 <= COARSEN and not in_tail:     # as base.coarser_level
                 level -= 1
                 worst *= 2.0 ** q1
         # accepted: normalise, check, commit
@@ -489,7 +525,6 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 yk[n + 1 + m] = wr[1, m]
                 yk[n + 4 + m] = fr[1, m]
             ih[J_K1] = 1
-        fh[H_CARRY] = carry
         if est_all > fh[H_EST]:
             fh[H_EST] = est_all
         if worst_all > fh[H_NORM]:
@@ -531,30 +566,6 @@ def push_kernel(fb, ib, mi, md, t, w, f, has_f):
 
 
 # ---------------------------------------------------------------------------- Python side
-def stage_matrices(integrator, system, h: float):
-    """CSR stage matrices (ptr (s', n+1), idx, data) of an exponential integrator for step h,
-    relative offsets: stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to
-    U_j − y; etd2 adds the linear part A as a last row (for its defect estimate)."""
-    n = system.layout.n
-    if integrator.name not in ("etd2", "etd4"):
-        raise ValueError(f"integrator {integrator.name!r} has no stage matrices (etd2, etd4 have)")
-    A, key = system.linear_part()
-    Ms = list(integrator.matrices(np.asarray(A, float), key, h))
-    if integrator.defect:
-        Ms.append(np.asarray(A, float))
-    ptr = np.zeros((len(Ms), n + 1), np.int64)
-    idx: list[int] = []
-    dat: list[float] = []
-    for j, Mj in enumerate(Ms):
-        for r in range(n):
-            cols = np.nonzero(Mj[r])[0]
-            ptr[j, r] = len(idx)
-            idx.extend(cols.tolist())
-            dat.extend(Mj[r, cols].tolist())
-        ptr[j, n] = len(idx)
-    return ptr, np.asarray(idx, np.int64), np.asarray(dat, float)
-
-
 class Engine:
     """The compiled integration state of one simulator (see module doc).
 
@@ -579,7 +590,7 @@ class Engine:
                          F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
                          F_AU: np.zeros(n), F_C: c, F_TR: np.zeros(2), F_WR: np.zeros((2, 3)),
                          F_FR: np.zeros((2, 3)), F_SEGSAVE: np.zeros(SEG_N), F_YC: np.zeros(n),
-                         F_YK: np.zeros(n + 7), F_PUSH: np.zeros(7)})
+                         F_YK: np.zeros(n + 7), F_PUSH: np.zeros(7), F_TW: np.zeros((2, n))})
         table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
         i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
                     I_TABLE: -np.ones(table_n, np.int64)}
@@ -684,14 +695,11 @@ class Engine:
         self.fr[:] = 0.0
 
     def sync_to(self, stepper) -> None:
-        """Controller state (level, carry) to a Python integrator."""
+        """Controller state (level) to a Python integrator."""
         if stepper is not None and hasattr(stepper, "level"):
             stepper.level = int(self.ih[J_LEVEL])
-            if hasattr(stepper, "_carry"):
-                stepper._carry = float(self.fh[H_CARRY])
 
     def sync_from(self, stepper) -> None:
-        """Controller state (level, carry) from a Python integrator."""
+        """Controller state (level) from a Python integrator."""
         if stepper is not None and hasattr(stepper, "level"):
             self.ih[J_LEVEL] = int(stepper.level)
-            self.fh[H_CARRY] = float(getattr(stepper, "_carry", 0.0))

@@ -30,8 +30,6 @@ class Auto(Integrator):
                 self.sticky = AUTO_STICKY
         self.sticky -= 1
         self.n_fallback += 1
-        if hasattr(self.primary, "_carry"):
-            self.primary._carry = 0.0          # the fallback reaches t1 exactly
         return self.fallback._advance(system, t0, y, t1)
 
     def reset(self) -> None:

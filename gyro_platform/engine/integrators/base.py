@@ -20,7 +20,9 @@ next chunk goes as many levels coarser as keep the predicted worst error ``‖er
 level ≤ ``COARSEN``. So
 a brief hard stretch (a friction reversal inside a 33 ms interval) costs fine substeps only
 in its own chunk, not over the whole interval; at one chunk per interval (samples at
-≤ max_step) chunk and interval coincide. The compiled batch loop
+≤ max_step) chunk and interval coincide. A method may plan its chunks itself (``_plan``: the
+exponential ones cut whole steps of a grid and end the interval with a short last step
+``_tail``, controlled alike from level 0). The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
 Non-finite results are never returned: ``SimulationError``.
@@ -223,38 +225,63 @@ class Controlled(Integrator):
         nrm = self._norm(err, y0, y1)
         return nrm, max(est, float(np.abs(err).max())), max(worst, nrm)
 
+    def _plan(self, t0: float, t1: float):
+        """The interval's chunks ``[(start, length)]`` (s) and ``(start, length)`` of a last
+        short step that ends it exactly at t1 (``_tail``; None: none): here ``_base``'s equal
+        chunks and no tail."""
+        nsub, h0 = self._base(t0, t1)
+        return [(t0 + c * h0, h0) for c in range(nsub)], None
+
+    def _chunk(self, system, tc, y, hc, level, q1, step):
+        """One chunk of ``hc`` s from (tc, y) by ``step`` (``_substeps`` or ``_tail``) at
+        ``2^level`` substeps, redone finer until accepted: (y1, norm, est, n_rhs, level,
+        rejected). Raises the refusal beyond the budget."""
+        nrhs = rejected = 0
+        while True:
+            nsub = 1 << level
+            h = hc / nsub
+            y1, norm, est, n, t_bad = step(system, tc, y, nsub, h)
+            nrhs += n
+            if norm <= 1.0:
+                return y1, norm, est, nrhs, level, rejected
+            rejected += 1
+            new = next_level(level, norm, q1)
+            if not norm < math.inf:
+                new = level + MAX_JUMP
+            if new > self.max_level:
+                if level < self.max_level:
+                    new = self.max_level               # try the budget's own limit once
+                else:
+                    raise self.refuse(t_bad, est, norm, h)
+            level = new
+
     def _advance(self, system, t0, y, t1):
-        nsub0, h0 = self._base(t0, t1)
+        chunks, tail = self._plan(t0, t1)
         nrhs = self._prepare(system, t0, y)
         level, rejected = self.level, 0
         steps, est_all, worst, top = 0, 0.0, 0.0, level
-        for chunk in range(nsub0):
-            tc = t0 + chunk * h0
-            while True:
-                nsub = 1 << level
-                h = h0 / nsub
-                y1, norm, est, n, t_bad = self._substeps(system, tc, y, nsub, h)
-                nrhs += n
-                if norm <= 1.0:
-                    break
-                rejected += 1
-                new = next_level(level, norm, self.q1)
-                if not norm < math.inf:
-                    new = level + MAX_JUMP
-                if new > self.max_level:
-                    if level < self.max_level:
-                        new = self.max_level               # try the budget's own limit once
-                    else:
-                        raise self.refuse(t_bad, est, norm, h)
-                level = new
-            y = y1
-            steps += nsub
+        for tc, hc in chunks:
+            y, norm, est, n, level, rej = self._chunk(system, tc, y, hc, level, self.q1, self._substeps)
+            nrhs += n
+            rejected += rej
+            steps += 1 << level
             est_all = max(est_all, est)
             worst = max(worst, norm)
             top = max(top, level)
             level = coarser_level(level, norm, self.q1)
+        if tail is not None:     # its own level from 0; the chunks' controller level is not touched
+            y, norm, est, n, lv, rej = self._chunk(system, tail[0], y, tail[1], 0, self.q1, self._tail)
+            nrhs += n
+            rejected += rej
+            steps += 1 << lv
+            est_all = max(est_all, est)
+            worst = max(worst, norm)
         self.level = level
         return y, StepStats(steps, nrhs, est_all, worst, rejected, top)
+
+    def _tail(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):
+        """The last short step(s) of ``_plan`` (same contract as ``_substeps``)."""
+        raise NotImplementedError
 
     @abstractmethod
     def _substeps(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):

@@ -8,8 +8,10 @@
   re-linearised at every step (``system.jacobian`` and ∂f/∂t), embedded order-2 estimate.
   Valid at large angles and for fast rotors: its cost does not depend on the spin.
 
-The stage matrices of etd2/etd4 (``_ETD.matrices``) are also what the compiled batch loop
-(:mod:`gyro_platform.engine.batch`) steps with.
+etd2/etd4 take whole steps of a grid max_step/256 (cached stage matrices) and end every
+interval exactly at t1 with a short etd2 step whose φ-functions are Taylor series
+(``_ETD._plan``, ``_ETD._tail``, ``_phi_taylor``). The stage matrices (``_ETD.matrices``) and
+this plan are also what the compiled batch loop (:mod:`gyro_platform.engine.batch`) steps with.
 """
 from __future__ import annotations
 
@@ -19,11 +21,10 @@ from typing import Hashable
 import numpy as np
 from numba import njit
 
-from ...errors import SimulationError
 from .base import Controlled, is_rejected
 from .jacobian import jacobian_of
 
-__all__ = ["ETD2", "ETD4", "ExpRosenbrock"]
+__all__ = ["ETD2", "ETD4", "ExpRosenbrock", "TAYLOR_MAX", "TAYLOR_TOL", "TAIL_MIN", "TAIL_ULP"]
 
 
 def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
@@ -101,6 +102,36 @@ def _phi_apply(Z: np.ndarray, bs: list) -> np.ndarray:
     return _expm_small(W)[:n, n + p - 1]
 
 
+#: most Taylor terms ``_phi_taylor`` sums before it gives up (the tail step is then split)
+TAYLOR_MAX = 48
+#: ``_phi_taylor`` stops when two consecutive terms are below TAYLOR_TOL of the sum
+TAYLOR_TOL = 2.0 ** -53
+#: a remainder ≤ max(TAIL_MIN·max_step, TAIL_ULP·|t1|) is round-off of the sample times: no tail
+TAIL_MIN = 1e-9
+TAIL_ULP = 4.0 * 2.0 ** -52
+
+
+def _phi_taylor(A: np.ndarray, a2: float, h: float, v: np.ndarray, k: int):
+    """``h φ_k(hA) v`` (k = 1, 2) by the series ``h Σ_j (hA)^j v/(j+k)!``, or None when not
+    converged within ``TAYLOR_MAX`` terms. Summed until two consecutive terms are below 2^-53
+    of the sum and the terms from there on shrink ≥ 4× every two (``h²a2 ≤ (j+k)(j+k+1)/4``,
+    ``a2 = ‖|A|²·1‖∞ ≥ ‖A²‖∞``): the rest of the series is below 2^-53/3 of the sum. Only
+    matrix-vector products: the step h needs no matrix exponential. The compiled kernel
+    (``batch.block_kernel``) sums the same terms in the same order."""
+    term = v * (h if k == 1 else 0.5 * h)
+    s = term.copy()
+    prev = float(np.max(np.abs(term)))
+    x2 = h * h * a2
+    for j in range(1, TAYLOR_MAX + 1):
+        term = (h / (j + k)) * (A @ term)
+        s += term
+        cur = float(np.max(np.abs(term)))
+        if cur + prev <= TAYLOR_TOL * float(np.max(np.abs(s))) and 4.0 * x2 <= (j + k) * (j + k + 1):
+            return s
+        prev = cur
+    return None
+
+
 class _ETD(Controlled):
     """Explicit exponential Runge–Kutta method for ``f = A y + g`` (A from ``linear_part``).
 
@@ -148,6 +179,8 @@ class _ETD(Controlled):
             raise TypeError(f"integrator {self.name!r} needs system.linear_part() -> (A, key)")
         A, key = lp()
         self._A, self._key = self._check_A(A, y0.size), key
+        absA = np.abs(self._A)
+        self._a2 = float(np.max(absA @ absA.sum(axis=1)))      # ‖|A|²·1‖∞ ≥ ‖A²‖∞ (_phi_taylor)
         return 0
 
     #: estimate by the defect ``(h/3)(f(t+h, y1) − f(U) − A(y1 − U))`` (one more rhs, first same
@@ -196,32 +229,63 @@ class _ETD(Controlled):
     #: room for every grid step of one- and two-substep intervals and a few levels
     cache_size = 4 * GRID + 64
 
-    def _base(self, t0: float, t1: float) -> tuple[int, float]:
-        """(nsub, h) with h on the grid q = max_step/GRID. Every new step size would need a new
-        matrix exponential (~ms), and real sample times jitter, so the step is rounded to the
-        grid and the rounding remainder is carried into the next call: the state lags the
-        requested time by at most nsub·q/2 (2 µs per substep at max_step = 1 ms) and the lag
-        never grows. Uniform sampling at max_step is exact (h = max_step, no remainder)."""
-        dt = (t1 - t0) + self._carry
+    def _plan(self, t0: float, t1: float):
+        """Chunks on the grid q = max_step/GRID and a last short step to t1 exactly.
+
+        Every new step size would need a new matrix exponential (~ms), and real sample times
+        jitter, so the interval dt is cut into ``nsub = ceil(dt/max_step)`` chunks of
+        ``G = floor((dt + ε)/q)`` grid steps in all (the first ``G mod nsub`` chunks one grid
+        step longer), and the rest, ``r = t1 − t0 − G·q`` in [−ε, q − ε), if above ε, is one
+        more step ``_tail`` (etd2 with its φ-functions by Taylor series). ε = max(1e-9·max_step,
+        4 ulp of t1) is the round-off of the sample times: samples ``k·max_step`` apart stay
+        one grid chunk and no tail, as before. Floor, not nearest: the tail is a forward step
+        inside the interval (nearest would halve it but step back over input beyond t1)."""
+        dt = t1 - t0
         q = self.max_step / self.GRID
+        eps = max(TAIL_MIN * self.max_step, TAIL_ULP * abs(t1))
         nsub = max(1, math.ceil(dt / self.max_step - 1e-9))
-        h = max(q, round(dt / nsub / q) * q)
-        self._carry = dt - nsub * h
-        return nsub, h
+        G = int(math.floor((dt + eps) / q))
+        hq, extra = divmod(G, nsub)
+        h0 = hq * q
+        chunks = []
+        if G > 0:
+            for c in range(nsub):
+                tc = t0 + c * h0 if extra == 0 else t0 + (c * h0 + min(c, extra) * q)
+                chunks.append((tc, (hq + 1) * q if c < extra else h0))
+        t_tail = t0 + (nsub * h0 + extra * q)
+        r = t1 - t_tail
+        return chunks, ((t_tail, r) if r > eps else None)
 
-    def reset(self) -> None:
-        super().reset()
-        self._carry = 0.0
-
-    _carry = 0.0
-
-    def _advance(self, system, t0, y, t1):
-        carry = self._carry
-        try:
-            return super()._advance(system, t0, y, t1)
-        except SimulationError:
-            self._carry = carry              # the interval was not done: its remainder neither
-            raise
+    def _tail(self, system, t0, y0, nsub, h):
+        """ETD2RK steps of any length h (φ1, φ2 applied by Taylor series, ``_phi_taylor``):
+        ``U = y + hφ1 f0``, ``y1 = U + hφ2 (f(U) − f0 − A(U − y))``, the same defect
+        estimate as etd2. The linear part stays exact (no damping of the nutation)."""
+        A = self._A
+        a2 = self._a2
+        rhs = system.rhs
+        y = y0.copy()
+        worst = est = 0.0
+        nrhs = 1
+        f0 = np.asarray(rhs(t0, y), dtype=float)
+        for i in range(nsub):
+            t = t0 + i * h
+            U = _phi_taylor(A, a2, h, f0, 1)
+            if U is None:
+                return y, math.inf, est, nrhs, t
+            U = y + U
+            f1 = np.asarray(rhs(t + h, U), dtype=float)
+            d = _phi_taylor(A, a2, h, f1 - f0 - A @ (U - y), 2)
+            if d is None:
+                return y, math.inf, est, nrhs + 1, t
+            y1 = U + d
+            k5 = np.asarray(rhs(t + h, y1), dtype=float)
+            nrhs += 2
+            err = h / 3.0 * (k5 - f1 - A @ (y1 - U))
+            nrm, est, worst = self._judge(err, y, y1, est, worst)
+            if is_rejected(nrm):
+                return y1, (math.inf if nrm != nrm else nrm), est, nrhs, t
+            y, f0 = y1, k5
+        return y, worst, est, nrhs, t0
 
     def _check_A(self, A, n: int) -> np.ndarray:
         A = np.asarray(A, dtype=float)
