@@ -134,6 +134,18 @@ def test_replay_row_goes_through_the_command_and_counts_every_message(tmp_path):
     assert s["real_time_factor"] > 0 and s["command_wall_s"] >= s["wall_time_s"]
 
 
+def test_sqlite_floor_inserts_every_row_the_replay_wrote(tmp_path):
+    """The floor row re-inserts exactly the rows of the replay's output (inputs copied, 14
+    output topics per instant, diagnostics), read from its .db3."""
+    path = bags.cached_imu_bag(0.3, "sqlite3")
+    s = consumer.replay_once(path, tmp_path / "out", ("--output-rate", "100"))
+    wall, n = consumer.sqlite_floor(tmp_path / "out", repeats=1)
+    assert n == s["output"]["messages"] == 301 + 14 * 31 + s["output"]["messages_by_topic"]["/diagnostics"]
+    assert wall > 0
+    row = consumer._floor_row(tmp_path / "out", repeats=1)
+    assert row.extra["rows"] == n and "| SQLite alone" in consumer.table([row])
+
+
 def test_node_figure_publishes_on_the_default_grid():
     msgs = consumer._imu_objects(bags.cached_imu_bag(0.5, "mcap"), 400)
     r = consumer.node_us(msgs, repeats=1)

@@ -8,6 +8,8 @@ Rows, all in one process run (medians of ``repeats``):
   (:mod:`gyro_platform.replay.command` in-process: the summary's ``real_time_factor``; and the
   whole command in a subprocess, ``python -m gyro_platform replay …`` with default options:
   wall time including interpreter start-up, imports and the plot);
+* SQLite's own floor under the sqlite3 replay: the rows that replay wrote, inserted again into a
+  fresh database with nothing else running (the best a sqlite3 replay of them can do);
 * ``replay`` of the shared husky recording (30 Hz, 395 s; ``--quick``: its first 30 s), found as
   the ``husky_replay`` scene finds it ("not found" when absent);
 * ``run default`` (the README's first command) through :mod:`gyro_platform.scenes.command`;
@@ -283,6 +285,9 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
                     name, what, cached_imu_bag(duration, storage, **bag_kw), work, repeats,
                     ("--output-rate", f"{OUTPUT_RATE:g}"), kern, TARGETS["replay_1khz"], whole_command)))
                 print(_line(rows[-1]), flush=True)
+                if storage == "sqlite3" and not variant:
+                    rows.append(_guard("sqlite3_floor", SQLITE_FLOOR, lambda: _floor_row(work / f"{name}_0", repeats)))
+                    print(_line(rows[-1]), flush=True)
         rows.append(_husky_row(work, repeats, quick, whole_command))
         print(_line(rows[-1]), flush=True)
         rows.append(_guard("run_default", "run default", lambda: _scene_row(repeats, work)))
@@ -293,6 +298,51 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
         shutil.rmtree(work, ignore_errors=True)
     write_outputs(rows, out_dir, quick=quick, repeats=repeats)
     return rows
+
+
+SQLITE_FLOOR = "SQLite alone: the rows that replay wrote, inserted again (one transaction)"
+
+
+def sqlite_floor(bag: Path, repeats: int) -> tuple[float, int]:
+    """(median s, rows) to insert the ``messages`` rows of a sqlite3 bag into a fresh database of
+    the same schema with nothing else running (``bag_storage.insert_rows``, one transaction,
+    ``synchronous=OFF``): the floor SQLite sets under a replay that writes these rows."""
+    import sqlite3
+
+    from ..io.bag_storage import insert_rows
+
+    db3 = next(Path(bag).glob("*.db3"))
+    src = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)
+    try:
+        schema = [r[0] for r in src.execute("SELECT sql FROM sqlite_master WHERE sql IS NOT NULL")]
+        rows = src.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id").fetchall()
+    finally:
+        src.close()
+    cids = np.array([r[0] for r in rows], np.int64)
+    ts = np.array([r[1] for r in rows], np.int64)
+    raws = [r[2] for r in rows]
+    walls = []
+    with tempfile.TemporaryDirectory(prefix="gyro_bench_sqlite_") as tmp:
+        for i in range(repeats):
+            conn = sqlite3.connect(Path(tmp) / f"floor{i}.db3", isolation_level=None)
+            for sql in schema:
+                conn.execute(sql)
+            conn.execute("PRAGMA synchronous=OFF")
+            cur = conn.cursor()
+            t0 = time.perf_counter()
+            cur.execute("BEGIN")
+            insert_rows(cur, cids, ts, raws)
+            cur.execute("COMMIT")
+            walls.append(time.perf_counter() - t0)
+            conn.close()
+    return float(np.median(walls)), len(raws)
+
+
+def _floor_row(bag: Path, repeats: int) -> Row:
+    summary = json.loads((bag.parent / (bag.name + ".summary.json")).read_text())
+    wall, n = sqlite_floor(bag, repeats)
+    return Row("sqlite3_floor", SQLITE_FLOOR, str(bag), rtf=summary["duration_s"] / wall,
+               us_per_sample=wall / max(summary["counts"]["in"], 1) * 1e6, extra={"rows": n, "seconds": wall})
 
 
 def _husky_row(work: Path, repeats: int, quick: bool, whole: bool) -> Row:
@@ -345,7 +395,8 @@ def _line(r: Row) -> str:
     if r.status != "ok":
         return f"  {r.what}: {r.status}"
     rtf = f"×{r.rtf:.3g} real time, " if r.rtf else ""
-    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg; kernel {r.kernel_us:.2f} µs/sample; ratio {r.ratio:.1f}"
+    kernel = f"; kernel {r.kernel_us:.2f} µs/sample; ratio {r.ratio:.1f}" if r.kernel_us else ""
+    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg{kernel}"
 
 
 def table(rows: list[Row]) -> str:
@@ -358,7 +409,7 @@ def table(rows: list[Row]) -> str:
             continue
         wc = r.extra.get("whole_command_wall_s")
         whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
-        lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} | {r.kernel_us:.2f} "
+        lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} | {_fmt(r.kernel_us, '.2f')} "
                      f"| {_fmt(r.ratio, '.1f')} | {r.target} |")
     return "\n".join(lines) + "\n"
 
