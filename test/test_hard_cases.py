@@ -32,7 +32,7 @@ def test_fast_rotors_stay_bounded_and_match_reference(factor, T):
     opt = ModelOptions.make("carried", "full", ("rotor_gyroscopic", "coriolis", "vehicle_angular_acceleration",
                                                 "bias_torque"))
     assert fastest_mode(p, opt) * 1e-3 > 5.0
-    assert choose_integrator(opt, p).name == "auto:etd2+exprb"
+    assert choose_integrator(opt, p).name == "auto:etd4+exprb"
     t = np.arange(0.0, T + 1e-9, 1e-3)
     w = np.column_stack([0.2 * np.sin(3.0 * t), 0.1 * np.cos(2.0 * t), 0.05 + 0 * t])
     _, g = carried_run(p, "auto", 1e-3, t, w)

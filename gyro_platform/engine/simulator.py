@@ -81,14 +81,19 @@ def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     Expected cost decides between the two where both qualify: a carried platform's gimbals are
     driven by the vehicle directly, so the motion excites the nutation and RK4 must resolve it
     (measured at rtol 1e-6 on the husky recording, 30 Hz: rk4 247 substeps and 997 right-hand
-    sides per sample against etd2's 78 and 161, 5× the CPU; on a 1 kHz bag 1.5×): etd2. A
-    stabilised platform is held by its servo and the nutation stays quiet: RK4 (husky: rk4 61
-    substeps, 262 rhs per sample against etd2's 98 and 209, 2.8× less CPU; 1 kHz: 2.7× less)."""
+    sides per sample against etd2's 78 and 161, 5× the CPU). A stabilised platform is held by
+    its servo and the nutation stays quiet: RK4 (husky: rk4 61 substeps, 262 rhs per sample
+    against etd2's 98 and 209, 2.8× less CPU; 1 kHz: 2.7× less).
+
+    A carried platform takes etd4 at every tolerance: its free gyros integrate every step's
+    error, and etd2's local errors there add up far beyond what it reports (ship motion at
+    1 kHz, rtol 1e-6: gimbal angles 5.6e-6 rad off after 10 s, 1.0e-4 after 30 s, largest
+    local estimate 2.3e-8; etd4 3.9e-11 after 30 s at 1.4× etd2's CPU, 3.4× on rate steps)."""
     excited = options.mode == "carried" and options.fidelity != "precession"
     if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT and not excited
             and AUTO_RK4_MIN_RTOL <= options.rtol <= AUTO_RK4_MAX_RTOL):
         return "rk4"
-    return "etd2" if options.rtol >= AUTO_ETD4_BELOW else "etd4"
+    return "etd2" if options.rtol >= AUTO_ETD4_BELOW and not excited else "etd4"
 
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
