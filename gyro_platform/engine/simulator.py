@@ -78,12 +78,11 @@ def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     etd2 (exact on the gyroscopic linear part, cost independent of the spin), etd4 below
     rtol 1e-9 (fourth order: fewer substeps at tight tolerance).
 
-    Expected cost decides between the two where both qualify: a carried platform's gimbals are
-    driven by the vehicle directly, so the motion excites the nutation and RK4 must resolve it
-    (measured at rtol 1e-6 on the husky recording, 30 Hz: rk4 247 substeps and 997 right-hand
-    sides per sample against etd2's 78 and 161, 5× the CPU). A stabilised platform is held by
-    its servo and the nutation stays quiet: RK4 (husky: rk4 61 substeps, 262 rhs per sample
-    against etd2's 98 and 209, 2.8× less CPU; 1 kHz: 2.7× less).
+    A carried platform's gimbals are driven by the vehicle directly, so the motion excites the
+    nutation, which an exponential method integrates exactly and RK4 only resolves (damping it a
+    little every step). A stabilised platform is held by its servo and the nutation stays
+    quiet: RK4, the cheapest there (husky: rk4 61 substeps, 262 rhs per sample against etd2's
+    98 and 209, 2.8× less CPU; 1 kHz: 2.7× less; session 3).
 
     A carried platform takes etd4 at every tolerance: its free gyros integrate every step's
     error, and etd2's local errors there add up far beyond what it reports (ship motion at
