@@ -18,20 +18,8 @@ __all__ = ["stage_matrices", "csr_axpy", "csr_mv", "phi_taylor"]
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def csr_axpy(mi, po, row, io, md, do, x, y, out):
-    """out = y + M_row x for the CSR set at (pointers mi[po:], indices mi[io:], values md[do:])."""
-    n = out.shape[0]
-    base = po + row * (n + 1)
-    for r in range(n):
-        acc = 0.0
-        for e in range(mi[base + r], mi[base + r + 1]):
-            acc += md[do + e] * x[mi[io + e]]
-        out[r] = y[r] + acc
-
-
-@njit(cache=True, fastmath=FASTMATH)
 def csr_mv(mi, po, row, io, md, do, x, out):
-    """out = M_row x."""
+    """out = M_row x for the CSR set at (pointers mi[po:], indices mi[io:], values md[do:])."""
     n = out.shape[0]
     base = po + row * (n + 1)
     for r in range(n):
@@ -39,6 +27,14 @@ def csr_mv(mi, po, row, io, md, do, x, out):
         for e in range(mi[base + r], mi[base + r + 1]):
             acc += md[do + e] * x[mi[io + e]]
         out[r] = acc
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def csr_axpy(mi, po, row, io, md, do, x, y, out):
+    """out = y + M_row x (``out`` neither ``x`` nor ``y``)."""
+    csr_mv(mi, po, row, io, md, do, x, out)
+    for r in range(out.shape[0]):
+        out[r] = y[r] + out[r]
 
 
 @njit(cache=True, inline="always")
