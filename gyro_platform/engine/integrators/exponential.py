@@ -348,10 +348,11 @@ class ExpRosenbrock(Controlled):
             v = (np.asarray(rhs(t + dt, y)) - np.asarray(rhs(t - dt, y))) / (2.0 * dt)
             nrhs += 3 + nj
             Z = h * J
-            U = y + _phi_apply(Z, [h * f0, h * h * v])
-            D = np.asarray(rhs(t + h, U)) - f0 - J @ (U - y) - h * v
+            with np.errstate(invalid="ignore", over="ignore"):    # non-finite: rejected by _judge
+                U = y + _phi_apply(Z, [h * f0, h * h * v])
+                D = np.asarray(rhs(t + h, U)) - f0 - J @ (U - y) - h * v
+                err = _phi_apply(Z, [None, None, 2.0 * h * D])
             nrhs += 1
-            err = _phi_apply(Z, [None, None, 2.0 * h * D])
             y1 = U + err
             nrm, est, worst = self._judge(err, y, y1, est, worst)
             if is_rejected(nrm):
