@@ -324,7 +324,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     hc = hqc * q
             for m in range(n):
                 yc[m] = yw[m]
-            a2 = 0.0
+            a2 = 0.0                        # (set in the tail)
             while True:
                 if method != RK4:
                     key = 2 * ((r * nlev + (0 if in_tail else level)) * (GRID + 1) + hqc)
@@ -339,17 +339,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         return NEED_REGIME
                     do = table[key + 1]
                     io = po + (1 if in_tail else s + (1 if method == EXPRK_D else 0)) * (n + 1)
-                    if in_tail and a2 == 0.0:
-                        for m in range(n):          # a2 = ‖|A|²·1‖∞ (the Taylor series' bound)
-                            acc = 0.0
-                            for e in range(mi[po + m], mi[po + m + 1]):
-                                acc += abs(md[do + e])
-                            Ta[m] = acc
-                        for m in range(n):
-                            acc = 0.0
-                            for e in range(mi[po + m], mi[po + m + 1]):
-                                acc += abs(md[do + e]) * Ta[mi[io + e]]
-                            a2 = max(a2, acc)
+                    if in_tail:                     # the Taylor series' bound, after A's data
+                        a2 = md[do + mi[po + n]]
                 nsub = 1 << level
                 h = hc / nsub
                 est = 0.0

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .integrators import TAYLOR_MAX, TAYLOR_TOL
+from .integrators import TAYLOR_MAX, TAYLOR_TOL, taylor_bound
 from ..physics.system import FASTMATH
 
 __all__ = ["stage_matrices", "csr_axpy", "csr_mv", "phi_taylor"]
@@ -77,7 +77,7 @@ def stage_matrices(integrator, system, h: float):
     """CSR stage matrices (ptr (s', n+1), idx, data) of an exponential integrator for step h,
     relative offsets: stage j's matrix maps the stacked stage derivatives [f_0 … f_{j−1}] to
     U_j − y; etd2 adds the linear part A as a last row (for its defect estimate). h = 0: the
-    linear part A alone (for the tail step)."""
+    linear part A alone (for the tail step), its ``taylor_bound`` stored after the data."""
     n = system.layout.n
     if integrator.name not in ("etd2", "etd4"):
         raise ValueError(f"integrator {integrator.name!r} has no stage matrices (etd2, etd4 have)")
@@ -95,4 +95,6 @@ def stage_matrices(integrator, system, h: float):
             idx.extend(cols.tolist())
             dat.extend(Mj[r, cols].tolist())
         ptr[j, n] = len(idx)
+    if h == 0:
+        dat.append(taylor_bound(np.asarray(A, float)))
     return ptr, np.asarray(idx, np.int64), np.asarray(dat, float)

@@ -20,7 +20,7 @@ methods share. Imports only ``errors`` (and numpy, scipy, numba).
 """
 from .auto import AUTO_STICKY, Auto
 from .base import COARSEN, MAX_JUMP, MAX_SUBSTEPS, Controlled, Integrator, OdeSystem, StepStats, error_norm
-from .exponential import ETD2, ETD4, TAIL_MIN, TAIL_ULP, TAYLOR_MAX, TAYLOR_TOL, ExpRosenbrock
+from .exponential import ETD2, ETD4, TAIL_MIN, TAIL_ULP, TAYLOR_MAX, TAYLOR_TOL, ExpRosenbrock, taylor_bound
 from .implicit import ImplicitMidpoint
 from .jacobian import fd_jacobian, jacobian_of
 from .registry import INTEGRATORS, make_integrator
@@ -30,4 +30,4 @@ from .scipy_methods import DOP853, RK45, Radau
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
            "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "Auto", "AUTO_STICKY", "RK4", "ETD2", "ETD4",
            "ExpRosenbrock", "ImplicitMidpoint", "DOP853", "RK45", "Radau", "fd_jacobian", "jacobian_of",
-           "TAIL_MIN", "TAIL_ULP", "TAYLOR_MAX", "TAYLOR_TOL"]
+           "TAIL_MIN", "TAIL_ULP", "TAYLOR_MAX", "TAYLOR_TOL", "taylor_bound"]

@@ -111,6 +111,12 @@ TAIL_MIN = 1e-9
 TAIL_ULP = 4.0 * 2.0 ** -52
 
 
+def taylor_bound(A: np.ndarray) -> float:
+    """``a2 = ‖|A|²·1‖∞ ≥ ‖A²‖∞``, the bound of :func:`_phi_taylor`'s stopping rule."""
+    absA = np.abs(A)
+    return float(np.max(absA @ absA.sum(axis=1)))
+
+
 def _phi_taylor(A: np.ndarray, a2: float, h: float, v: np.ndarray, k: int):
     """``h φ_k(hA) v`` (k = 1, 2) by the series ``h Σ_j (hA)^j v/(j+k)!``, or None when not
     converged within ``TAYLOR_MAX`` terms. Summed until two consecutive terms are below 2^-53
@@ -179,8 +185,7 @@ class _ETD(Controlled):
             raise TypeError(f"integrator {self.name!r} needs system.linear_part() -> (A, key)")
         A, key = lp()
         self._A, self._key = self._check_A(A, y0.size), key
-        absA = np.abs(self._A)
-        self._a2 = float(np.max(absA @ absA.sum(axis=1)))      # ‖|A|²·1‖∞ ≥ ‖A²‖∞ (_phi_taylor)
+        self._a2 = taylor_bound(self._A)
         return 0
 
     #: estimate by the defect ``(h/3)(f(t+h, y1) − f(U) − A(y1 − U))`` (one more rhs, first same
