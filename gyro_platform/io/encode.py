@@ -148,7 +148,7 @@ def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix
     non-empty frame id. Byte-identical to rosbags ``serialize_cdr`` of those messages.
     ``arrays``: each topic's messages as one uint8 array (K, size) (:func:`fill_rows`;
     a topic's messages all have one size) instead of K bytes objects."""
-    fill = fill_rows if arrays else _fill_list
+    make = fill_rows if arrays else fill
     sec, nsec = stamp_columns(stamps_ns)
     k = sec.shape[0]
     if np.asarray(block.t).reshape(-1).shape[0] != k:
@@ -156,18 +156,18 @@ def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix
     res: list[tuple[str, Any]] = []
     cols = msgs.joint_columns(block)
     res.append((msgs.resolve("gimbal/joint_states", namespace),
-                fill(joint_state_layout(cols.names, cols.velocity.shape[1]), sec, nsec,
+                make(joint_state_layout(cols.names, cols.velocity.shape[1]), sec, nsec,
                      [cols.position, cols.velocity, cols.effort])))
     platform = _prefixed(frame_prefix, msgs.PLATFORM_FRAME)
     vec3 = stamped_layout(platform, (3,))
-    res.append((msgs.resolve("drift/angle", namespace), fill(vec3, sec, nsec, [rows_of(block.drift_angle, k)])))
-    res.append((msgs.resolve("drift/rate", namespace), fill(vec3, sec, nsec, [rows_of(block.drift_rate, k)])))
+    res.append((msgs.resolve("drift/angle", namespace), make(vec3, sec, nsec, [rows_of(block.drift_angle, k)])))
+    res.append((msgs.resolve("drift/rate", namespace), make(vec3, sec, nsec, [rows_of(block.drift_rate, k)])))
     res.append((msgs.resolve("platform/attitude", namespace),
-                fill(stamped_layout(_prefixed(frame_prefix, msgs.REFERENCE_FRAME), (4,)), sec, nsec,
+                make(stamped_layout(_prefixed(frame_prefix, msgs.REFERENCE_FRAME), (4,)), sec, nsec,
                      [rows_of(block.platform_attitude, k)])))
     if block.servo_torque is not None:
         res.append((msgs.resolve("platform/servo_torque", namespace),
-                    fill(vec3, sec, nsec, [rows_of(block.servo_torque, k)])))
+                    make(vec3, sec, nsec, [rows_of(block.servo_torque, k)])))
     torques = _bearing_torques(block, k)
     zeros = np.zeros((k, 3))
     for name in BEARING_NAMES:
@@ -175,7 +175,7 @@ def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix
         if tq is None:
             continue
         layout = stamped_layout(_prefixed(frame_prefix, BEARING_FRAMES[name]), (3, 3))
-        res.append((msgs.resolve(msgs.bearing_topic(name), namespace), fill(layout, sec, nsec, [zeros, tq])))
+        res.append((msgs.resolve(msgs.bearing_topic(name), namespace), make(layout, sec, nsec, [zeros, tq])))
     return res
 
 
@@ -188,7 +188,5 @@ def _bearing_torques(block: Any, k: int) -> dict[str, np.ndarray]:
     arr = np.asarray(bt, dtype=np.float64).reshape(k, len(BEARING_NAMES), 3)
     return {n: arr[:, i, :] for i, n in enumerate(BEARING_NAMES)}
 
-
-_fill_list = fill
 
 __all__ = ["encode_outputs", "stamp_columns", "fill", "fill_rows", "stamped_layout", "joint_state_layout", "Layout"]
