@@ -24,6 +24,7 @@ setup(
         "matplotlib>=3.6",
         "pyyaml>=6",
         "rosbags>=0.10",
+        "apsw>=3.40",       # the sqlite3 output bag's writer (rosbags reads with it too)
         "mcap>=1.1",        # damaged-bag salvage: io/bag_salvage.py reads MCAP records in file order
         "tqdm>=4.60",       # replay progress bar
     ],

@@ -220,7 +220,7 @@ def write_failure(exc: BaseException) -> str | None:
     if isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS:
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         return f"{where}{exc.strerror or exc}"
-    if isinstance(exc, sqlite3.Error):
+    if isinstance(exc, sqlite3.Error) or type(exc).__module__ == "apsw":     # either SQLite binding
         text = str(exc)
         if any(w in text for w in ("full", "disk", "I/O", "readonly", "unable to open")):
             return f"SQLite: {text}"

@@ -30,6 +30,7 @@ PROVIDERS = {
     "matplotlib": "python3-matplotlib",
     "numba": PIP,
     "rosbags": PIP,
+    "apsw": PIP,
     "cyclonedds": PIP,
     "rclpy": "rclpy",
     "ament_index_python": "ament_index_python",

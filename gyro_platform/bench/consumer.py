@@ -305,11 +305,14 @@ SQLITE_FLOOR = "SQLite alone: the rows that replay wrote, inserted again (one tr
 
 def sqlite_floor(bag: Path, repeats: int) -> tuple[float, int]:
     """(median s, rows) to insert the ``messages`` rows of a sqlite3 bag into a fresh database of
-    the same schema with nothing else running (``bag_storage.insert_rows``, one transaction,
-    ``synchronous=OFF``): the floor SQLite sets under a replay that writes these rows."""
+    the same schema with nothing else running (``bag_storage.insert_rows`` through apsw with the
+    writer's page size, one transaction, ``synchronous=OFF``): the floor SQLite sets under a
+    replay that writes these rows."""
     import sqlite3
 
-    from ..io.bag_storage import insert_rows
+    import apsw
+
+    from ..io.bag_storage import SQLITE_PAGE_SIZE, insert_rows
 
     db3 = next(Path(bag).glob("*.db3"))
     src = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)
@@ -324,7 +327,8 @@ def sqlite_floor(bag: Path, repeats: int) -> tuple[float, int]:
     walls = []
     with tempfile.TemporaryDirectory(prefix="gyro_bench_sqlite_") as tmp:
         for i in range(repeats):
-            conn = sqlite3.connect(Path(tmp) / f"floor{i}.db3", isolation_level=None)
+            conn = apsw.Connection(str(Path(tmp) / f"floor{i}.db3"))
+            conn.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")
             for sql in schema:
                 conn.execute(sql)
             conn.execute("PRAGMA synchronous=OFF")

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import atexit
 import os
-import sqlite3
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -40,7 +39,7 @@ import numpy as np
 from ..errors import OutputError, deferred_signals
 from . import messages as msgs
 from .bag_paths import rosbags_api
-from .bag_storage import Rows, segments, writer_class
+from .bag_storage import SQLITE_ERRORS, Rows, segments, writer_class
 from .typedefs import core_typestore, has_type
 
 def default_qos() -> list:
@@ -67,7 +66,7 @@ def _store_of(msgtype: str) -> Any:
 
 
 #: what a full disk or an unwritable file looks like from the storage writers
-WRITE_ERRORS = (OSError, sqlite3.Error)
+WRITE_ERRORS = (OSError, *SQLITE_ERRORS)
 
 
 # ---- the output bag --------------------------------------------------------------------------
