@@ -21,7 +21,7 @@ import copy
 import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -43,6 +43,52 @@ rotate_block = Mounting.rotate_block
 bag_chunks = InputBag.chunks
 write_many = OutputBag.write_many
 copy_chunk = OutputBag.copy_chunk
+
+
+def prefetched(items: Iterator[Any], work: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
+    """``(item, work(item))`` for each of ``items`` in order, the next one taken and worked on by
+    a reader thread while the caller handles this one: what releases the GIL there (file reads,
+    SQLite, the compiled decoder) runs beside the caller's work; at most one item ahead. An
+    exception of ``items`` or ``work`` is raised here, after the items before it. Closing the
+    generator (``contextlib.closing``; also on an exception in the caller) stops the thread."""
+    import queue
+    import threading
+
+    q: queue.Queue = queue.Queue(maxsize=1)
+    stop = threading.Event()
+
+    def put(entry: tuple) -> bool:
+        while not stop.is_set():
+            try:
+                q.put(entry, timeout=0.05)
+                return True
+            except queue.Full:
+                pass
+        return False
+
+    def produce() -> None:
+        try:
+            for item in items:
+                if not put((item, work(item), None)):
+                    return
+        except BaseException as e:                  # raised in the caller, in order
+            put((None, None, e))
+            return
+        put((None, None, StopIteration))
+
+    thread = threading.Thread(target=produce, name="gyro-bag-reader", daemon=True)
+    thread.start()
+    try:
+        while True:
+            item, res, err = q.get()
+            if err is StopIteration:
+                return
+            if err is not None:
+                raise err
+            yield item, res
+    finally:
+        stop.set()
+        thread.join()
 
 
 def push_block(sim: Any, t: Any, omega: Any, force: Any, out_idx: Any) -> Any:

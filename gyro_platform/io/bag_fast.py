@@ -187,7 +187,7 @@ def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple
 _WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
     """One pass over the records of a decompressed chunk: (error, its offset, count, log times,
     channel ids, payload begin and end offsets) of message records (op 0x05) of selected

@@ -2,11 +2,11 @@
 
 :func:`decode_rates` turns the CDR bytes of ``N`` ``sensor_msgs/Imu``, ``geometry_msgs/Twist``
 or ``geometry_msgs/TwistStamped`` messages into one :class:`~gyro_platform.io.blocks.RateBlock`
-with numpy: the rows are joined into one buffer and every field is gathered at its byte offset
-(the offsets after the header shift with the length of ``frame_id``; each row's are computed from
-its own string length). Only what is sure to decode as rosbags decodes it is taken this way: a
-little-endian CDR encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact
-size rosbags accepts (up to 3 bytes of padding) and the standard message layout (the Jazzy
+in one compiled pass (numba, ``nogil``) over the rows joined into one buffer: every field is read
+at its byte offset (the offsets after the header shift with the length of ``frame_id``; each
+row's are computed from its own string length) and each distinct ``frame_id`` is decoded once.
+Only what is sure to decode as rosbags decodes it is taken this way: a little-endian CDR
+encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact size rosbags accepts (up to 3 bytes of padding) and the standard message layout (the Jazzy
 definition, or a bag's own definition with the same fields). Every other row goes through
 rosbags (``store.deserialize_cdr``) and :func:`gyro_platform.io.messages.reading_from_msg`, one
 by one; a row rosbags cannot decode is rejected ``bad_message``.
@@ -22,6 +22,7 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
+from numba import njit
 
 from .blocks import RateBlock, Raw, bad_stamp_detail
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
@@ -63,115 +64,155 @@ def decode_rates(msgtype: str, raws: Sequence[Raw], store: Any = None) -> RateBl
 
 
 def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray:
-    """Fill ``rb`` for the rows with the plain little-endian layout; returns the mask of rows
-    left for rosbags."""
+    """Fill ``rb`` for the rows with the plain little-endian layout (one compiled pass,
+    :func:`_decode_rows`); returns the mask of rows left for rosbags."""
     n = len(raws)
     lens = np.fromiter(map(len, raws), np.int64, n)
-    start = np.zeros(n, np.int64)
-    np.cumsum(lens[:-1], out=start[1:])
     buf = np.frombuffer(b"".join(raws), np.uint8)
-    ok = lens >= 4
-    ok[ok] = (buf[start[ok]] == 0) & (buf[start[ok] + 1] == 1)         # CDR_LE encapsulation
-    if msgtype == TWIST:
-        size = 4 + _TWIST["size"]
-        ok &= (lens >= size) & (lens <= size + 3)
-        rows = np.flatnonzero(ok)
-        rb.omega[rows] = _f8(buf, start[rows] + 4 + _TWIST["omega"], 3)
-        return ~ok
-    # header: stamp.sec int32 @0, stamp.nanosec uint32 @4, frame_id: uint32 length @8, chars @12
-    ok &= lens >= 16
-    rows = np.flatnonzero(ok)
-    p = start[rows] + 4                                                 # payload start
-    slen = _u4(buf, p + 8).astype(np.int64)
-    body = (12 + slen + 7) & ~7                                         # 8-aligned, payload-relative
-    size = body + (_IMU["size"] if msgtype == IMU else _TWIST["size"]) + 4
-    good = (slen >= 1) & (size <= lens[rows]) & (lens[rows] <= size + 3)
-    term = p + 12 + slen - 1
-    good[good] = buf[term[good]] == 0                                   # string terminator
-    codes, names = _frame_ids(buf, p + 12, slen, good)
-    good &= codes >= 0
-    rows, p, body, codes = rows[good], p[good], body[good], codes[good]
-    ok[:] = False
-    ok[rows] = True
-    rb.has_header[rows] = True
-    sec = _u4(buf, p).astype(np.int64)
-    sec = np.where(sec >= 2**31, sec - 2**32, sec)                      # int32
-    nsec = _u4(buf, p + 4).astype(np.int64)
-    rb.stamp_ns[rows] = sec * 1_000_000_000 + nsec
-    frame = np.empty(n, object)
-    frame[:] = rb.frame_id
-    frame[rows] = np.array(names + [""], object)[codes]
-    rb.frame_id = frame.tolist()
-    b = p + body
-    if msgtype == TWIST_STAMPED:
-        rb.omega[rows] = _f8(buf, b + _TWIST["omega"], 3)
-    else:
-        cov_w = _f8(buf, b + _IMU["cov_w"], 1)[:, 0]
-        cov_f = _f8(buf, b + _IMU["cov_f"], 1)[:, 0]
-        rated = cov_w != -1.0
-        rb.omega[rows[rated]] = _f8(buf, b[rated] + _IMU["omega"], 3)
-        forced = rated & (cov_f != -1.0)
-        rb.force[rows[forced]] = _f8(buf, b[forced] + _IMU["force"], 3)
-        rb.has_force[rows[forced]] = True
-        for i in rows[~rated].tolist():
+    kind = _KINDS[msgtype]
+    ok, code, first, nsec, no_rate = _decode_rows(buf, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
+                                                   rb.force, rb.has_force)
+    if kind != _KIND_TWIST:
+        names = []
+        for k in range(len(first)):           # each distinct frame_id decoded once
+            at, ln = int(first[k, 0]), int(first[k, 1])
+            try:
+                names.append(buf[at:at + ln].tobytes().decode())
+            except UnicodeDecodeError:        # not UTF-8: those rows go to rosbags
+                names.append(None)
+        bad = [k for k, name in enumerate(names) if name is None]
+        if bad:                               # back to the zeros of RateBlock.zeros for rosbags
+            rows = np.flatnonzero(ok & np.isin(code, bad))
+            ok[rows] = False
+            rb.has_header[rows], rb.stamp_ns[rows], rb.has_force[rows] = False, 0, False
+            rb.omega[rows], rb.force[rows] = 0.0, 0.0
+        if len(names) == 1 and ok.all():      # the usual topic: one frame_id
+            rb.frame_id = [names[0]] * n
+        else:
+            rows = np.flatnonzero(ok)
+            frame = np.empty(n, object)
+            frame[:] = rb.frame_id
+            frame[rows] = np.array([x or "" for x in names] + [""], object)[code[rows]]
+            rb.frame_id = frame.tolist()
+        for i in np.flatnonzero(ok & no_rate).tolist():
             rb.set_reject(i, "no_rate", NO_RATE_DETAIL)
-    for i, ns in zip(rows[nsec >= 1_000_000_000].tolist(), nsec[nsec >= 1_000_000_000].tolist()):
-        _reject_bad_stamp(rb, i, ns)
+        for i in np.flatnonzero(ok & (nsec >= 1_000_000_000)).tolist():
+            _reject_bad_stamp(rb, i, int(nsec[i]))
     return ~ok
 
 
-def _frame_ids(buf: np.ndarray, at: np.ndarray, slen: np.ndarray, good: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """frame_id of the ``good`` rows (``slen - 1`` bytes at ``at``) as codes into a list of
-    distinct names (each decoded once); code -1: not a good row or not valid UTF-8."""
-    codes = np.full(len(at), -1, np.int64)
-    names: list[str] = []
-    index: dict[bytes, int] = {}
-    for L in np.unique(slen[good]).tolist():
-        sel = np.flatnonzero(good & (slen == L))
-        mat = _gather(buf, at[sel], L - 1)
-        todo = np.ones(len(sel), bool)
-        while todo.any():
-            k = int(np.argmax(todo))
-            if len(index) > 64:                     # many distinct names: one look-up per row
-                for j in np.flatnonzero(todo).tolist():
-                    codes[sel[j]] = _name_code(mat[j].tobytes(), names, index)
-                break
-            same = todo & (mat == mat[k]).all(axis=1)
-            codes[sel[same]] = _name_code(mat[k].tobytes(), names, index)
-            todo &= ~same
-    return codes, names
+_KIND_IMU, _KIND_TWIST_STAMPED, _KIND_TWIST = 0, 1, 2
+_KINDS = {IMU: _KIND_IMU, TWIST_STAMPED: _KIND_TWIST_STAMPED, TWIST: _KIND_TWIST}
 
 
-def _name_code(raw: bytes, names: list[str], index: dict[bytes, int]) -> int:
-    code = index.get(raw)
-    if code is None:
-        try:
-            names.append(raw.decode())
-            code = len(names) - 1
-        except UnicodeDecodeError:
-            code = -1
-        index[raw] = code
-    return code
+@njit(cache=True, nogil=True)
+def _u32(buf, at):  # pragma: no cover - compiled
+    return buf[at:at + 4].view(np.uint32)[0]
 
 
-def _gather(buf: np.ndarray, at: np.ndarray, nbytes: int) -> np.ndarray:
-    """(len(at), nbytes) bytes of ``buf`` from each offset in ``at``: a strided view when the
-    offsets are equally spaced (rows of one length, the usual topic), else a fancy-index gather."""
-    m = len(at)
-    if m > 1:
-        step = int(at[1] - at[0])
-        if step >= nbytes and int(at[-1]) + nbytes <= len(buf) and (np.diff(at) == step).all():
-            return np.lib.stride_tricks.as_strided(buf[int(at[0]):], shape=(m, nbytes), strides=(step, 1))
-    return buf[at[:, None] + np.arange(nbytes)]
+@njit(cache=True, nogil=True)
+def _f64(buf, at):  # pragma: no cover - compiled
+    return buf[at:at + 8].view(np.float64)[0]
 
 
-def _f8(buf: np.ndarray, at: np.ndarray, count: int) -> np.ndarray:
-    """(len(at), count) little-endian float64 at byte offsets ``at``."""
-    return np.ascontiguousarray(_gather(buf, at, 8 * count)).view("<f8").reshape(len(at), count).astype(np.float64)
+@njit(cache=True, nogil=True)
+def _body(buf, p, lens_i, size):  # pragma: no cover - compiled
+    """8-aligned body offset after the header at payload ``p`` (payload-relative), the
+    frame_id length with its terminator, or -1 when the row is not of the plain layout."""
+    slen = np.int64(_u32(buf, p + 8))
+    body = (12 + slen + 7) & ~7
+    total = body + size + 4
+    if slen < 1 or total > lens_i or lens_i > total + 3 or buf[p + 12 + slen - 1] != 0:
+        return -1, slen
+    return body, slen
 
 
-def _u4(buf: np.ndarray, at: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(_gather(buf, at, 4)).view("<u4").reshape(len(at))
+@njit(cache=True, nogil=True)
+def _decode_rows(buf, lens, kind, stamp_ns, has_header, omega, force, has_force):  # pragma: no cover - compiled
+    """One pass over ``len(lens)`` rows laid end to end in ``buf``: the rows of the plain
+    little-endian layout (Imu ``kind`` 0, TwistStamped 1, Twist 2) filled in place. Returns
+    (ok mask, frame_id code per row (-1: none), (distinct codes, 2) first byte offset and length
+    of each frame_id, header nanosec per row, Imu rows whose rate is not reported)."""
+    n = lens.shape[0]
+    ok = np.zeros(n, np.bool_)
+    no_rate = np.zeros(n, np.bool_)
+    code = np.full(n, -1, np.int64)
+    nsec = np.zeros(n, np.int64)
+    first = np.empty((min(n, 64) + 1, 2), np.int64)
+    nfirst = 0
+    prev_at, prev_len, prev_code = -1, -1, -1
+    size = 296 if kind == 0 else 48
+    start = 0
+    for i in range(n):
+        s0, L = start, lens[i]
+        start += L
+        if L < 4 or buf[s0] != 0 or buf[s0 + 1] != 1:           # CDR_LE encapsulation
+            continue
+        p = s0 + 4
+        if kind == 2:
+            if L < 4 + 48 or L > 4 + 48 + 3:
+                continue
+            ok[i] = True
+            for k in range(3):
+                omega[i, k] = _f64(buf, p + 24 + 8 * k)
+            continue
+        if L < 16:
+            continue
+        body, slen = _body(buf, p, L, size)
+        if body < 0:
+            continue
+        at, ln = p + 12, slen - 1
+        c = -1
+        if ln == prev_len and prev_code >= 0:
+            c = prev_code
+            for k in range(ln):
+                if buf[at + k] != buf[prev_at + k]:
+                    c = -1
+                    break
+        if c < 0:
+            for j in range(nfirst):
+                if first[j, 1] == ln:
+                    same = True
+                    for k in range(ln):
+                        if buf[at + k] != buf[first[j, 0] + k]:
+                            same = False
+                            break
+                    if same:
+                        c = j
+                        break
+        if c < 0:
+            if nfirst == first.shape[0]:
+                grown = np.empty((2 * nfirst, 2), np.int64)
+                grown[:nfirst] = first
+                first = grown
+            first[nfirst, 0], first[nfirst, 1] = at, ln
+            c = nfirst
+            nfirst += 1
+        prev_at, prev_len, prev_code = at, ln, c
+        ok[i] = True
+        code[i] = c
+        has_header[i] = True
+        sec = np.int64(_u32(buf, p))
+        if sec >= 2 ** 31:
+            sec -= 2 ** 32
+        ns = np.int64(_u32(buf, p + 4))
+        nsec[i] = ns
+        stamp_ns[i] = sec * 1_000_000_000 + ns
+        b = p + body
+        if kind == 1:
+            for k in range(3):
+                omega[i, k] = _f64(buf, b + 24 + 8 * k)
+            continue
+        if _f64(buf, b + 128) != -1.0:                          # rate reported
+            for k in range(3):
+                omega[i, k] = _f64(buf, b + 104 + 8 * k)
+            if _f64(buf, b + 224) != -1.0:                      # specific force reported
+                for k in range(3):
+                    force[i, k] = _f64(buf, b + 200 + 8 * k)
+                has_force[i] = True
+        else:
+            no_rate[i] = True
+    return ok, code, first[:nfirst], nsec, no_rate
 
 
 def _reject_bad_stamp(rb: RateBlock, i: int, nanosec: int) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..io.typedefs import core_typestore
 from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, RunOutputs, bag_chunks, copy_chunk,
-                        grid_index, grid_indices, judge, new_slots, no_sample_hint)
+                        grid_index, grid_indices, judge, new_slots, no_sample_hint, prefetched)
 from .stats import PlotSeries, Stats
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -53,7 +54,7 @@ class ReplayConfig:
     plot: bool = True
     progress: bool = True
     engine: str = "chunked"          # or "per_message": the reference path, one message at a time
-    chunk_rows: int = 4096           # rows per chunk of the chunked path
+    chunk_rows: int = 32768          # rows per chunk of the chunked path (at most; ChunkPacer)
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -178,12 +179,15 @@ class _Run:
                     progress.update()
             else:
                 pace = ChunkPacer(self.cfg.chunk_rows)     # ~0.25 s a chunk, however slow the model
-                for chunk in bag_chunks(self.bag, self.cfg.chunk_rows, pace=pace):
-                    t0 = time.perf_counter()
-                    with deferred_signals():        # a signal stops between chunks: what is
-                        self._chunk(chunk)          # counted is what was simulated
-                    pace.observe(len(chunk.ts), time.perf_counter() - t0)
-                    progress.update(len(chunk.ts))
+                chunks = bag_chunks(self.bag, self.cfg.chunk_rows, pace=pace)
+                # the next chunk read and decoded on a reader thread while this one is simulated
+                with closing(prefetched(chunks, lambda c: list(self.pipeline.decode(self.bag, c)))) as feed:
+                    for chunk, parts in feed:
+                        t0 = time.perf_counter()
+                        with deferred_signals():    # a signal stops between chunks: what is
+                            self._chunk(chunk, parts)   # counted is what was simulated
+                        pace.observe(len(chunk.ts), time.perf_counter() - t0)
+                        progress.update(len(chunk.ts))
         except BagReadError as e:
             self.error = str(e)
         except KeyboardInterrupt as e:              # Ctrl-C, or SIGTERM (errors.Terminated)
@@ -193,7 +197,8 @@ class _Run:
             progress.close()
 
     # ---- chunked path -----------------------------------------------------------------------
-    def _chunk(self, chunk: Any) -> None:
+    def _chunk(self, chunk: Any, parts: list[tuple[np.ndarray, Any]]) -> None:
+        """A RowChunk and its decoded input rows (``Pipeline.decode``): copied, simulated, written."""
         if self.first_ts is None:
             self.first_ts = int(chunk.ts[0])
         self.last_ts = int(chunk.ts[-1])
@@ -202,7 +207,7 @@ class _Run:
             copy_chunk(self.out, chunk, self.bag)
             self._queue = []
             try:
-                for rows, rb in self.pipeline.decode(self.bag, chunk):
+                for rows, rb in parts:
                     self._input_block(rb, chunk.ts[rows])
             finally:
                 queue, self._queue = self._queue, None
