@@ -35,6 +35,7 @@ from .io.messages import Mounting, Rejected
 # ---- the chunked path's pieces, from their rooms (one place to see them)
 from .engine.outputs import OutputBlock  # noqa: F401
 from .io.bag_writer import OutputBag
+from .io.blocks import take_rows
 from .io.decode import decode_rates
 from .io.gate import ALL_REASONS, DROP, RESET, reading_of
 
@@ -390,7 +391,7 @@ class Pipeline:
         for part in np.split(rows, cuts):
             conn = conns[int(chunk.conn_id[part[0]])]
             a, b = int(part[0]), int(part[-1]) + 1
-            raws = chunk.raws[a:b] if b - a == len(part) else [chunk.raws[i] for i in part.tolist()]
+            raws = chunk.raws[a:b] if b - a == len(part) else take_rows(chunk.raws, part)
             rb = decode_rates(conn.msgtype, raws, bag.store_for(conn))
             yield part, rotate_block(self.mounting, rb)
 

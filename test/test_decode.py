@@ -14,7 +14,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from gyro_platform.io import messages as m
 from gyro_platform.io.bag_reader import InputBag
-from gyro_platform.io.blocks import REJECT_REASONS, RateBlock
+from gyro_platform.io.blocks import REJECT_REASONS, RateBlock, RawRows, concat_rows
 from gyro_platform.io.decode import decode_rates, standard_layout
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
@@ -157,8 +157,46 @@ def message_bytes(draw, msgtype):
 @given(data=st.data())
 def test_generated_messages_equal_rosbags(msgtype, data):
     raws = data.draw(st.lists(message_bytes(msgtype), min_size=1, max_size=25))
-    rb = decode_rates(msgtype, raws)
+    listed = CountingStore(J)
+    rb = decode_rates(msgtype, raws, listed)
     assert_matches_oracle(msgtype, raws, J, rb)
+    # the same rows in place in one buffer between other bytes (as in an MCAP chunk: RawRows):
+    # the same results, and the same rows left to rosbags
+    gaps = data.draw(st.lists(st.binary(min_size=1, max_size=40), min_size=len(raws) + 1, max_size=len(raws) + 1))
+    rows = in_place(raws, gaps)
+    assert list(rows) == raws
+    placed = CountingStore(J)
+    assert_matches_oracle(msgtype, raws, J, decode_rates(msgtype, rows, placed))
+    assert placed.calls == listed.calls
+
+
+def in_place(raws, gaps):
+    """``raws`` as RawRows in one buffer, ``gaps[i]`` before row i (and the last one after)."""
+    buf, beg, end = bytearray(), [], []
+    for gap, raw in zip(gaps, raws):
+        buf += gap
+        beg.append(len(buf))
+        buf += raw
+        end.append(len(buf))
+    buf += gaps[-1]
+    return RawRows(np.frombuffer(bytes(buf), np.uint8), np.array(beg, np.int64), np.array(end, np.int64))
+
+
+def test_raw_rows_slices_takes_and_joins_buffers():
+    """RawRows: slicing, index arrays and concatenation of rows of different buffers (only each
+    part's span copied) give the same bytes as the lists they stand for."""
+    rng = np.random.default_rng(3)
+    raws = [bytes(rng.integers(0, 256, rng.integers(0, 30), dtype=np.uint8)) for _ in range(40)]
+    a = in_place(raws[:25], [b"xy" * int(k) for k in rng.integers(0, 4, 26)])
+    b = in_place(raws[25:], [b"z" * int(k) for k in rng.integers(0, 9, 16)])
+    assert list(a[3:9]) == raws[3:9] and a[7] == raws[7] and len(a[3:9]) == 6
+    idx = rng.permutation(25)[:12]
+    assert list(a[idx]) == [raws[i] for i in idx]
+    both = RawRows.concat([a[5:20], b[2:]])
+    assert list(both) == raws[5:20] + raws[27:]
+    assert len(both.buf) <= len(a.buf) + len(b.buf)
+    assert concat_rows([raws[:3], a[3:6]]) == raws[:6]            # mixed: a list of bytes
+    assert list(concat_rows([a[:2], a[2:4]])) == raws[:4]
 
 
 def test_plain_little_endian_rows_never_reach_rosbags():

@@ -26,8 +26,11 @@ from typing import Any, Iterator
 import numpy as np
 from numba import njit
 
-#: one batch of rows: (bag connection ids int64, record times ns int64, raws)
-Batch = tuple[np.ndarray, np.ndarray, list[bytes]]
+from .blocks import RawRows
+
+#: one batch of rows: (bag connection ids int64, record times ns int64, payloads: a list of
+#: bytes (sqlite3) or a RawRows on the decompressed chunk (MCAP))
+Batch = tuple[np.ndarray, np.ndarray, Any]
 
 
 def row_batches(reader: Any, conns: list[Any], max_rows: int) -> Iterator[Batch] | None:
@@ -145,7 +148,7 @@ def mcap_batches(storage: Any, cmap: dict[int, int]) -> Iterator[Batch]:
     p_ts = np.zeros(0, np.int64)
     p_off = np.zeros(0, np.int64)
     p_conn = np.zeros(0, np.int64)
-    p_raw: list[bytes] = []
+    p_raw = RawRows(np.zeros(0, np.uint8), p_ts, p_ts)
     with Path(storage.path).open("rb") as bio:
         for k, chunk in enumerate(chunks):
             start = chunk.message_start_time
@@ -160,14 +163,14 @@ def mcap_batches(storage: Any, cmap: dict[int, int]) -> Iterator[Batch]:
             off = np.concatenate([p_off, np.full(len(c_ts), chunk.chunk_start_offset, np.int64)])
             order = np.lexsort((np.arange(len(ts)), off, ts)) if len(p_ts) else np.argsort(c_ts, kind="stable")
             conn = np.concatenate([p_conn, c_conn])
-            raws = p_raw + c_raw
+            raws = RawRows.concat([p_raw, c_raw]) if len(p_raw) else c_raw
             p_ts, p_off, p_conn = ts[order], off[order], conn[order]
-            p_raw = [raws[i] for i in order.tolist()]
+            p_raw = raws[order]
         if len(p_ts):
             yield p_conn, p_ts, p_raw
 
 
-def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[bytes]]:
+def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple[np.ndarray, np.ndarray, RawRows]:
     """(log times, bag connection ids, payloads) of the selected messages of one chunk in record
     order (rosbags' reading: CRC and size checked by its ``decompress``)."""
     from rosbags.rosbag2.storage_mcap import decompress, read_exact
@@ -181,7 +184,16 @@ def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple
     if err:
         raise ValueError(f"{_WALK_ERRORS[err]} at chunk offset {at} of the chunk at file offset "
                          f"{chunk.chunk_start_offset}")
-    return ts[:n], lut[cid[:n]], [buf[a:b] for a, b in zip(beg[:n].tolist(), end[:n].tolist())]
+    return ts[:n], lut[cid[:n]], RawRows(np.frombuffer(buf, np.uint8), beg[:n], end[:n])
+
+
+@njit(cache=True, nogil=True)
+def gather_rows(buf, beg, size):  # pragma: no cover - compiled
+    """(len(beg), size) uint8: ``size`` bytes of ``buf`` from each offset of ``beg``."""
+    out = np.empty((beg.shape[0], size), np.uint8)
+    for i in range(beg.shape[0]):
+        out[i] = buf[beg[i]:beg[i] + size]
+    return out
 
 
 _WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}

@@ -17,7 +17,7 @@ from . import messages as msgs
 from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .bag_fast import Batch, McapBag, row_batches
 from .bag_salvage import Salvage
-from .blocks import RowChunk
+from .blocks import RowChunk, concat_rows
 from .messages import INPUT_TYPES
 from .typedefs import core_msgdef, core_typestore, has_type
 
@@ -329,7 +329,7 @@ def _take(parts: list[Batch], n: int) -> tuple[RowChunk, list[Batch]]:
         k = min(len(t), n - got)
         cids.append(c[:k])
         tss.append(t[:k])
-        raws.extend(r[:k] if k < len(r) else r)
+        raws.append(r[:k] if k < len(r) else r)
         got += k
         if k < len(t):
             rest = [(c[k:], t[k:], r[k:])] + parts[i + 1:]
@@ -338,5 +338,5 @@ def _take(parts: list[Batch], n: int) -> tuple[RowChunk, list[Batch]]:
             rest = parts[i + 1:]
             break
     if len(cids) == 1:
-        return RowChunk(cids[0], tss[0], raws), rest
-    return RowChunk(np.concatenate(cids), np.concatenate(tss), raws), rest
+        return RowChunk(cids[0], tss[0], raws[0]), rest
+    return RowChunk(np.concatenate(cids), np.concatenate(tss), concat_rows(raws)), rest

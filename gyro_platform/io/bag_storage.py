@@ -29,6 +29,9 @@ from typing import Any, Iterator, Sequence
 import apsw
 import numpy as np
 
+from .bag_fast import gather_rows
+from .blocks import RawRows
+
 #: commit bound: a chunk is committed after this many messages …
 COMMIT_ROWS = 100_000
 #: … or this much wall time (s) since the last commit, whichever comes first
@@ -81,18 +84,23 @@ def as_bytes_list(raws: Any) -> list[Any]:
 
 def payload_bytes(raws: Any) -> int:
     """Total payload size of ``raws`` (bytes)."""
-    return sum(seg.size if isinstance(seg, np.ndarray) else sum(map(len, seg)) for seg in segments(raws))
+    return sum(int(_seg_lens(seg).sum()) if isinstance(seg, RawRows) else
+               seg.size if isinstance(seg, np.ndarray) else sum(map(len, seg)) for seg in segments(raws))
 
 
 def _seg_list(seg: Any) -> list[Any]:
     if isinstance(seg, np.ndarray):
         return seg.view(f"V{seg.shape[1]}").ravel().tolist() if seg.shape[1] else [b""] * len(seg)
+    if isinstance(seg, RawRows):
+        return seg.tolist()
     return seg if isinstance(seg, list) else list(seg)
 
 
 def _seg_lens(seg: Any) -> np.ndarray:
     if isinstance(seg, np.ndarray):
         return np.full(len(seg), seg.shape[1], np.int64)
+    if isinstance(seg, RawRows):
+        return seg.lens()
     return np.fromiter(map(len, seg), np.int64, len(seg))
 
 
@@ -101,7 +109,10 @@ def _fixed(seg: Any, lens: np.ndarray) -> np.ndarray | None:
     if isinstance(seg, np.ndarray):
         return seg
     if len(lens) and lens[0] == lens[-1] and not np.any(lens != lens[0]):
-        return np.frombuffer(b"".join(seg), np.uint8).reshape(len(seg), int(lens[0]))
+        size = int(lens[0])
+        if isinstance(seg, RawRows):          # gathered from the buffer they lie in
+            return gather_rows(seg.buf, seg.beg, size)
+        return np.frombuffer(b"".join(seg), np.uint8).reshape(len(seg), size)
     return None
 
 

@@ -1,7 +1,8 @@
 """Array blocks flowing through the fast path (issue 12 contract): one block = one chunk of rows.
 
 * :class:`RowChunk` — raw bag rows as :meth:`gyro_platform.io.bag_reader.InputBag.chunks` yields
-  them (rosbags connection id, record time ns, CDR bytes), in bag order.
+  them (rosbags connection id, record time ns, CDR bytes), in bag order; the CDR bytes as a
+  list of ``bytes`` or as :class:`RawRows` (payloads in place in one buffer: an MCAP chunk's).
 * :class:`RateBlock` — the input rows decoded (:func:`gyro_platform.io.decode.decode_rates`):
   per row what :func:`gyro_platform.io.messages.reading_from_msg` gives for one message, as arrays
   (rad/s, m/s², sensor frame until ``Mounting.rotate_block`` turns them into base_link).
@@ -22,6 +23,70 @@ REJECT_NO_RATE, REJECT_UNKNOWN_FRAME, REJECT_BAD_MESSAGE = 1, 2, 3
 Raw = Union[bytes, memoryview]
 
 
+class RawRows:
+    """``N`` payloads in place in one byte buffer: row ``i`` is ``buf[beg[i]:end[i]]`` (e.g. the
+    message records of a decompressed MCAP chunk), without a Python object per row. A sequence
+    of ``bytes``: ``len``, ``rows[i]`` (bytes), ``rows[a:b]`` and ``rows[index array]`` (RawRows
+    on the same buffer), iteration; :meth:`lens`, :meth:`tolist`."""
+
+    __slots__ = ("buf", "beg", "end")
+
+    def __init__(self, buf: np.ndarray, beg: np.ndarray, end: np.ndarray):
+        self.buf, self.beg, self.end = buf, beg, end
+
+    def __len__(self) -> int:
+        return len(self.beg)
+
+    def __getitem__(self, k):
+        if isinstance(k, (slice, np.ndarray, list)):
+            return RawRows(self.buf, self.beg[k], self.end[k])
+        return self.buf[int(self.beg[k]):int(self.end[k])].tobytes()
+
+    def __iter__(self):
+        buf = self.buf
+        return (buf[a:b].tobytes() for a, b in zip(self.beg.tolist(), self.end.tolist()))
+
+    def lens(self) -> np.ndarray:
+        """Payload sizes (bytes), int64."""
+        return self.end - self.beg
+
+    def tolist(self) -> list[bytes]:
+        return list(self)
+
+    @classmethod
+    def concat(cls, parts: list["RawRows"]) -> "RawRows":
+        """One RawRows of the rows of ``parts`` in order (the buffers joined when they differ)."""
+        if len(parts) == 1 or all(p.buf is parts[0].buf for p in parts):
+            return cls(parts[0].buf, np.concatenate([p.beg for p in parts]), np.concatenate([p.end for p in parts]))
+        bufs, begs, ends, off = [], [], [], 0
+        for p in parts:                 # each part's span of its buffer, no more
+            lo, hi = (int(p.beg.min()), int(p.end.max())) if len(p) else (0, 0)
+            bufs.append(p.buf[lo:hi])
+            begs.append(p.beg - lo + off)
+            ends.append(p.end - lo + off)
+            off += hi - lo
+        return cls(np.concatenate(bufs), np.concatenate(begs), np.concatenate(ends))
+
+
+def take_rows(raws, idx: np.ndarray):
+    """Rows ``idx`` (int array) of a list of bytes or a :class:`RawRows`, in that order."""
+    if isinstance(raws, RawRows):
+        return raws[idx]
+    return [raws[i] for i in idx.tolist()]
+
+
+def concat_rows(parts: list) -> "list | RawRows":
+    """Rows of ``parts`` (lists of bytes or :class:`RawRows`) in order: a list when all are lists."""
+    parts = [p for p in parts if len(p)] or parts[:1]
+    if not parts:
+        return []
+    if all(isinstance(p, RawRows) for p in parts):
+        return RawRows.concat(parts)
+    if not any(isinstance(p, RawRows) for p in parts):
+        return [r for p in parts for r in p] if len(parts) > 1 else list(parts[0])
+    return [r for p in parts for r in (p.tolist() if isinstance(p, RawRows) else p)]
+
+
 def bad_stamp_detail(nanosec: int) -> str:
     """Detail of a message rejected ``bad_message`` because its header stamp is not a valid
     ``builtin_interfaces/Time`` (``nanosec`` must be below 1e9; issue 17)."""
@@ -33,11 +98,11 @@ class RowChunk:
     """``N`` bag rows in bag order (record-time order as rosbags reads them).
 
     ``conn_id``: int64 (N,) rosbags ``Connection.id`` of each row; ``ts``: int64 (N,) record
-    (receive) time ns; ``raws``: the CDR bytes of each row (N)."""
+    (receive) time ns; ``raws``: the CDR bytes of each row (N; a list or :class:`RawRows`)."""
 
     conn_id: np.ndarray
     ts: np.ndarray
-    raws: list[Raw]
+    raws: "list[Raw] | RawRows"
 
     def __len__(self) -> int:
         return len(self.raws)
@@ -49,7 +114,7 @@ class RowChunk:
     def take(self, mask_or_idx: np.ndarray) -> "RowChunk":
         """The rows selected by a boolean mask or an index array, in order."""
         idx = np.flatnonzero(mask_or_idx) if np.asarray(mask_or_idx).dtype == bool else np.asarray(mask_or_idx)
-        return RowChunk(self.conn_id[idx], self.ts[idx], [self.raws[i] for i in idx.tolist()])
+        return RowChunk(self.conn_id[idx], self.ts[idx], take_rows(self.raws, idx))
 
 
 @dataclass(slots=True)

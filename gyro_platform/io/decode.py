@@ -24,7 +24,7 @@ from typing import Any, Sequence
 import numpy as np
 from numba import njit
 
-from .blocks import RateBlock, Raw, bad_stamp_detail
+from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
 from .typedefs import core_typestore, has_type
 
@@ -67,10 +67,15 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
     """Fill ``rb`` for the rows with the plain little-endian layout (one compiled pass,
     :func:`_decode_rows`); returns the mask of rows left for rosbags."""
     n = len(raws)
-    lens = np.fromiter(map(len, raws), np.int64, n)
-    buf = np.frombuffer(b"".join(raws), np.uint8)
+    if isinstance(raws, RawRows):                 # in place in their buffer (an MCAP chunk)
+        buf, beg, lens = raws.buf, raws.beg, raws.lens()
+    else:
+        lens = np.fromiter(map(len, raws), np.int64, n)
+        buf = np.frombuffer(b"".join(raws), np.uint8)
+        beg = np.zeros(n, np.int64)
+        np.cumsum(lens[:-1], out=beg[1:])
     kind = _KINDS[msgtype]
-    ok, code, first, nsec, no_rate = _decode_rows(buf, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
+    ok, code, first, nsec, no_rate = _decode_rows(buf, beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
                                                    rb.force, rb.has_force)
     if kind != _KIND_TWIST:
         names = []
@@ -128,8 +133,8 @@ def _body(buf, p, lens_i, size):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _decode_rows(buf, lens, kind, stamp_ns, has_header, omega, force, has_force):  # pragma: no cover - compiled
-    """One pass over ``len(lens)`` rows laid end to end in ``buf``: the rows of the plain
+def _decode_rows(buf, beg, lens, kind, stamp_ns, has_header, omega, force, has_force):  # pragma: no cover - compiled
+    """One pass over the rows ``buf[beg[i]:beg[i] + lens[i]]``: the rows of the plain
     little-endian layout (Imu ``kind`` 0, TwistStamped 1, Twist 2) filled in place. Returns
     (ok mask, frame_id code per row (-1: none), (distinct codes, 2) first byte offset and length
     of each frame_id, header nanosec per row, Imu rows whose rate is not reported)."""
@@ -142,10 +147,8 @@ def _decode_rows(buf, lens, kind, stamp_ns, has_header, omega, force, has_force)
     nfirst = 0
     prev_at, prev_len, prev_code = -1, -1, -1
     size = 296 if kind == 0 else 48
-    start = 0
     for i in range(n):
-        s0, L = start, lens[i]
-        start += L
+        s0, L = beg[i], lens[i]
         if L < 4 or buf[s0] != 0 or buf[s0 + 1] != 1:           # CDR_LE encapsulation
             continue
         p = s0 + 4
