@@ -578,9 +578,9 @@ class Pipeline:
         events = []
         outcome = res.outcome if rows is None else res.outcome[:rows]
         failed = res.output_failed if rows is None else [i for i in res.output_failed if i < rows]
-        for code in np.unique(outcome[outcome >= 0]):
-            hit = outcome == code
-            events.append((float(np.argmax(hit)), OUTCOMES[code], int(np.count_nonzero(hit))))
+        counts = np.bincount(outcome[outcome >= 0], minlength=len(OUTCOMES))
+        for code in np.flatnonzero(counts).tolist():
+            events.append((float(np.argmax(outcome == code)), OUTCOMES[code], int(counts[code])))
         if failed:
             events.append((failed[0] + 0.5, "output_failed", len(failed)))
         for _, key, n in sorted(events):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import struct
 from itertools import islice
+from operator import itemgetter
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -113,8 +114,12 @@ def sqlite_batches(db: Any, cmap: dict[int, int], max_rows: int) -> Iterator[Bat
 
 
 def _sqlite_batch(rows: list[tuple], lut: np.ndarray) -> Batch:
-    tid, ts, data = zip(*rows)
-    return lut[np.array(tid, np.int64)], np.array(ts, np.int64), list(data)
+    n = len(rows)
+    return (lut[np.fromiter(map(_COL0, rows), np.int64, n)], np.fromiter(map(_COL1, rows), np.int64, n),
+            list(map(_COL2, rows)))
+
+
+_COL0, _COL1, _COL2 = itemgetter(0), itemgetter(1), itemgetter(2)
 
 
 def _rows_to_error(db: Any, query: str, ids: list[int], skip: int, lut: np.ndarray) -> Iterator[Batch]:

@@ -29,7 +29,7 @@ from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..io.typedefs import core_typestore
-from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, RunOutputs, bag_chunks, copy_chunk,
+from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, bag_chunks, copy_chunk,
                         grid_index, grid_indices, judge, new_slots, no_sample_hint, prefetched)
 from .stats import PlotSeries, Stats
 
@@ -214,9 +214,9 @@ class _Run:
                 self._write_queue(queue)
 
     def _input_block(self, rb: Any, rx: np.ndarray) -> None:
-        """Input rows received at ``rx``, one block; at each diagnostics instant (1 Hz of
-        receive time) the gate snapshot and outcomes after that row (``run_block``'s
-        snapshots) and the last output up to it; outputs and diagnostics queued in row order."""
+        """Input rows received at ``rx``, one block: its outputs queued run by run; at each
+        diagnostics instant (1 Hz of receive time) the gate snapshot and outcomes after that row
+        (``run_block``'s snapshots), the number of outputs and the last output up to it."""
         n = len(rx)
         self.n_in += n
         if self.first_rx is None:
@@ -228,21 +228,20 @@ class _Run:
         snaps = np.flatnonzero(diag)
         res = self.pipeline.run_block(rb, rx, snaps)
         self._identity(rb, res.gate)
-        runs = iter(res.outputs)
-        run = next(runs, None)
-        for r in snaps.tolist() + ([n - 1] if not diag[-1] else []):
-            while run is not None:              # the outputs up to row r
+        n0, last0 = self.n_out, self.last_out
+        runs = []                               # (run, outputs before it)
+        for run in res.outputs:
+            runs.append((run, self.n_out))
+            self._write_block(run, res.gate, rx)
+        for r in snaps.tolist():
+            n_out, last = n0, last0             # the outputs up to row r (runs in row order)
+            for run, before in runs:
                 k = int(np.searchsorted(run.rows, r, side="right"))
-                if k:
-                    self._write_block(run if k == len(run.rows) else RunOutputs(run.rows[:k], run.block[:k],
-                                                                                run.new_segment), res.gate, rx)
-                if k < len(run.rows):
-                    run = RunOutputs(run.rows[k:], run.block[k:], False) if k else run
+                if k == 0:
                     break
-                run = next(runs, None)
-            if r in res.snapshots:
-                gate, outcomes = res.snapshots[r]
-                self._diagnostics(int(rx[r]), gate, outcomes)
+                n_out, last = before + k, (run.block, k - 1)
+            gate, outcomes = res.snapshots[r]
+            self._diagnostics(int(rx[r]), gate, outcomes, n_out, last)
 
     def _identity(self, rb: Any, gb: Any) -> None:
         if rb.identity is None or not rb.identity.any():
@@ -338,15 +337,20 @@ class _Run:
                   f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
                   file=sys.stderr)
 
-    def _diagnostics(self, ts: int, gate: dict | None = None, outcomes: dict | None = None) -> None:
-        """``/diagnostics`` at ``ts``: the gate snapshot and simulator outcomes given (default:
-        as they are now) and the last output."""
+    def _diagnostics(self, ts: int, gate: dict | None = None, outcomes: dict | None = None,
+                     n_out: int | None = None, last_out: tuple[Any, int] | None = None) -> None:
+        """``/diagnostics`` at ``ts``: the gate snapshot, simulator outcomes, number of outputs
+        and last output (``(OutputBlock, index)`` or ``(Outputs, -1)``) given (default: as they
+        are now)."""
         last = None
-        if self.last_out is not None:
-            obj, i = self.last_out
+        last_out = self.last_out if n_out is None else last_out
+        if last_out is not None:
+            obj, i = last_out
             last = obj if i < 0 else obj[i]
-        msg = msgs.diagnostic_array(self.gate.snapshot() if gate is None else gate, last, self.types, ts,
-                                    self._sim_figures(outcomes))
+        figures = self._sim_figures(outcomes)
+        if n_out is not None:
+            figures["outputs"] = n_out
+        msg = msgs.diagnostic_array(self.gate.snapshot() if gate is None else gate, last, self.types, ts, figures)
         if self._queue is not None:         # chunked path: after the outputs queued before it
             self._queue.append(("msg", self.diag_topic, ts, msg))
         else:
