@@ -93,6 +93,7 @@ class OutputBag:
         self._lut = np.zeros(1, np.int64)     # input connection id -> output id (0: not copied)
         self.skipped: dict[str, str] = {}     # input topics that could not be copied -> why
         self._batch: list[tuple[np.ndarray, np.ndarray, Any]] | None = None   # see batched()
+        self.threaded = True                   # batched() writes on a thread of its own
         self._pool: Any = None                 # the writer thread of batched() (made on first use)
         self._inflight: Any = None             # its write in flight (a Future), at most one
         self.closed = False
@@ -266,8 +267,12 @@ class OutputBag:
 
     def _submit(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
         """A batch to the writer thread (after the one in flight is done: its error, if any, is
-        raised here as from a direct write)."""
+        raised here as from a direct write); written here when ``threaded`` is False (a caller
+        that writes from a thread of its own)."""
         self._drain()
+        if not self.threaded:
+            self._guard(lambda: self.writer.write_rows(cids, ts, raws))
+            return
         if self._pool is None:
             from concurrent.futures import ThreadPoolExecutor
             self._pool = ThreadPoolExecutor(1, thread_name_prefix="gyro-bag-writer")

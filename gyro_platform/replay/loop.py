@@ -163,6 +163,8 @@ class _Run:
         self.identity_frames: list[str] = []
         self.diag_topic = msgs.resolve("/diagnostics")
         self._queue: list[tuple] | None = None          # a chunk's outputs and diagnostics to write
+        self._writer: Any = None                        # the writer thread of the chunked path
+        self._inflight: Any = None                      # its chunk in flight (a Future), at most one
 
     def loop(self) -> None:
         """All messages of the bag, chunk by chunk (``engine="chunked"``) or one by one
@@ -180,7 +182,8 @@ class _Run:
             else:
                 pace = ChunkPacer(self.cfg.chunk_rows)     # ~0.25 s a chunk, however slow the model
                 chunks = bag_chunks(self.bag, self.cfg.chunk_rows, pace=pace)
-                # the next chunk read and decoded on a reader thread while this one is simulated
+                # the next chunk read and decoded on a reader thread while this one is simulated,
+                # the one before written on the writer thread (_handoff)
                 with closing(prefetched(chunks, lambda c: list(self.pipeline.decode(self.bag, c)))) as feed:
                     for chunk, parts in feed:
                         t0 = time.perf_counter()
@@ -195,30 +198,59 @@ class _Run:
             self.error = stop_reason(e)
         finally:
             progress.close()
+            try:
+                self._written()                     # what was simulated is written, whatever happened
+            finally:
+                if self._writer is not None:
+                    self._writer.shutdown()
 
     # ---- chunked path -----------------------------------------------------------------------
     def _chunk(self, chunk: Any, parts: list[tuple[np.ndarray, Any]]) -> None:
-        """A RowChunk and its decoded input rows (``Pipeline.decode``): copied, simulated, written."""
+        """A RowChunk and its decoded input rows (``Pipeline.decode``) through gate and simulator
+        here; copied and written on the writer thread (:meth:`_handoff`)."""
         if self.first_ts is None:
             self.first_ts = int(chunk.ts[0])
         self.last_ts = int(chunk.ts[-1])
         self.n_msgs += len(chunk.ts)
-        with self.out.batched():            # the chunk's copies, outputs and diagnostics: one write
+        done: list[tuple] = []
+        try:
+            for rows, rb in parts:
+                done.append(self._simulate_block(rb, chunk.ts[rows]))
+        finally:
+            self._handoff(chunk, done)
+
+    def _handoff(self, chunk: Any, done: list[tuple]) -> None:
+        """The chunk's copies, outputs and diagnostics to the writer thread (one chunk in
+        flight: the one before is waited for first, and its error raised here)."""
+        self._written()
+        if self._writer is None:
+            from concurrent.futures import ThreadPoolExecutor
+            self._writer = ThreadPoolExecutor(1, thread_name_prefix="gyro-replay-writer")
+            self.out.threaded = False               # this thread writes the bag itself
+        self._inflight = self._writer.submit(self._write_chunk, chunk, done)
+
+    def _written(self) -> None:
+        """Wait for the chunk in flight on the writer thread; its error is raised here."""
+        f, self._inflight = self._inflight, None
+        if f is not None:
+            f.result()
+
+    def _write_chunk(self, chunk: Any, done: list[tuple]) -> None:
+        """(writer thread) The chunk's copies, then its outputs and diagnostics, as one write."""
+        with self.out.batched():
             copy_chunk(self.out, chunk, self.bag)
             self._queue = []
             try:
-                for rows, rb in parts:
-                    self._input_block(rb, chunk.ts[rows])
+                for item in done:
+                    self._output_block(*item)
             finally:
                 queue, self._queue = self._queue, None
                 self._write_queue(queue)
 
-    def _input_block(self, rb: Any, rx: np.ndarray) -> None:
-        """Input rows received at ``rx``, one block: its outputs queued run by run; at each
-        diagnostics instant (1 Hz of receive time) the gate snapshot and outcomes after that row
-        (``run_block``'s snapshots), the number of outputs and the last output up to it."""
-        n = len(rx)
-        self.n_in += n
+    def _simulate_block(self, rb: Any, rx: np.ndarray) -> tuple:
+        """Input rows received at ``rx``, one block, through gate and simulator, cut for the
+        snapshots of the diagnostics instants (1 Hz of receive time) among them."""
+        self.n_in += len(rx)
         if self.first_rx is None:
             self.first_rx = int(rx[0])
         dslot = grid_indices(rx, self.first_rx, self.cfg.diagnostics_rate)
@@ -226,7 +258,12 @@ class _Run:
         if diag.any():
             self.diag_slot = int(dslot[diag][-1])
         snaps = np.flatnonzero(diag)
-        res = self.pipeline.run_block(rb, rx, snaps)
+        return rb, rx, snaps, self.pipeline.run_block(rb, rx, snaps)
+
+    def _output_block(self, rb: Any, rx: np.ndarray, snaps: np.ndarray, res: Any) -> None:
+        """(writer thread) A simulated block's outputs queued run by run; at each diagnostics
+        instant the gate snapshot and outcomes after that row (``run_block``'s snapshots), the
+        number of outputs and the last output up to it."""
         self._identity(rb, res.gate)
         n0, last0 = self.n_out, self.last_out
         runs = []                               # (run, outputs before it)
