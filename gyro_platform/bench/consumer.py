@@ -5,7 +5,8 @@ Rows, all in one process run (medians of ``repeats``):
 * ``replay`` of a 1 kHz ``sensor_msgs/Imu`` bag of the benchmark's own making (:mod:`.bags`;
   120 s, ``--quick`` 10 s), ``--output-rate 100``, sqlite3 and mcap, and of a second one it was
   not tuned on (another vehicle, stamps jittered ±5 % of the period), through the real command
-  (:mod:`gyro_platform.replay.command` in-process: the summary's ``real_time_factor``; and the
+  (:mod:`gyro_platform.replay.command` in-process, after one untimed run that loads the compiled
+  code: the summary's ``real_time_factor``, the first run's kept as ``first_run_rtf``; and the
   whole command in a subprocess, ``python -m gyro_platform replay …`` with default options:
   wall time including interpreter start-up, imports and the plot);
 * SQLite's own floor under the sqlite3 replay: the rows that replay wrote, inserted again into a
@@ -158,6 +159,9 @@ def replay_subprocess(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> floa
 def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra: tuple[str, ...],
                 kernel: float, target: str, whole: bool) -> Row:
     rtf, us, walls = [], [], []
+    # one untimed run first: the compiled code of the replay path loaded (numba caches), as in
+    # any run after the first of a process; the first run's own figure is kept beside
+    first = replay_once(bag, work / f"{name}_first", extra)
     summary: dict = {}
     for i in range(repeats):
         summary = replay_once(bag, work / f"{name}_{i}", extra)
@@ -168,6 +172,7 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
               kernel_us=kernel, target=target,
               extra={"duration_s": summary["duration_s"], "messages": summary["counts"]["in"],
                      "outputs": summary["counts"]["out"], "in_process_command_wall_s": float(np.median(walls)),
+                     "first_run_rtf": first["real_time_factor"],
                      "integrator": summary["simulator"]["stats"]["integrator"],
                      "max_error_norm": summary["simulator"]["stats"].get("max_error_norm")})
     if whole:
