@@ -339,3 +339,29 @@ def test_chunk_pacer_aims_at_its_wall_time_per_chunk():
     p.observe(125, 125 * 1.0)                # 1 s a row: not below the start size
     assert p() == ChunkPacer.START_ROWS
     assert ChunkPacer(10)() == 10            # a small maximum is the size from the start
+
+
+# ---- the replay's reader thread (pipeline.prefetched) ------------------------------------------
+def test_prefetched_gives_every_item_in_order_then_the_error_and_stops_its_thread():
+    """Items and their work come in order from the reader thread; an error of the source is
+    raised after the items before it; closing early stops the thread (no thread left)."""
+    import threading
+    from contextlib import closing
+
+    from gyro_platform.pipeline import prefetched
+
+    def source(n, fail):
+        for i in range(n):
+            yield i
+        if fail:
+            raise BagReadError("damaged after the rows above")
+
+    got = []
+    with pytest.raises(BagReadError, match="damaged"):
+        for item, res in prefetched(source(7, True), lambda i: i * i):
+            got.append((item, res))
+    assert got == [(i, i * i) for i in range(7)]
+    assert list(prefetched(source(3, False), str)) == [(0, "0"), (1, "1"), (2, "2")]
+    with closing(prefetched(source(10_000, False), lambda i: i)) as feed:
+        assert next(feed) == (0, 0)
+    assert not [t for t in threading.enumerate() if t.name == "gyro-bag-reader"]
