@@ -177,7 +177,11 @@ def deferred_signals():
     arriving inside is delivered when the block ends. With an active :class:`StopSignals` it
     raises then; without one (library use, main thread) the handlers in place before the block
     get the held signal (a Ctrl-C raises KeyboardInterrupt after the block; a SIGTERM with the
-    default action ends the process). Off the main thread the block just runs."""
+    default action ends the process). Off the main thread (where no signal is delivered) the
+    block just runs: the main thread holds them while it waits for such a thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     stop = StopSignals._active
     if stop is not None:
         stop.depth += 1
@@ -186,9 +190,6 @@ def deferred_signals():
         finally:
             stop.depth -= 1
         stop.release()
-        return
-    if threading.current_thread() is not threading.main_thread():
-        yield
         return
     got: list[int] = []
     old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}

@@ -2,12 +2,13 @@
 
 :func:`decode_rates` turns the CDR bytes of ``N`` ``sensor_msgs/Imu``, ``geometry_msgs/Twist``
 or ``geometry_msgs/TwistStamped`` messages into one :class:`~gyro_platform.io.blocks.RateBlock`
-in one compiled pass (numba, ``nogil``) over the rows joined into one buffer: every field is read
-at its byte offset (the offsets after the header shift with the length of ``frame_id``; each
+in one compiled pass (numba, ``nogil``) over the rows in one buffer (joined, or in place in an
+MCAP chunk: :class:`~gyro_platform.io.blocks.RawRows`): every field is read at its byte offset (the offsets after the header shift with the length of ``frame_id``; each
 row's are computed from its own string length) and each distinct ``frame_id`` is decoded once.
 Only what is sure to decode as rosbags decodes it is taken this way: a little-endian CDR
-encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact size rosbags accepts (up to 3 bytes of padding) and the standard message layout (the Jazzy
-definition, or a bag's own definition with the same fields). Every other row goes through
+encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact size rosbags accepts
+(up to 3 bytes of padding) and the standard message layout (the Jazzy definition, or a bag's own
+definition with the same fields). Every other row goes through
 rosbags (``store.deserialize_cdr``) and :func:`gyro_platform.io.messages.reading_from_msg`, one
 by one; a row rosbags cannot decode is rejected ``bad_message``.
 
@@ -33,8 +34,8 @@ NO_RATE_DETAIL = "angular_velocity_covariance[0] = -1 (rate not reported)"
 
 #: byte offsets after the 8-aligned start of the body that follows the header (Imu, TwistStamped)
 #: or the start of the payload (Twist): (omega, force, angular cov[0], linear cov[0], body size)
-_IMU = dict(omega=104, force=200, cov_w=128, cov_f=224, size=296)
-_TWIST = dict(omega=24, size=48)
+IMU_OMEGA, IMU_FORCE, IMU_COV_W, IMU_COV_F, IMU_SIZE = 104, 200, 128, 224, 296
+TWIST_OMEGA, TWIST_SIZE = 24, 48
 
 #: a mounting that never rotates a header frame (its vehicle frame is no frame_id a bag holds):
 #: reading_from_msg then gives Imu/TwistStamped values in the sensor frame
@@ -146,18 +147,18 @@ def _decode_rows(buf, beg, lens, kind, stamp_ns, has_header, omega, force, has_f
     first = np.empty((min(n, 64) + 1, 2), np.int64)
     nfirst = 0
     prev_at, prev_len, prev_code = -1, -1, -1
-    size = 296 if kind == 0 else 48
+    size = IMU_SIZE if kind == 0 else TWIST_SIZE
     for i in range(n):
         s0, L = beg[i], lens[i]
         if L < 4 or buf[s0] != 0 or buf[s0 + 1] != 1:           # CDR_LE encapsulation
             continue
         p = s0 + 4
         if kind == 2:
-            if L < 4 + 48 or L > 4 + 48 + 3:
+            if L < 4 + TWIST_SIZE or L > 4 + TWIST_SIZE + 3:
                 continue
             ok[i] = True
             for k in range(3):
-                omega[i, k] = _f64(buf, p + 24 + 8 * k)
+                omega[i, k] = _f64(buf, p + TWIST_OMEGA + 8 * k)
             continue
         if L < 16:
             continue
@@ -204,14 +205,14 @@ def _decode_rows(buf, beg, lens, kind, stamp_ns, has_header, omega, force, has_f
         b = p + body
         if kind == 1:
             for k in range(3):
-                omega[i, k] = _f64(buf, b + 24 + 8 * k)
+                omega[i, k] = _f64(buf, b + TWIST_OMEGA + 8 * k)
             continue
-        if _f64(buf, b + 128) != -1.0:                          # rate reported
+        if _f64(buf, b + IMU_COV_W) != -1.0:                          # rate reported
             for k in range(3):
-                omega[i, k] = _f64(buf, b + 104 + 8 * k)
-            if _f64(buf, b + 224) != -1.0:                      # specific force reported
+                omega[i, k] = _f64(buf, b + IMU_OMEGA + 8 * k)
+            if _f64(buf, b + IMU_COV_F) != -1.0:                      # specific force reported
                 for k in range(3):
-                    force[i, k] = _f64(buf, b + 200 + 8 * k)
+                    force[i, k] = _f64(buf, b + IMU_FORCE + 8 * k)
                 has_force[i] = True
         else:
             no_rate[i] = True

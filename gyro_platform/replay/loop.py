@@ -199,7 +199,8 @@ class _Run:
         finally:
             progress.close()
             try:
-                self._written()                     # what was simulated is written, whatever happened
+                with deferred_signals():            # what was simulated is written, whatever happened
+                    self._written()
             finally:
                 if self._writer is not None:
                     self._writer.shutdown()
