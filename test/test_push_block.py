@@ -43,12 +43,13 @@ def _push_all(sim, t, w, f=None):
     return outs
 
 
-@pytest.mark.parametrize("dt,jitter", [(2.5e-3, 2e-4), (0.95e-3, 1e-4)])
+@pytest.mark.parametrize("dt,jitter", [(2.5e-3, 2e-4), (0.95e-3, 1e-4), (1.0e-3, 2e-4)])
 @pytest.mark.parametrize("mode,integ", CASES + [("carried", "etd2")])
 def test_compiled_push_equals_python_integrators(mode, integ, dt, jitter):
     """One compiled call per sample gives the Python integrators' states (same controller,
     same grid chunks and last short step of etd) to round-off, with the same work counted.
-    Jittered samples: 2–3 chunks per interval (the chunk controller), or 1–2 around max_step."""
+    Jittered samples: 2–3 chunks per interval (the chunk controller), or 1–2 around max_step
+    and around (1 + STEP_SLACK)·max_step."""
     t, w, f = _signal(150, 1, dt=dt, jitter=jitter)
     opt = ModelOptions.make(mode, integrator=integ)
     fast, ref = Simulator(options=opt), Simulator(options=opt, compiled=False)
@@ -295,3 +296,20 @@ def test_auto_keeps_a_carried_platforms_angles_over_a_long_run():
     assert np.max(np.abs(got - ref)) < 1e-8
     sim2, etd2 = angles("etd2")
     assert np.max(np.abs(etd2 - ref)) > 30 * sim2.stats["max_error_estimate"]    # why not etd2
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_an_interval_up_to_slack_past_max_step_is_one_rk4_step(compiled):
+    """STEP_SLACK: with max_step 1 ms, intervals of 1.05 ms are one RK4 step each (a 1 kHz
+    driver's jittered stamps), intervals of 1.15 ms two; the same in the compiled and Python
+    controllers. A vehicle at rest keeps the controller at level 0."""
+    from gyro_platform.engine.integrators import STEP_SLACK
+
+    assert STEP_SLACK == pytest.approx(0.1)
+    opt = ModelOptions.make("stabilised", integrator="rk4")
+    for dt, per_interval in ((1.05e-3, 1), (1.15e-3, 2)):
+        sim = Simulator(options=opt, compiled=compiled)
+        n = 50
+        for i in range(n + 1):
+            sim.push(RateSample(i * dt, np.zeros(3), None))
+        assert sim.n_steps == n * per_interval

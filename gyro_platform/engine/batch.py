@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .integrators import COARSEN, MAX_JUMP
+from .integrators import COARSEN, MAX_JUMP, STEP_SLACK
 from .integrators import ETD2, TAIL_MIN, TAIL_ULP
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
@@ -264,6 +264,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         tail = 0
         t_tail = t1
         nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
+        if method == RK4:                   # as Controlled._base: up to (1 + STEP_SLACK)·max_step a chunk
+            nsub0 = int(math.ceil((t1 - t0) / max_step - STEP_SLACK))
         if nsub0 < 1:
             nsub0 = 1
         nchunk = nsub0

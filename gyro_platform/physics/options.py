@@ -55,7 +55,8 @@ class OptionsError(ValueError):
 class ModelOptions:
     """``mode``: carried | stabilised; ``fidelity``: full | linear | precession;
     ``effects``: names from ``EFFECTS``; ``integrator``: a name from ``integrators`` or
-    ``auto``; ``max_step`` (s): the largest internal step of a fixed-step integrator;
+    ``auto``; ``max_step`` (s): the largest internal step of a fixed-step integrator (the
+    equal-step ones take an input interval up to 1.1·max_step as one step: ``STEP_SLACK``);
     ``rtol``/``atol``: the local error tolerance every integrator is held to (weighted RMS
     norm of its error estimate ≤ 1, scale ``atol + rtol·|y|``; state units: rad, rad/s, …);
     ``max_substeps``: budget, no step shorter than ``max_step / max_substeps`` (a method that

@@ -19,7 +19,7 @@ Methods (see ``INTEGRATORS``):
 methods share. Imports only ``errors`` (and numpy, scipy, numba).
 """
 from .auto import AUTO_STICKY, Auto
-from .base import COARSEN, MAX_JUMP, MAX_SUBSTEPS, Controlled, Integrator, OdeSystem, StepStats, error_norm
+from .base import COARSEN, MAX_JUMP, MAX_SUBSTEPS, STEP_SLACK, Controlled, Integrator, OdeSystem, StepStats, error_norm
 from .exponential import ETD2, ETD4, TAIL_MIN, TAIL_ULP, TAYLOR_MAX, TAYLOR_TOL, ExpRosenbrock, taylor_bound
 from .implicit import ImplicitMidpoint
 from .jacobian import fd_jacobian, jacobian_of
@@ -28,6 +28,6 @@ from .rk import RK4
 from .scipy_methods import DOP853, RK45, Radau
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
-           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "Auto", "AUTO_STICKY", "RK4", "ETD2", "ETD4",
+           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "Auto", "AUTO_STICKY", "RK4", "ETD2", "ETD4",
            "ExpRosenbrock", "ImplicitMidpoint", "DOP853", "RK45", "Radau", "fd_jacobian", "jacobian_of",
            "TAIL_MIN", "TAIL_ULP", "TAYLOR_MAX", "TAYLOR_TOL", "taylor_bound"]
