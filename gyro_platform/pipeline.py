@@ -455,20 +455,17 @@ class Pipeline:
         return res
 
     def _offer(self, rb: Any, rx: np.ndarray, snaps: np.ndarray, into: dict[int, dict], at: int) -> Any:
-        """``offer_block`` of ``rb`` cut after each row of ``snaps`` inside it, the gate's
-        snapshot there kept in ``into`` (keyed by row + ``at``); one GateBlock."""
+        """``offer_block`` of ``rb``, the gate's snapshot after each row of ``snaps`` inside it
+        kept in ``into`` (keyed by row + ``at``)."""
         n = len(rx)
         cuts = snaps[(snaps >= 0) & (snaps < n)]
         if not len(cuts):
             return offer_block(self.gate, rb, rx)
-        gbs, lo = [], 0
-        for c in cuts.tolist():
-            gbs.append(offer_block(self.gate, rate_rows(rb, lo, c + 1), rx[lo:c + 1]))
-            into[c + at] = self.gate.snapshot()
-            lo = c + 1
-        if lo < n:
-            gbs.append(offer_block(self.gate, rate_rows(rb, lo, n), rx[lo:]))
-        return _concat_gate(gbs)
+        got: dict[int, dict] = {}
+        gb = offer_block(self.gate, rb, rx, cuts.tolist(), got)
+        for r, snap in got.items():
+            into[r + at] = snap
+        return gb
 
     def _simulate(self, res: BlockResult, rb: Any, refusable: bool) -> None:
         """The accepted rows of a gated block through the simulator, run by run."""

@@ -206,3 +206,27 @@ def test_rotate_block_gives_twist_rows_the_vehicle_frame():
     rb.omega[:] = [[0.1, 0.2, 0.3], [0.0, 0.0, 1.0]]
     out = Mounting(unknown_frame="reject").rotate_block(rb)        # no header: Twist, base_link
     assert out.frame_id == ["base_link", "base_link"] and (out.reject == 0).all() and not out.identity.any()
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rs=rows(), cfg=CONFIGS, snap_rows=st.lists(st.integers(0, 60), max_size=6), with_rx=st.booleans())
+def test_offer_block_snapshots_are_the_gate_after_their_rows(rs, cfg, snap_rows, with_rx):
+    """``offer_block(..., snap_rows, snapshots)``: the snapshot after each asked row is the one
+    of a gate that was offered the rows up to it one by one; the decisions and the final state
+    are those of a block without snapshots."""
+    ref, blk, plain = TimeGate(cfg), TimeGate(cfg), TimeGate(cfg)
+    want = {}
+    asked = {r for r in snap_rows if r < len(rs)}
+    for i, r in enumerate(rs):
+        ref.offer(reading_of(r, i), r["rx"] if with_rx else None)
+        if i in asked:
+            want[i] = ref.snapshot()
+    rb = block_of(rs)
+    rx = np.array([r["rx"] for r in rs], np.int64) if with_rx else None
+    got: dict[int, dict] = {}
+    gb = blk.offer_block(rb, rx, snap_rows, got)
+    gp = plain.offer_block(block_of(rs), rx)
+    assert got == want
+    assert gb.action.tolist() == gp.action.tolist() and gb.reason.tolist() == gp.reason.tolist()
+    np.testing.assert_array_equal(gb.t, gp.t)
+    assert state(blk) == state(ref) == state(plain)

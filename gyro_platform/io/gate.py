@@ -422,12 +422,15 @@ class TimeGate:
         return Decision(action, reason, sample, t_ns, source, detail)
 
     # ---- blocks -----------------------------------------------------------------------
-    def offer_block(self, rb: "RateBlock", receive_ns: np.ndarray | None = None) -> GateBlock:
+    def offer_block(self, rb: "RateBlock", receive_ns: np.ndarray | None = None, snap_rows: Any = (),
+                    snapshots: dict[int, dict] | None = None) -> GateBlock:
         """Decide about every row of ``rb`` (rows in base_link: :meth:`Mounting.rotate_block`),
         ``receive_ns`` int64 (N,) their receive times (None: unknown). Same decisions, counters,
         notes, last decision and rate estimates as one :meth:`offer` per row; runs of plain rows
         (usable, finite, within ``max_rate``, time valid, increasing, no gap, source locked) are
-        decided with array operations, every other row by :meth:`offer`."""
+        decided with array operations, every other row by :meth:`offer`. ``snapshots`` (a dict):
+        the :meth:`snapshot` after each row of ``snap_rows`` is stored there under its row (what
+        it would be after ``offer_block`` of the rows up to it)."""
         n = len(rb)
         action = np.full(n, DROP, np.int8)
         reason = np.zeros(n, np.int16)
@@ -438,8 +441,12 @@ class TimeGate:
         cfg, s = self.config, self._s
         rx = None if receive_ns is None else np.asarray(receive_ns, np.int64)
         rx_list = None if rx is None else rx.tolist()
-        if rx_list is not None:
+        snaps = sorted({int(r) for r in snap_rows if 0 <= r < n}) if snapshots is not None else []
+        ks = 0                                  # the next snapshot row: snaps[ks]
+        arrived = 0                             # arrivals counted up to this row (exclusive)
+        if rx_list is not None and not snaps:
             self._arrivals(rx, rx_list)
+            arrived = n
 
         w, f = rb.omega, rb.force
         with np.errstate(all="ignore"):
@@ -470,17 +477,27 @@ class TimeGate:
             if tn is not None and intrinsic[i] and 0 < int(tn[i]) - s.last_ns <= gap_ns:
                 k = int(np.searchsorted(stops, i + 1))
                 j = int(stops[k]) if k < len(stops) else n
+                if ks < len(snaps) and snaps[ks] < j:       # the run cut after a snapshot row
+                    j = snaps[ks] + 1
                 self._accept_run(rb, tn, i, j, action, reason, t, stamp)
                 i = j
-                continue
-            d1 = self._offer(reading_of(rb, i), None if rx_list is None else rx_list[i])
-            action[i] = ACTION_CODE[d1.action]
-            reason[i] = REASON_INDEX[d1.reason]
-            if d1.sample is not None:
-                t[i] = d1.sample.t
-            if d1.stamp_ns is not None:
-                stamp[i] = d1.stamp_ns
-            i += 1
+            else:
+                d1 = self._offer(reading_of(rb, i), None if rx_list is None else rx_list[i])
+                action[i] = ACTION_CODE[d1.action]
+                reason[i] = REASON_INDEX[d1.reason]
+                if d1.sample is not None:
+                    t[i] = d1.sample.t
+                if d1.stamp_ns is not None:
+                    stamp[i] = d1.stamp_ns
+                i += 1
+            if ks < len(snaps) and snaps[ks] == i - 1:
+                if rx_list is not None:                     # the arrivals up to that row
+                    self._arrivals(rx[arrived:i], rx_list[arrived:i])
+                    arrived = i
+                snapshots[i - 1] = self.snapshot()
+                ks += 1
+        if rx_list is not None and arrived < n:
+            self._arrivals(rx[arrived:], rx_list[arrived:])
         return GateBlock(action, reason, t, stamp)
 
     def _arrivals(self, rx: np.ndarray, rx_list: list[int]) -> None:
