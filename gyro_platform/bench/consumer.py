@@ -162,9 +162,12 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
     # one untimed run first: the compiled code of the replay path loaded (numba caches), as in
     # any run after the first of a process; the first run's own figure is kept beside
     first = replay_once(bag, work / f"{name}_first", extra)
+    _discard(work / f"{name}_first")
     summary: dict = {}
     for i in range(repeats):
         summary = replay_once(bag, work / f"{name}_{i}", extra)
+        if i:                             # the first is kept for the SQLite floor row
+            _discard(work / f"{name}_{i}")
         rtf.append(summary["real_time_factor"])
         us.append(summary["wall_time_s"] / max(summary["counts"]["in"], 1) * 1e6)
         walls.append(summary["command_wall_s"])
@@ -176,10 +179,20 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
                      "integrator": summary["simulator"]["stats"]["integrator"],
                      "max_error_norm": summary["simulator"]["stats"].get("max_error_norm")})
     if whole:
-        w = [replay_subprocess(bag, work / f"{name}_sub{i}", extra) for i in range(repeats)]
+        w = []
+        for i in range(repeats):
+            w.append(replay_subprocess(bag, work / f"{name}_sub{i}", extra))
+            _discard(work / f"{name}_sub{i}")
         row.extra["whole_command_wall_s"] = float(np.median(w))
         row.extra["whole_command_rtf"] = summary["duration_s"] / float(np.median(w))
     return row
+
+
+def _discard(out: Path) -> None:
+    """Delete an output bag once its figures are read: the ~70 MB each 1 kHz run writes would
+    otherwise sit in the page cache and be flushed to disk during the runs after it (the
+    kernel's writeback would then be timed with them; unlinking drops unwritten pages)."""
+    shutil.rmtree(out, ignore_errors=True)
 
 
 def node_us(msgs: list, repeats: int) -> dict[str, float]:
