@@ -4,9 +4,12 @@ Every input message is copied to the output bag (same record time); the input to
 through :class:`~gyro_platform.pipeline.Pipeline` (gate → simulator → output grid) and the
 outputs are written with the receive time of the message that produced them; ``/diagnostics``
 runs on the receive clock. ``engine="chunked"`` (default): chunks of rows, one gate block and
-one ``push_block`` per run of accepted rows (``Pipeline.run_block``), one chunk in memory at a
-time; ``engine="per_message"``: the reference, one message at a time. Progress: ``tqdm`` on
-stderr, shown only on a terminal. SIGINT/SIGTERM end the loop at a chunk boundary.
+one ``push_block`` per run of accepted rows (``Pipeline.run_block``), three chunks in memory at
+most: the next one read and decoded on a reader thread (``pipeline.prefetched``), this one gated
+and simulated here, the one before copied, encoded and written on a writer thread;
+``engine="per_message"``: the reference, one message at a time. Progress: ``tqdm`` on stderr,
+shown only on a terminal. SIGINT/SIGTERM end the loop at a chunk boundary (what was simulated
+is written before the bag is closed).
 """
 from __future__ import annotations
 
