@@ -365,3 +365,29 @@ def test_prefetched_gives_every_item_in_order_then_the_error_and_stops_its_threa
     with closing(prefetched(source(10_000, False), lambda i: i)) as feed:
         assert next(feed) == (0, 0)
     assert not [t for t in threading.enumerate() if t.name == "gyro-bag-reader"]
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_chunks_end_at_their_payload_bound(tmp_path, storage, monkeypatch):
+    """A bag with big messages on another topic (camera images beside the Imu): a chunk ends
+    before it holds more than CHUNK_BYTES of payload, whatever rows were asked;
+    the rows and their order are those of unbounded reading."""
+    from gyro_platform.io import bag_reader
+
+    rows = []
+    for i in range(400):
+        t = T0 + i * 1_000_000
+        rows.append(("/imu", IMU, t, cdr(imu(t, (i * 1e-3, 0.0, 0.0)), IMU)))
+        if i % 10 == 0:                        # a 20 kB "image" every 10 ms
+            rows.append(("/note", STR, t, cdr(T[STR](data="x" * 20_000), STR)))
+    bag = write_rosbags(tmp_path / "b", rows, storage)
+    with InputBag(bag) as b:
+        plain = list(b.chunks(max_rows=100_000))
+    monkeypatch.setattr(bag_reader, "CHUNK_BYTES", 100_000)
+    monkeypatch.setattr(bag_reader, "FETCH_ROWS", 16)
+    with InputBag(bag) as b:
+        got = list(b.chunks(max_rows=100_000))
+    sizes = [sum(len(r) for r in c.raws) for c in got]
+    assert len(got) > 5 and max(sizes) <= 100_000
+    assert [r for c in got for r in c.raws] == [r for c in plain for r in c.raws]
+    np.testing.assert_array_equal(np.concatenate([c.ts for c in got]), np.concatenate([c.ts for c in plain]))

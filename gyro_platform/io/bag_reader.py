@@ -17,10 +17,17 @@ from . import messages as msgs
 from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .bag_fast import Batch, McapBag, row_batches
 from .bag_salvage import Salvage
-from .blocks import RowChunk, concat_rows
+from .blocks import RawRows, RowChunk, concat_rows
 from .messages import INPUT_TYPES
 from .typedefs import core_msgdef, core_typestore, has_type
 
+
+#: a chunk of :meth:`InputBag.chunks` ends once its rows hold this much payload (bytes), however
+#: many rows were asked: a 1 kHz Imu chunk of 32 768 rows is ~11 MB, but a bag that also carries
+#: camera images would otherwise put gigabytes in one chunk
+CHUNK_BYTES = 64 * 2 ** 20
+#: rows fetched at a time from SQLite or rosbags before they are cut into chunks
+FETCH_ROWS = 4096
 
 class InputBag:
     """Streaming reader of one rosbag2 bag: connections up front, messages as a generator
@@ -208,7 +215,8 @@ class InputBag:
                pace: Callable[[], int] | None = None) -> Iterator[RowChunk]:
         """The rows of :meth:`messages` in blocks of at most ``max_rows`` (:class:`RowChunk`:
         connection ids, receive times ns, CDR bytes): same rows, same order, same errors (every
-        row before a damage is yielded, then BagReadError). ``pace``: asked before each block
+        row before a damage is yielded, then BagReadError). A block also ends once it holds
+        ``CHUNK_BYTES`` of payload (a bag with camera images on other topics stays bounded). ``pace``: asked before each block
         for its size (≤ ``max_rows``; e.g. ``pipeline.ChunkPacer``). Intact sqlite3 and indexed
         MCAP bags are read by :mod:`.bag_fast` (no Python object per row); the rest through
         rosbags or the salvage reader."""
@@ -219,11 +227,11 @@ class InputBag:
         if self._mcap is not None:
             batches, self.chunk_source = self._mcap.batches(conns), "mcap"
         elif self._reader is not None and conns:
-            batches = row_batches(self._reader, conns, max_rows)
+            batches = row_batches(self._reader, conns, min(max_rows, FETCH_ROWS))
             self.chunk_source = "rosbags" if batches is None else "fast"
         if batches is None:
             self.chunk_source = "salvage" if self._salvage is not None else "rosbags"
-            batches = _batches(self._source(conns), max_rows)
+            batches = _batches(self._source(conns), min(max_rows, FETCH_ROWS))
         return _rechunk(self._guarded(batches, conns, lambda b: len(b[1])),
                         (lambda: max_rows) if pace is None else (lambda: max(1, min(max_rows, pace()))))
 
@@ -300,17 +308,21 @@ def _batches(src: Iterator[tuple[Any, int, bytes]], max_rows: int) -> Iterator[B
 
 
 def _rechunk(batches: Iterator[Batch], rows: Callable[[], int]) -> Iterator[RowChunk]:
-    """RowChunks of exactly ``rows()`` rows (asked before each; the last one shorter) from
-    batches of any size; rows collected before an error are yielded before it propagates."""
+    """RowChunks of exactly ``rows()`` rows (asked before each; the last one shorter), or fewer:
+    at most ``CHUNK_BYTES`` of payload (at least one row), from batches of any size; rows
+    collected before an error are yielded before it propagates."""
     parts: list[Batch] = []
-    have = 0
+    have = nbytes = 0
     try:
         for b in batches:
             parts.append(b)
             have += len(b[1])
-            while have >= (m := rows()):
+            nbytes += _payload(b[2])
+            while have and (have >= (m := rows()) or nbytes >= CHUNK_BYTES):
+                m = min(m, have, _rows_within(parts, CHUNK_BYTES))
                 chunk, parts = _take(parts, m)
                 have -= m
+                nbytes = sum(_payload(p[2]) for p in parts)
                 yield chunk
     except Exception:
         if have:
@@ -318,6 +330,24 @@ def _rechunk(batches: Iterator[Batch], rows: Callable[[], int]) -> Iterator[RowC
         raise
     if have:
         yield _take(parts, have)[0]
+
+
+def _rows_within(parts: list[Batch], limit: int) -> int:
+    """How many of the first rows of ``parts`` hold at most ``limit`` bytes of payload (at least 1)."""
+    got = done = 0
+    for _, _, raws in parts:
+        lens = raws.lens() if isinstance(raws, RawRows) else np.fromiter(map(len, raws), np.int64, len(raws))
+        ends = got + np.cumsum(lens)
+        k = int(np.searchsorted(ends, limit, side="right"))
+        if k < len(lens):
+            return max(1, done + k)
+        got, done = int(ends[-1]) if len(lens) else got, done + len(lens)
+    return max(1, done)
+
+
+def _payload(raws: Any) -> int:
+    """Payload bytes of a batch's rows (a list of bytes or a RawRows)."""
+    return int(raws.lens().sum()) if isinstance(raws, RawRows) else sum(map(len, raws))
 
 
 def _take(parts: list[Batch], n: int) -> tuple[RowChunk, list[Batch]]:
