@@ -29,6 +29,7 @@ CHUNK_BYTES = 64 * 2 ** 20
 #: rows fetched at a time from SQLite or rosbags before they are cut into chunks
 FETCH_ROWS = 4096
 
+
 class InputBag:
     """Streaming reader of one rosbag2 bag: connections up front, messages as a generator
     (:meth:`messages`) or in blocks (:meth:`chunks`).
@@ -215,8 +216,8 @@ class InputBag:
                pace: Callable[[], int] | None = None) -> Iterator[RowChunk]:
         """The rows of :meth:`messages` in blocks of at most ``max_rows`` (:class:`RowChunk`:
         connection ids, receive times ns, CDR bytes): same rows, same order, same errors (every
-        row before a damage is yielded, then BagReadError). A block also ends once it holds
-        ``CHUNK_BYTES`` of payload (a bag with camera images on other topics stays bounded). ``pace``: asked before each block
+        row before a damage is yielded, then BagReadError); a block holds at most ``CHUNK_BYTES``
+        of payload (camera images on other topics stay bounded). ``pace``: asked before each block
         for its size (≤ ``max_rows``; e.g. ``pipeline.ChunkPacer``). Intact sqlite3 and indexed
         MCAP bags are read by :mod:`.bag_fast` (no Python object per row); the rest through
         rosbags or the salvage reader."""
@@ -319,7 +320,7 @@ def _rechunk(batches: Iterator[Batch], rows: Callable[[], int]) -> Iterator[RowC
             have += len(b[1])
             nbytes += _payload(b[2])
             while have and (have >= (m := rows()) or nbytes >= CHUNK_BYTES):
-                m = min(m, have, _rows_within(parts, CHUNK_BYTES))
+                m = min(m, have) if nbytes < CHUNK_BYTES else min(m, have, _rows_within(parts, CHUNK_BYTES))
                 chunk, parts = _take(parts, m)
                 have -= m
                 nbytes = sum(_payload(p[2]) for p in parts)
