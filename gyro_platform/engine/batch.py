@@ -263,9 +263,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         q = 0.0
         tail = 0
         t_tail = t1
-        nsub0 = int(math.ceil((t1 - t0) / max_step - 1e-9))
-        if method == RK4:                   # as Controlled._base: up to (1 + STEP_SLACK)·max_step a chunk
-            nsub0 = int(math.ceil((t1 - t0) / max_step - STEP_SLACK))
+        # chunks as Controlled._base (RK4: up to (1 + STEP_SLACK)·max_step each) or _ETD._plan
+        nsub0 = int(math.ceil((t1 - t0) / max_step - (STEP_SLACK if method == RK4 else 1e-9)))
         if nsub0 < 1:
             nsub0 = 1
         nchunk = nsub0

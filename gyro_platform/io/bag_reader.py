@@ -17,7 +17,7 @@ from . import messages as msgs
 from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .bag_fast import Batch, McapBag, row_batches
 from .bag_salvage import Salvage
-from .blocks import RawRows, RowChunk, concat_rows
+from .blocks import RowChunk, concat_rows, row_lens
 from .messages import INPUT_TYPES
 from .typedefs import core_msgdef, core_typestore, has_type
 
@@ -337,7 +337,7 @@ def _rows_within(parts: list[Batch], limit: int) -> int:
     """How many of the first rows of ``parts`` hold at most ``limit`` bytes of payload (at least 1)."""
     got = done = 0
     for _, _, raws in parts:
-        lens = raws.lens() if isinstance(raws, RawRows) else np.fromiter(map(len, raws), np.int64, len(raws))
+        lens = row_lens(raws)
         ends = got + np.cumsum(lens)
         k = int(np.searchsorted(ends, limit, side="right"))
         if k < len(lens):
@@ -348,7 +348,7 @@ def _rows_within(parts: list[Batch], limit: int) -> int:
 
 def _payload(raws: Any) -> int:
     """Payload bytes of a batch's rows (a list of bytes or a RawRows)."""
-    return int(raws.lens().sum()) if isinstance(raws, RawRows) else sum(map(len, raws))
+    return int(row_lens(raws).sum())
 
 
 def _take(parts: list[Batch], n: int) -> tuple[RowChunk, list[Batch]]:

@@ -32,7 +32,7 @@ import apsw
 import numpy as np
 
 from .bag_fast import gather_rows
-from .blocks import RawRows
+from .blocks import RawRows, row_lens
 
 #: commit bound: a chunk is committed after this many messages …
 COMMIT_ROWS = 100_000
@@ -88,8 +88,7 @@ def as_bytes_list(raws: Any) -> list[Any]:
 
 def payload_bytes(raws: Any) -> int:
     """Total payload size of ``raws`` (bytes)."""
-    return sum(int(_seg_lens(seg).sum()) if isinstance(seg, RawRows) else
-               seg.size if isinstance(seg, np.ndarray) else sum(map(len, seg)) for seg in segments(raws))
+    return sum(int(_seg_lens(seg).sum()) for seg in segments(raws))
 
 
 def _seg_list(seg: Any) -> list[Any]:
@@ -103,9 +102,7 @@ def _seg_list(seg: Any) -> list[Any]:
 def _seg_lens(seg: Any) -> np.ndarray:
     if isinstance(seg, np.ndarray):
         return np.full(len(seg), seg.shape[1], np.int64)
-    if isinstance(seg, RawRows):
-        return seg.lens()
-    return np.fromiter(map(len, seg), np.int64, len(seg))
+    return row_lens(seg)
 
 
 def _fixed(seg: Any, lens: np.ndarray) -> np.ndarray | None:
@@ -239,7 +236,7 @@ def storage_classes():
             cids = np.concatenate([p[0] for p in parts])
             ts = np.concatenate([p[1] for p in parts])
             raws = [r for p in parts for r in as_bytes_list(p[2])]
-            lens = np.fromiter(map(len, raws), np.int64, len(raws))
+            lens = row_lens(raws)
             bounds, acc, row = {0, len(raws)}, 0, 0
             for p in parts:
                 k = len(p[1])

@@ -68,6 +68,11 @@ class RawRows:
         return cls(np.concatenate(bufs), np.concatenate(begs), np.concatenate(ends))
 
 
+def row_lens(raws) -> np.ndarray:
+    """Payload sizes (bytes, int64) of a list of bytes or a :class:`RawRows`."""
+    return raws.lens() if isinstance(raws, RawRows) else np.fromiter(map(len, raws), np.int64, len(raws))
+
+
 def take_rows(raws, idx: np.ndarray):
     """Rows ``idx`` (int array) of a list of bytes or a :class:`RawRows`, in that order."""
     if isinstance(raws, RawRows):

@@ -25,7 +25,7 @@ from typing import Any, Sequence
 import numpy as np
 from numba import njit
 
-from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail
+from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail, row_lens
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
 from .typedefs import core_typestore, has_type
 
@@ -71,7 +71,7 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
     if isinstance(raws, RawRows):                 # in place in their buffer (an MCAP chunk)
         buf, beg, lens = raws.buf, raws.beg, raws.lens()
     else:
-        lens = np.fromiter(map(len, raws), np.int64, n)
+        lens = row_lens(raws)
         buf = np.frombuffer(b"".join(raws), np.uint8)
         beg = np.zeros(n, np.int64)
         np.cumsum(lens[:-1], out=beg[1:])
