@@ -27,6 +27,7 @@ setup(
         "apsw>=3.40",       # the sqlite3 output bag's writer (rosbags reads with it too)
         "mcap>=1.1",        # damaged-bag salvage: io/bag_salvage.py reads MCAP records in file order
         "tqdm>=4.60",       # replay progress bar
+        "threadpoolctl>=3.1",  # one BLAS thread per process (engine/blas.py)
     ],
     extras_require={
         "dds": ["cyclonedds>=11.0.1"],

@@ -105,6 +105,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)
         return EXIT_USAGE
     prog = f"gyro-platform {args.command}"
+    from .engine.blas import limit_blas_threads
+    limit_blas_threads()                            # small matrices: one BLAS thread (engine.blas)
     with StopSignals(prog, final=argv is None):      # argv None: the process's own command line
         try:
             return int(importlib.import_module(args._module).run(args) or 0)

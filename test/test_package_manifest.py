@@ -31,6 +31,7 @@ PROVIDERS = {
     "numba": PIP,
     "rosbags": PIP,
     "apsw": PIP,
+    "threadpoolctl": PIP,
     "cyclonedds": PIP,
     "rclpy": "rclpy",
     "ament_index_python": "ament_index_python",

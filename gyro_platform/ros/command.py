@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+from ..engine.blas import limit_blas_threads
 from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 TRANSPORTS = ("auto", "ros", "dds")
 
@@ -72,6 +73,7 @@ def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any
     every kernel the first real samples need, before the node subscribes and says "ready".
     ``make_input()`` returns a zeroed input message of the binding; ``encode(topic, msg)``, if
     given, serialises each output (the DDS encoders). Returns the number of output messages."""
+    limit_blas_threads()        # before any matrix is built (engine.blas)
     scratch = type(core)(core.config, core.types)
     n = 0
     t0 = 1_000_000_000

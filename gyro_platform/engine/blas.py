@@ -1,0 +1,29 @@
+"""One BLAS thread per process: the engine's matrices are small (≤ 70 × 70).
+
+NumPy's and SciPy's OpenBLAS start a worker per core and use them for products as small as the
+exponential methods' stage matrices (``scipy.linalg.expm`` on 14 × 14 blocks). After each
+threaded call the idle workers spin for ~2^28 cycles (OpenBLAS's thread timeout: ~0.1 s here)
+before they sleep: CPU the replay's reader and writer threads need on a 2-core machine, and
+13 µs per sample of a 10-s carried run's CPU time (etd4 28 → 14 µs, measured in session 7).
+:func:`limit_blas_threads` sets one thread per BLAS library through ``threadpoolctl`` (what
+scikit-learn and joblib use), once per process; the command line and the ROS node call it at
+start. Library users decide for their own process (the same call, or
+``OPENBLAS_NUM_THREADS=1``). Imports nothing of this package.
+"""
+from __future__ import annotations
+
+__all__ = ["limit_blas_threads"]
+
+_done = False
+
+
+def limit_blas_threads() -> None:
+    """Use one thread in every BLAS library loaded (NumPy's, SciPy's); idempotent."""
+    global _done
+    if _done:
+        return
+    import scipy.linalg  # noqa: F401  (load SciPy's BLAS first: threadpoolctl limits loaded libraries)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
+    _done = True

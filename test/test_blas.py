@@ -1,0 +1,37 @@
+"""One BLAS thread per process (engine.blas): every BLAS library loaded, NumPy's and SciPy's,
+ends at one thread, and the command line sets it before a command runs."""
+import json
+import subprocess
+import sys
+
+PROBE = """
+import json
+from threadpoolctl import threadpool_info
+{setup}
+print(json.dumps([(i["filepath"], i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"]))
+"""
+
+
+def _blas_threads(setup: str) -> list:
+    """(library path, threads) of every BLAS library in a fresh interpreter after ``setup``
+    (started with two threads, as on a 2-core machine)."""
+    out = subprocess.run([sys.executable, "-c", PROBE.format(setup=setup)], capture_output=True, text=True,
+                         env={"OPENBLAS_NUM_THREADS": "2", "PATH": ""}, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_every_blas_library_ends_at_one_thread():
+    before = _blas_threads("import numpy, scipy.linalg")
+    assert len(before) >= 1 and all(n == 2 for _, n in before)      # the probe sees them at 2
+    after = _blas_threads("import numpy\nfrom gyro_platform.engine.blas import limit_blas_threads\n"
+                          "limit_blas_threads()")
+    assert {p for p, _ in after} >= {p for p, _ in before}           # SciPy's loaded and limited too
+    assert all(n == 1 for _, n in after)
+
+
+def test_the_command_line_limits_before_the_command_runs():
+    # a command that is refused (exit 2: no such scene) has still passed the set-up
+    after = _blas_threads("import contextlib, io\nimport gyro_platform.cli as c\n"
+                          "with contextlib.redirect_stderr(io.StringIO()):\n"
+                          "    assert c.main(['run', '/nonexistent/scene.yaml']) == 2")
+    assert after and all(n == 1 for _, n in after)
