@@ -447,3 +447,26 @@ def test_writer_thread_error_is_raised_at_close_and_keeps_what_was_written(tmp_p
     rows, counts = read_all(tmp_path / "o")
     assert counts["/imu"] == len(rows) == 400
     assert [stamp_of(r) for _, _, r in rows] == list(range(400))
+
+
+def test_yaml_memo_keeps_texts_apart():
+    """_LibYaml keeps the texts of small values: equal values give the text PyYAML gives,
+    values that differ in any field (a QoS depth) give their own."""
+    import io as _io
+
+    from rosbags.rosbag2.metadata import dump_qos_v9
+
+    from gyro_platform.io.bag_storage import _LibYaml
+    from gyro_platform.io.bag_writer import default_qos
+
+    def text(value):
+        s = _io.StringIO()
+        _LibYaml().dump(value, s)
+        return s.getvalue()
+
+    a = dump_qos_v9(default_qos())
+    b = dump_qos_v9(default_qos())
+    b[0]["depth"] = 11
+    ta, tb, ta2 = text(a), text(b), text(dump_qos_v9(default_qos()))
+    assert ta == ta2 == yaml.dump(a, Dumper=yaml.SafeDumper, default_flow_style=False, sort_keys=True)
+    assert tb != ta and yaml.safe_load(tb)[0]["depth"] == 11
