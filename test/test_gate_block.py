@@ -82,7 +82,7 @@ def state(g: TimeGate) -> dict:
     return snap
 
 
-CONFIGS = st.builds(GateConfig, max_gap=st.sampled_from([1.0, 0.5, 2.5]),
+CONFIGS = st.builds(GateConfig, max_gap=st.sampled_from([1.0, 0.5, 2.5, 1e7]),   # 1e7 s: > 2**53 ns
                     on_gap=st.sampled_from(["reset", "integrate"]),
                     reset_on_jump_back=st.sampled_from([1.0, 0.0, 5.0]),
                     time_source=st.sampled_from(["auto", "auto", "header", "receive"]),

@@ -218,6 +218,63 @@ def _ema_kernel(e, unset, d_ns, a):  # pragma: no cover - compiled
     return e
 
 
+@njit(cache=True)
+def _usable_rows(w, f, has_force, reject, max_rate, require_f):  # pragma: no cover - compiled
+    """Rows whose values the gate can take as they are: not rejected by the decoder, rate finite
+    and within ``max_rate`` (|ω| by the same float operations as the scalar gate), specific
+    force finite where present (and present if ``require_f``)."""
+    n = w.shape[0]
+    out = np.zeros(n, np.bool_)
+    for k in range(n):
+        w0, w1, w2 = w[k, 0], w[k, 1], w[k, 2]
+        ok = reject[k] == 0 and np.isfinite(w0) and np.isfinite(w1) and np.isfinite(w2)
+        ok = ok and np.sqrt(w0 * w0 + w1 * w1 + w2 * w2) <= max_rate
+        if has_force[k]:
+            ok = ok and np.isfinite(f[k, 0]) and np.isfinite(f[k, 1]) and np.isfinite(f[k, 2])
+        elif require_f:
+            ok = False
+        out[k] = ok
+    return out
+
+
+@njit(cache=True)
+def _accept_rows(tn, i, j, last_ns, origin, e, unset, a, t, stamp):  # pragma: no cover - compiled
+    """Rows i..j−1 of a plain run: ``t`` (s after ``origin``) and ``stamp`` (ns) filled, the
+    interval EMA ``e`` (``unset``: none yet) advanced over each row's interval after the one
+    before (``last_ns`` before row i); returns it. The float operations of :func:`_ema`."""
+    prev = last_ns
+    for k in range(i, j):
+        x = tn[k]
+        dt = (x - prev) / 1_000_000_000
+        if unset:
+            e = dt
+            unset = False
+        else:
+            e = e + a * (dt - e)
+        prev = x
+        t[k] = (x - origin) / 1_000_000_000
+        stamp[k] = x
+    return e
+
+
+@njit(cache=True)
+def _arrival_ema(rx, first, has_first, gap_ns, e, unset, a):  # pragma: no cover - compiled
+    """The arrival-interval EMA over receive times ``rx`` (int64 ns; ``first``: the one before,
+    if ``has_first``), intervals outside (0, gap_ns] skipped; returns (e, unset)."""
+    prev = first
+    for k in range(rx.shape[0]):
+        d = rx[k] - prev
+        if (k > 0 or has_first) and 0 < d <= gap_ns:
+            dt = d / 1_000_000_000
+            if unset:
+                e = dt
+                unset = False
+            else:
+                e = e + a * (dt - e)
+        prev = rx[k]
+    return e, unset
+
+
 def _ns_floor(seconds: float) -> int:
     """Largest integer ns ≤ ``seconds``·1e9, so that ``d > seconds*NS`` ⟺ ``d > _ns_floor`` for int d."""
     return min(math.floor(seconds * NS), 2**62)
@@ -448,13 +505,8 @@ class TimeGate:
             self._arrivals(rx, rx_list)
             arrived = n
 
-        w, f = rb.omega, rb.force
-        with np.errstate(all="ignore"):
-            rate = np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2])
-            usable = (rb.reject == 0) & np.isfinite(w).all(axis=1) & (rate <= cfg.max_rate)
-        usable &= np.isfinite(f).all(axis=1) | ~rb.has_force
-        if cfg.require_specific_force:
-            usable &= rb.has_force
+        usable = _usable_rows(rb.omega, rb.force, rb.has_force, rb.reject, float(cfg.max_rate),
+                              bool(cfg.require_specific_force))
         gap_ns = _ns_floor(cfg.max_gap)
 
         tn = plain_next = intrinsic = stops = None
@@ -503,32 +555,45 @@ class TimeGate:
     def _arrivals(self, rx: np.ndarray, rx_list: list[int]) -> None:
         """The arrival-rate update of :meth:`offer` for every receive time of a block (same float operations)."""
         s = self._s
-        prev = np.empty(len(rx), np.int64)
-        prev[1:] = rx[:-1]
         first = s.rx_last
-        prev[0] = 0 if first is None else first
-        d = rx - prev
-        ok = (d > 0) & (d <= _ns_floor(self.config.max_gap))
-        if first is None:
-            ok[0] = False
-        s.rx_dt_ema = _ema(s.rx_dt_ema, d[ok], self.config.rate_smoothing)
+        gap_ns = _ns_floor(self.config.max_gap)
+        if gap_ns < _EXACT_NS and rx_list[0] < 2**62 and rx_list[-1] < 2**62 and min(rx_list) > -2**62:
+            e, unset = _arrival_ema(rx, 0 if first is None else first, first is not None, gap_ns,
+                                    np.nan if s.rx_dt_ema is None else s.rx_dt_ema, s.rx_dt_ema is None,
+                                    self.config.rate_smoothing)
+            s.rx_dt_ema = None if unset else float(e)
+        else:                                   # int64 differences could wrap or lose digits
+            prev = np.empty(len(rx), np.int64)
+            prev[1:] = rx[:-1]
+            prev[0] = 0 if first is None else first
+            d = rx - prev
+            ok = (d > 0) & (d <= gap_ns)
+            if first is None:
+                ok[0] = False
+            s.rx_dt_ema = _ema(s.rx_dt_ema, d[ok], self.config.rate_smoothing)
         s.rx_last = int(rx_list[-1])
 
     def _accept_run(self, rb: "RateBlock", tn: np.ndarray, i: int, j: int, action: np.ndarray,
                     reason: np.ndarray, t: np.ndarray, stamp: np.ndarray) -> None:
         """Accept rows i..j-1 (a plain run: each within (0, max_gap] after the previous one)."""
         s, m = self._s, j - i
-        run = tn[i:j]
-        prev = np.empty(m, np.int64)
-        prev[0] = s.last_ns
-        prev[1:] = run[:-1]
-        s.dt_ema = _ema(s.dt_ema, run - prev, self.config.rate_smoothing)
-        s.last_ns = last_ns = int(run[-1])
         origin = s.origin_ns
+        if _ns_floor(self.config.max_gap) < _EXACT_NS and -2**62 <= origin <= 2**62:
+            # (the run's times are within 2**62: offer_block vectorises no others)
+            s.dt_ema = float(_accept_rows(tn, i, j, s.last_ns, origin,
+                                          np.nan if s.dt_ema is None else s.dt_ema, s.dt_ema is None,
+                                          self.config.rate_smoothing, t, stamp))
+        else:                                   # intervals beyond 2**53 ns: exact Python division
+            run = tn[i:j]
+            prev = np.empty(m, np.int64)
+            prev[0] = s.last_ns
+            prev[1:] = run[:-1]
+            s.dt_ema = _ema(s.dt_ema, run - prev, self.config.rate_smoothing)
+            t[i:j] = (run - origin) / NS
+            stamp[i:j] = run
+        s.last_ns = last_ns = int(tn[j - 1])
         action[i:j] = ACCEPT
         reason[i:j] = REASON_INDEX["ok"]
-        t[i:j] = (run - origin) / NS
-        stamp[i:j] = run
         self.received += m
         self.counts["ok"] += m
         if s.source == "receive":
