@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from gyro_platform.errors import OutputError
 from gyro_platform.io import bag_storage as bs
@@ -32,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TYPES = m.MessageTypes.rosbags()
 STORE = m.jazzy_typestore()
 STORAGES = ["sqlite3", "mcap"]
+BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 
 
 def imu_raws(n: int, start: int = 0) -> list[bytes]:
@@ -470,3 +473,39 @@ def test_yaml_memo_keeps_texts_apart():
     ta, tb, ta2 = text(a), text(b), text(dump_qos_v9(default_qos()))
     assert ta == ta2 == yaml.dump(a, Dumper=yaml.SafeDumper, default_flow_style=False, sort_keys=True)
     assert tb != ta and yaml.safe_load(tb)[0]["depth"] == 11
+
+
+_NAMES = st.sampled_from(["a", "name", "/imu/data", "sensor_msgs/msg/Imu", "x-1.mcap", "_k", "", "yes", "No",
+                          "null", "ON", "1.0", "0x1f", "has space", "a: b", "#c", "~", "-x", "é", "RIHS01_" + "f" * 64,
+                          "k" * 120])
+_SCALARS = st.one_of(_NAMES, st.integers(-2**63, 2**64), st.booleans(), st.none(), st.floats(allow_nan=False))
+_YAML_DATA = st.recursive(_SCALARS, lambda kids: st.one_of(st.lists(kids, max_size=4),
+                                                          st.dictionaries(_NAMES, kids, max_size=5)), max_leaves=30)
+
+
+@settings(max_examples=400, deadline=None)
+@given(data=st.dictionaries(_NAMES, _YAML_DATA, min_size=1, max_size=6))
+def test_block_yaml_is_pyyamls_text_or_declines(data):
+    """The fast metadata text equals PyYAML's wherever it is given (None: PyYAML dumps it)."""
+    from gyro_platform.io.bag_storage import block_yaml
+
+    text = block_yaml(data)
+    if text is not None:
+        assert text == yaml.dump(data, Dumper=yaml.CSafeDumper, default_flow_style=False, sort_keys=True)
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+def test_block_yaml_takes_a_written_bags_metadata(tmp_path, storage):
+    """The metadata of a bag written here (mappings, lists of mappings, QoS, '' and null) takes
+    the fast path, with PyYAML's text; the shared recordings' (QoS as text blocks) are dumped
+    as PyYAML would."""
+    from gyro_platform.io.bag_storage import block_yaml
+
+    plan, groups, enc, stamps = make_plan(5)
+    write_fast(tmp_path / "out", storage, groups, enc, stamps, by_chunk=True)
+    for meta in [tmp_path / "out" / "metadata.yaml", *BAGS.glob("*/metadata.yaml")]:
+        data = yaml.safe_load(meta.read_text())
+        text = block_yaml(data)
+        if meta.parent == tmp_path / "out":
+            assert text is not None and len(data["rosbag2_bagfile_information"]["topics_with_message_count"]) > 10
+        assert text in (None, yaml.dump(data, Dumper=yaml.CSafeDumper, default_flow_style=False, sort_keys=True))

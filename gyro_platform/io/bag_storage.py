@@ -586,6 +586,71 @@ def _rollback(conn: Any) -> None:
         pass
 
 
+_PLAIN = re.compile(r"[A-Za-z_/][A-Za-z0-9_/.\-]*")
+#: words PyYAML would read back as booleans or null (YAML 1.1): quoted, so not on the fast path
+_RESERVED = {w for v in ("yes", "no", "true", "false", "on", "off", "null") for w in (v, v.title(), v.upper())}
+
+
+def _scalar(v: Any) -> str | None:
+    """The plain text PyYAML writes for ``v``, or None where it would quote, fold or format it."""
+    if v is None:
+        return "null"
+    if v is True or v is False:
+        return "true" if v else "false"
+    if type(v) is int:
+        return str(v)
+    if type(v) is str:
+        if v == "":
+            return "''"
+        if _PLAIN.fullmatch(v) and v not in _RESERVED:
+            return v
+    return None
+
+
+def block_yaml(data: dict) -> str | None:
+    """``yaml.dump(data, CSafeDumper, default_flow_style=False, sort_keys=True)`` for a bag's
+    metadata made of mappings, lists of scalars or mappings, ints, booleans, None and plain
+    names (tested equal); None for anything else (the caller dumps with PyYAML). PyYAML's
+    representer walks every node in Python (~12 ms for the metadata of 15 topics)."""
+    out: list[str] = []
+
+    def mapping(d: dict, ind: int, first: str | None) -> bool:
+        for n, k in enumerate(sorted(d)):
+            key = _scalar(k) if type(k) is str else None
+            if key is None:
+                return False
+            head = first if n == 0 and first is not None else " " * ind
+            if not value(head + key + ":", d[k], ind):
+                return False
+        return True
+
+    def value(head: str, v: Any, ind: int) -> bool:
+        if isinstance(v, dict) and v:
+            out.append(head)
+            return mapping(v, ind + 2, None)
+        if isinstance(v, list) and v:
+            out.append(head)
+            for item in v:
+                if isinstance(item, dict) and item:
+                    if not mapping(item, ind + 2, " " * ind + "- "):
+                        return False
+                else:
+                    text = _scalar(item) if not isinstance(item, (dict, list)) else ("{}" if item == {} else None)
+                    if text is None:
+                        return False
+                    out.append(" " * ind + "- " + text)
+            return True
+        text = "{}" if v == {} and isinstance(v, dict) else "[]" if v == [] and isinstance(v, list) else _scalar(v)
+        if text is None:
+            return False
+        out.append(head + " " + text)
+        return True
+
+    if not isinstance(data, dict) or not data or not mapping(data, 0, None):
+        return None
+    return "\n".join(out) + "\n"
+
+
 class _LibYaml:
     """Stand-in for ruamel's ``YAML(typ='safe')`` inside rosbags' writer: the same text
     (sorted keys, block style; tested equal) from libyaml, ~50x faster (ruamel takes ~0.3 s to
@@ -604,6 +669,8 @@ class _LibYaml:
 
         key = repr(data) + repr(self.default_flow_style)
         text = self._memo.get(key) if len(key) <= self.MEMO_KEY_CHARS else None
+        if text is None and not self.default_flow_style and isinstance(data, dict):
+            text = block_yaml(data)
         if text is None:
             dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
             text = yaml.dump(data, Dumper=dumper, default_flow_style=self.default_flow_style, sort_keys=True)
