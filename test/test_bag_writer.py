@@ -424,14 +424,13 @@ def test_mcap_full_disk_cuts_chunks_until_the_summary_fits(tmp_path, monkeypatch
 
 
 @pytest.mark.parametrize("storage", STORAGES)
-def test_writer_thread_error_is_raised_at_close_and_keeps_what_was_written(tmp_path, storage):
-    """A batch's write runs on the writer thread: the next batch waits for it (order kept), and a
-    write error there (a full disk) is raised in the caller at the next storage call — here
-    ``close`` — as the one-line OutputError, with the bag closed on what was committed."""
+def test_batch_write_error_is_raised_at_the_block_end_and_keeps_what_was_written(tmp_path, storage):
+    """A batch is written at the end of its ``batched`` block: a write error there (a full disk)
+    is raised as the one-line OutputError, with the bag closed on what was committed before."""
     bag = OutputBag(tmp_path / "o", storage)
     bag.add_output("/imu", m.IMU)
     raws = imu_raws(600)
-    for a in (0, 200):                                   # two batches, each waited for by the next
+    for a in (0, 200):
         with bag.batched():
             bag.write_many("/imu", np.arange(a, a + 200, dtype=np.int64), raws[a:a + 200])
     bag.flush()                                          # 400 committed
@@ -441,12 +440,13 @@ def test_writer_thread_error_is_raised_at_close_and_keeps_what_was_written(tmp_p
         raise OSError(28, "No space left on device")
 
     bag.writer.write_rows = full_disk
-    with bag.batched():                                  # fails on the writer thread, not here
-        bag.write_many("/imu", np.arange(400, 600, dtype=np.int64), raws[400:600])
-    bag.writer.write_rows = real
     with pytest.raises(OutputError, match=r"o: cannot write the output bag: \[Errno 28\] No space left on device; "
                                           r"closed with the 400 messages written before$"):
-        bag.close()
+        with bag.batched():
+            bag.write_many("/imu", np.arange(400, 600, dtype=np.int64), raws[400:600])
+            assert bag.writer.write_rows is full_disk    # nothing written inside the block
+    bag.writer.write_rows = real
+    bag.close()                                          # closed already: nothing more
     rows, counts = read_all(tmp_path / "o")
     assert counts["/imu"] == len(rows) == 400
     assert [stamp_of(r) for _, _, r in rows] == list(range(400))

@@ -14,9 +14,8 @@ What survives a fault (issue 17):
 * the output is committed in bounded chunks: sqlite3 transactions (rollback journal) and MCAP
   chunks are written to the file at least every ``bag_storage.COMMIT_ROWS`` messages or
   ``COMMIT_SECONDS`` of wall time (MCAP also every 1 MiB chunk), so a SIGKILL loses at most
-  the last chunk (sqlite3 ``synchronous=OFF``: an OS crash or power cut may lose more); a
-  chunk's write (:meth:`OutputBag.batched`) runs on a writer thread, one at a time, its error
-  raised at the next write or at ``close``; the readable part has no ``metadata.yaml`` and is read by
+  the last chunk (sqlite3 ``synchronous=OFF``: an OS crash or power cut may lose more); the
+  readable part has no ``metadata.yaml`` and is read by
   ``InputBag`` (the lone ``.db3``; an MCAP without footer through its salvage);
 * ``close()`` defers SIGINT/SIGTERM until the index and ``metadata.yaml`` are written (a second
   Ctrl-C is taken after it);
@@ -102,9 +101,6 @@ class OutputBag:
         self._lut = np.zeros(1, np.int64)     # input connection id -> output id (0: not copied)
         self.skipped: dict[str, str] = {}     # input topics that could not be copied -> why
         self._batch: list[tuple[np.ndarray, np.ndarray, Any]] | None = None   # see batched()
-        self.threaded = True                   # batched() writes on a thread of its own
-        self._pool: Any = None                 # the writer thread of batched() (made on first use)
-        self._inflight: Any = None             # its write in flight (a Future), at most one
         self.closed = False
         self.error: str | None = None
         atexit.register(self._close_at_exit)
@@ -112,7 +108,6 @@ class OutputBag:
     @property
     def counts(self) -> dict[str, int]:
         """Messages written by topic (topics with at least one)."""
-        self._drain()
         res: dict[str, int] = {}
         for c in self.writer.connections:
             n = self.writer.counts.get(c.id, 0)
@@ -259,7 +254,8 @@ class OutputBag:
     @contextmanager
     def batched(self) -> Iterator[None]:
         """Writes inside the block are kept and written at its end as one write, in their
-        order (the same rows as written one by one; fewer, larger appends)."""
+        order (the same rows as written one by one; fewer, larger appends). The replay calls it
+        on its writer thread (the bag has no thread of its own: one was measured slower)."""
         if self._batch is not None:         # nested: the outer block writes
             yield
             return
@@ -270,32 +266,11 @@ class OutputBag:
             batch, self._batch = self._batch, None
             if batch and not self.closed:
                 if len(batch) == 1:
-                    self._submit(*batch[0])
+                    cids, ts, raws = batch[0]
                 else:
-                    self._submit(np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch]),
-                                 Rows([seg for b in batch for seg in segments(b[2])]))
-
-    def _submit(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
-        """A batch to the writer thread (after the one in flight is done: its error, if any, is
-        raised here as from a direct write); written here when ``threaded`` is False (a caller
-        that writes from a thread of its own)."""
-        self._drain()
-        if not self.threaded:
-            self._guard(lambda: self.writer.write_rows(cids, ts, raws))
-            return
-        if self._pool is None:
-            from concurrent.futures import ThreadPoolExecutor
-            self._pool = ThreadPoolExecutor(1, thread_name_prefix="gyro-bag-writer")
-        self._inflight = self._pool.submit(self.writer.write_rows, cids, ts, raws)
-
-    def _drain(self) -> None:
-        """Wait for the write in flight; a write error closes the bag (:meth:`_fail`)."""
-        f, self._inflight = self._inflight, None
-        if f is not None:
-            try:
-                f.result()
-            except WRITE_ERRORS as e:
-                self._fail(e)
+                    cids, ts = np.concatenate([b[0] for b in batch]), np.concatenate([b[1] for b in batch])
+                    raws = Rows([seg for b in batch for seg in segments(b[2])])
+                self._guard(lambda: self.writer.write_rows(cids, ts, raws))
 
     def _write(self, cids: np.ndarray, ts: np.ndarray, raws: Any) -> None:
         self._storage()
@@ -306,7 +281,6 @@ class OutputBag:
 
     def _guard(self, fn: Any) -> Any:
         """Run a write; on a write error close the bag with what it holds, raise OutputError."""
-        self._drain()
         try:
             return fn()
         except WRITE_ERRORS as e:
@@ -351,7 +325,6 @@ class OutputBag:
         if self.closed:
             return
         with deferred_signals():
-            self._drain()
             try:
                 self.writer.storage.settle()
                 self.writer.counts_from_storage()

@@ -230,7 +230,6 @@ class _Run:
         if self._writer is None:
             from concurrent.futures import ThreadPoolExecutor
             self._writer = ThreadPoolExecutor(1, thread_name_prefix="gyro-replay-writer")
-            self.out.threaded = False               # this thread writes the bag itself
         self._inflight = self._writer.submit(self._write_chunk, chunk, done)
 
     def _written(self) -> None:
