@@ -176,6 +176,20 @@ def test_short_copy_keeps_every_topic_and_only_the_first_seconds():
     assert len(stamps) == n_full
 
 
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_generated_bag_names_its_file_after_its_folder(tmp_path, monkeypatch, storage):
+    """A generated bench bag is written in a staging folder and renamed: its storage file is
+    named after the bag (no hidden staging name), and nothing of the staging is left."""
+    import numpy as np
+
+    monkeypatch.setenv("GYRO_PLATFORM_BENCH_CACHE", str(tmp_path))
+    t = np.arange(5) * 1e-3
+    path = bags.write_imu_bag(tmp_path / "small", bags.VehicleImu(t, np.zeros((5, 3)), np.zeros((5, 3))), storage)
+    files = sorted(p.name for p in path.iterdir())
+    assert files == sorted(["metadata.yaml", f"small.{'db3' if storage == 'sqlite3' else 'mcap'}"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small"]
+
+
 @pytest.mark.parametrize("value", ["0", "-3"])
 def test_bench_refuses_non_positive_repeats(value, capsys):
     assert cli.main(["bench", "hotpath", "--repeats", value]) == cli.EXIT_USAGE

@@ -98,6 +98,15 @@ def _plugin(storage: str):
     return {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
 
 
+def _staging(path: Path) -> Path:
+    """Where the bag for ``path`` is written first: a folder of the same name (rosbags names the
+    storage file after it, and metadata.yaml lists that name) in a hidden per-process folder."""
+    tmp = path.parent / f".partial-{os.getpid()}" / path.name
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.parent.mkdir(parents=True, exist_ok=True)
+    return tmp
+
+
 def _publish(tmp: Path, path: Path) -> Path:
     """Rename the finished bag ``tmp`` to ``path`` (another process may have won the race)."""
     try:
@@ -106,6 +115,7 @@ def _publish(tmp: Path, path: Path) -> Path:
         if not path.exists():
             raise
         shutil.rmtree(tmp, ignore_errors=True)
+    shutil.rmtree(tmp.parent, ignore_errors=True)
     return path
 
 
@@ -115,8 +125,7 @@ def write_imu_bag(path: Path, imu: VehicleImu, storage: str = "sqlite3", topic: 
     from rosbags.rosbag2 import Writer
 
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
+    tmp = _staging(path)
     with Writer(tmp, version=9, storage_plugin=_plugin(storage)) as w:
         conn = w.add_connection(topic, "sensor_msgs/msg/Imu", typestore=jazzy_typestore())
         for ts, raw in _imu_messages(imu, frame_id):
@@ -166,8 +175,7 @@ def short_copy(src: Path, seconds: float) -> Path:
     path = cache_dir() / f"{src.name}_first{seconds:g}s_{storage}"
     if (path / "metadata.yaml").is_file():
         return path
-    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
+    tmp = _staging(path)
     with Reader(src) as r, Writer(tmp, version=9, storage_plugin=_plugin(storage)) as w:
         conns = {c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data or None, rihs01=c.digest or None,
                                         serialization_format=c.ext.serialization_format,
