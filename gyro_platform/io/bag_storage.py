@@ -667,15 +667,16 @@ class _LibYaml:
     def dump(self, data: Any, stream: Any) -> None:
         import yaml
 
-        key = repr(data) + repr(self.default_flow_style)
-        text = self._memo.get(key) if len(key) <= self.MEMO_KEY_CHARS else None
-        if text is None and not self.default_flow_style and isinstance(data, dict):
-            text = block_yaml(data)
+        text = block_yaml(data) if isinstance(data, dict) and not self.default_flow_style else None
         if text is None:
-            dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
-            text = yaml.dump(data, Dumper=dumper, default_flow_style=self.default_flow_style, sort_keys=True)
-            if len(key) <= self.MEMO_KEY_CHARS and len(self._memo) < 256:
-                self._memo[key] = text
+            key = repr(data) + repr(self.default_flow_style)
+            small = len(key) <= self.MEMO_KEY_CHARS
+            text = self._memo.get(key) if small else None
+            if text is None:
+                dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+                text = yaml.dump(data, Dumper=dumper, default_flow_style=self.default_flow_style, sort_keys=True)
+                if small and len(self._memo) < 256:
+                    self._memo[key] = text
         stream.write(text)
 
 

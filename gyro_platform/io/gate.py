@@ -557,7 +557,10 @@ class TimeGate:
         s = self._s
         first = s.rx_last
         gap_ns = _ns_floor(self.config.max_gap)
-        if gap_ns < _EXACT_NS and rx_list[0] < 2**62 and rx_list[-1] < 2**62 and min(rx_list) > -2**62:
+        lo, hi = min(rx_list), max(rx_list)
+        if first is not None:
+            lo, hi = min(lo, first), max(hi, first)
+        if gap_ns < _EXACT_NS and -2**62 < lo and hi < 2**62:
             e, unset = _arrival_ema(rx, 0 if first is None else first, first is not None, gap_ns,
                                     np.nan if s.rx_dt_ema is None else s.rx_dt_ema, s.rx_dt_ema is None,
                                     self.config.rate_smoothing)
