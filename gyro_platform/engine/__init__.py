@@ -2,6 +2,7 @@
 
 Holds the input sample (``inputs.RateSample``), the output record (``outputs.Outputs``), the
 integrators behind one contract with error control (the ``integrators`` package), the compiled batch
-stepping (``batch``), the ``Simulator`` (state, ``push``/``push_many``, outputs) and the
-catalogue of hard cases (``hardcases``). May import ``physics`` and ``errors``.
+stepping (``batch``), the ``Simulator`` (state, ``push``/``push_many``, outputs), the
+catalogue of hard cases (``hardcases``) and one BLAS thread per process (``blas``). May import
+``physics`` and ``errors``.
 """
