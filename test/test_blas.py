@@ -35,3 +35,11 @@ def test_the_command_line_limits_before_the_command_runs():
                           "with contextlib.redirect_stderr(io.StringIO()):\n"
                           "    assert c.main(['run', '/nonexistent/scene.yaml']) == 2")
     assert after and all(n == 1 for _, n in after)
+
+
+def test_without_threadpoolctl_nothing_changes_and_nothing_breaks():
+    # (the probe holds threadpool_info already; the package's own import of threadpoolctl fails)
+    after = _blas_threads("import sys, numpy, scipy.linalg\nsys.modules['threadpoolctl'] = None\n"
+                          "from gyro_platform.engine.blas import limit_blas_threads\n"
+                          "assert limit_blas_threads() is False")
+    assert after and all(n == 2 for _, n in after)

@@ -17,13 +17,18 @@ __all__ = ["limit_blas_threads"]
 _done = False
 
 
-def limit_blas_threads() -> None:
-    """Use one thread in every BLAS library loaded (NumPy's, SciPy's); idempotent."""
+def limit_blas_threads() -> bool:
+    """Use one thread in every BLAS library loaded (NumPy's, SciPy's); idempotent. False (and
+    nothing changed: only CPU is lost, no result differs) where ``threadpoolctl`` is missing."""
     global _done
     if _done:
-        return
+        return True
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return False
     import scipy.linalg  # noqa: F401  (load SciPy's BLAS first: threadpoolctl limits loaded libraries)
-    from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1, user_api="blas")
     _done = True
+    return True
