@@ -22,7 +22,7 @@ def _blas_threads(setup: str) -> list:
 
 def test_every_blas_library_ends_at_one_thread():
     before = _blas_threads("import numpy, scipy.linalg")
-    assert len(before) >= 1 and all(n == 2 for _, n in before)      # the probe sees them at 2
+    assert len(before) >= 1       # the probe sees them (at 2 threads, or 1 on a 1-core machine)
     after = _blas_threads("import numpy\nfrom gyro_platform.engine.blas import limit_blas_threads\n"
                           "limit_blas_threads()")
     assert {p for p, _ in after} >= {p for p, _ in before}           # SciPy's loaded and limited too
@@ -42,4 +42,4 @@ def test_without_threadpoolctl_nothing_changes_and_nothing_breaks():
     after = _blas_threads("import sys, numpy, scipy.linalg\nsys.modules['threadpoolctl'] = None\n"
                           "from gyro_platform.engine.blas import limit_blas_threads\n"
                           "assert limit_blas_threads() is False")
-    assert after and all(n == 2 for _, n in after)
+    assert sorted(after) == sorted(_blas_threads("import numpy, scipy.linalg"))      # as they were
