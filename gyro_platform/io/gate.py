@@ -206,15 +206,19 @@ def _ema(e: float | None, d_ns: np.ndarray, a: float) -> float | None:
     return float(_ema_kernel(np.nan if e is None else e, e is None, d_ns, a))
 
 
+@njit(cache=True, inline="always")
+def _ema_step(e, unset, d, a):  # pragma: no cover - compiled
+    """One interval of ``d`` ns into the average: ``dt`` if none yet (``unset``), else
+    ``e + a·(dt − e)``; the one update of every compiled pass below."""
+    dt = d / 1_000_000_000
+    return dt if unset else e + a * (dt - e)
+
+
 @njit(cache=True)
 def _ema_kernel(e, unset, d_ns, a):  # pragma: no cover - compiled
     for k in range(d_ns.shape[0]):
-        dt = d_ns[k] / 1_000_000_000
-        if unset:
-            e = dt
-            unset = False
-        else:
-            e = e + a * (dt - e)
+        e = _ema_step(e, unset, d_ns[k], a)
+        unset = False
     return e
 
 
@@ -245,12 +249,8 @@ def _accept_rows(tn, i, j, last_ns, origin, e, unset, a, t, stamp):  # pragma: n
     prev = last_ns
     for k in range(i, j):
         x = tn[k]
-        dt = (x - prev) / 1_000_000_000
-        if unset:
-            e = dt
-            unset = False
-        else:
-            e = e + a * (dt - e)
+        e = _ema_step(e, unset, x - prev, a)
+        unset = False
         prev = x
         t[k] = (x - origin) / 1_000_000_000
         stamp[k] = x
@@ -265,12 +265,8 @@ def _arrival_ema(rx, first, has_first, gap_ns, e, unset, a):  # pragma: no cover
     for k in range(rx.shape[0]):
         d = rx[k] - prev
         if (k > 0 or has_first) and 0 < d <= gap_ns:
-            dt = d / 1_000_000_000
-            if unset:
-                e = dt
-                unset = False
-            else:
-                e = e + a * (dt - e)
+            e = _ema_step(e, unset, d, a)
+            unset = False
         prev = rx[k]
     return e, unset
 
