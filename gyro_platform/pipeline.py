@@ -29,7 +29,7 @@ from .engine.inputs import RateSample
 from .errors import InputError, SimulationError
 from .io import messages as msgs
 from .io.bag_reader import InputBag
-from .io.gate import NS, Action, Decision, TimeGate
+from .io.gate import NS, Action, Decision, TimeGate, plain_decision
 from .io.messages import Mounting, Rejected
 
 # ---- the chunked path's pieces, from their rooms (one place to see them)
@@ -189,13 +189,19 @@ def apply_decision(sim: Any, decision: Decision) -> str:
     except InputError:
         return "rejected"
     except SimulationError:
-        sim.reset()
-        try:
-            sim.push(decision.sample)
-        except SimulationError:
-            return "rejected"
-        return "restarted"
+        return restart_at(sim, decision.sample)
     return "reset" if action is _ACT_RESET else "pushed"
+
+
+def restart_at(sim: Any, sample: RateSample) -> str:
+    """After a failed integration: reset the simulator and start it again at ``sample``.
+    Returns ``"restarted"``, or ``"rejected"`` when even that fails."""
+    sim.reset()
+    try:
+        sim.push(sample)
+    except SimulationError:
+        return "rejected"
+    return "restarted"
 
 
 
@@ -307,14 +313,35 @@ def _concat_gate(gbs: list[Any]) -> Any:
                               if isinstance(getattr(gbs[0], f.name), np.ndarray)})
 
 
-@dataclass(slots=True)
 class Step:
     """What one input did: the gate's ``decision``, the simulator's ``outcome`` (see
-    :func:`apply_decision`) and ``emit``: the sample starts a new output slot, take the outputs."""
+    :func:`apply_decision`) and ``emit``: the sample starts a new output slot, take the outputs.
+    ``plain``: a plain sample's tuple (``TimeGate.last_plain``) from which the decision is
+    made when asked (``stamp_ns``, ``source`` without making it)."""
 
-    decision: Decision
-    outcome: str
-    emit: bool
+    __slots__ = ("_decision", "_plain", "outcome", "emit")
+
+    def __init__(self, decision: Decision | None, outcome: str, emit: bool, plain: tuple | None = None):
+        self._decision, self._plain, self.outcome, self.emit = decision, plain, outcome, emit
+
+    @property
+    def decision(self) -> Decision:
+        if self._decision is None:
+            self._decision = plain_decision(self._plain)
+        return self._decision
+
+    @property
+    def stamp_ns(self) -> int | None:
+        """The decision's ``stamp_ns``."""
+        return self._plain[3] if self._decision is None else self._decision.stamp_ns
+
+    @property
+    def source(self) -> str | None:
+        """The decision's ``source``."""
+        return self._plain[4] if self._decision is None else self._decision.source
+
+    def __repr__(self) -> str:
+        return f"Step({self.decision!r}, {self.outcome!r}, {self.emit!r})"
 
 
 class Pipeline:
@@ -344,12 +371,31 @@ class Pipeline:
         return self.offer(msgs.reading_from_msg(msg, self.mounting), receive_ns)
 
     def offer(self, reading: Any, receive_ns: int | None) -> Step:
-        """A reading (or ``Rejected``) from :mod:`gyro_platform.io.messages`."""
-        return self.apply(self.gate.offer(reading, receive_ns))
+        """A reading (or ``Rejected``) from :mod:`gyro_platform.io.messages`. A plain reading
+        (``TimeGate.offer_plain``) goes to ``Simulator.push_plain`` with no decision or sample
+        object made; the same decisions, outcomes and state as :meth:`apply` of ``gate.offer``."""
+        gate = self.gate
+        plain = gate.offer_plain(reading, receive_ns)
+        if plain is None:
+            return self.apply(gate.offer(reading, receive_ns))
+        try:
+            self.sim.push_plain(plain[0], plain[1], plain[2])
+        except InputError:
+            outcome = "rejected"
+        except SimulationError:
+            outcome = restart_at(self.sim, gate.last.sample)
+        else:
+            outcomes = self.outcomes
+            outcomes["pushed"] = outcomes.get("pushed", 0) + 1
+            return Step(None, "pushed", self.due(plain[3]), plain)
+        return self._settle(gate.last, outcome)
 
     def apply(self, decision: Decision) -> Step:
         """A gate decision: simulator, outcome count, output grid (restarted on a reset)."""
-        outcome = apply_decision(self.sim, decision)
+        return self._settle(decision, apply_decision(self.sim, decision))
+
+    def _settle(self, decision: Decision, outcome: str) -> Step:
+        """Count the simulator's ``outcome`` of ``decision``; gate roll-back, output grid."""
         outcomes = self.outcomes
         outcomes[outcome] = outcomes.get(outcome, 0) + 1
         if outcome == "pushed":

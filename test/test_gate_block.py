@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gyro_platform.io.blocks import REJECT_REASONS, RateBlock
-from gyro_platform.io.gate import (ACCEPT, DROP, REASONS, RESET, Action, GateConfig, TimeGate)
+from gyro_platform.io.gate import (ACCEPT, DROP, REASONS, RESET, Action, GateConfig, TimeGate, plain_decision)
 from gyro_platform.io.messages import Mounting, Reading, Rejected, jazzy_typestore, reading_from_msg
 
 NS = 1_000_000_000
@@ -114,6 +114,47 @@ def test_offer_block_equals_one_offer_per_row(rs, cfg, cuts, with_rx):
     np.testing.assert_array_equal(t, exp_t)               # bit-identical (NaN where dropped)
     assert stamp.tolist() == [-1 if d.stamp_ns is None else d.stamp_ns for d in decisions]
     assert state(blk) == state(ref)
+
+
+def decision_key(d):
+    """A decision as comparable values (the sample's arrays as tuples)."""
+    smp = d.sample
+    return (d.action, d.reason, d.stamp_ns, d.source, d.detail,
+            None if smp is None else (smp.t, tuple(smp.omega),
+                                      None if smp.specific_force is None else tuple(smp.specific_force)))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rs=rows(), cfg=CONFIGS, with_rx=st.booleans(), refuse=st.lists(st.booleans(), min_size=60, max_size=60))
+def test_offer_plain_takes_exactly_the_rows_offer_accepts_as_ok_and_leaves_the_same_gate(rs, cfg, with_rx, refuse):
+    """The node's per-message lane: ``offer_plain`` first, ``offer`` when it declines. Every
+    decision (made on demand from the plain tuple), counter, note, rate estimate and undo (the
+    simulator refusing a sample: ``refuse``, drawn at random) equals ``offer`` alone; the lane
+    takes only rows that ``offer`` accepts as ``ok``, and declines with nothing changed."""
+    ref, lane = TimeGate(cfg), TimeGate(cfg)
+    taken = plain = 0
+    for i, r in enumerate(rs):
+        reading, rx = reading_of(r, i), (r["rx"] if with_rx else None)
+        gaps = ref.notes["gap_integrated"]
+        d_ref = ref.offer(reading, rx)
+        plain += d_ref.reason == "ok" and ref.notes["gap_integrated"] == gaps
+        before = state(lane)
+        p = lane.offer_plain(reading, rx)
+        if p is None:
+            assert state(lane) == before                  # declined: nothing changed
+            d = lane.offer(reading, rx)
+        else:
+            taken += 1
+            assert lane.last_plain is p
+            d = lane.last
+            assert d.reason == "ok" and decision_key(d) == decision_key(plain_decision(p))
+        assert decision_key(d) == decision_key(d_ref)
+        if refuse[i]:
+            ref.refuse("drawn")
+            lane.refuse("drawn")
+        assert state(lane) == state(ref)
+        assert lane._undo == ref._undo
+    assert taken == plain                                 # every ok row within max_gap, no other
 
 
 def test_plain_1khz_run_is_accepted_whole_with_exact_times_and_rate_estimates():

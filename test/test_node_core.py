@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from gyro_platform.ros import parameters as P
 from gyro_platform.ros.config import NodeConfig, parameter_defaults
@@ -258,6 +260,53 @@ def test_a_sample_the_simulator_refuses_rolls_the_gate_back():
     assert pipe.gate.last_stamp_ns == BASE
     assert pipe.offer(reading_from_msg(imu(BASE + MS)), BASE + MS).outcome == "pushed"
     assert pipe.sim.n_samples == 2 and pipe.gate.snapshot()["dropped_by_reason"] == {"refused": 1}
+
+
+LANE_STEPS = [MS] * 12 + [0, -MS // 2, 2_000 * MS, -3_000 * MS, 7 * MS]
+LANE_VALUES = [0.1] * 12 + [math.nan, math.inf, 40.0, 20.0, -25.0]
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(draws=st.lists(st.tuples(st.sampled_from(LANE_STEPS), st.sampled_from(LANE_VALUES),
+                                st.integers(0, 2), st.sampled_from([True] * 4 + [False]), st.booleans()),
+                      min_size=1, max_size=50),
+       needs_f=st.booleans(), tight=st.booleans(), rate=st.sampled_from([0.0, 100.0]), with_rx=st.booleans())
+def test_pipeline_offer_through_the_plain_lane_equals_the_general_path(draws, needs_f, tight, rate, with_rx):
+    """``Pipeline.offer`` (plain readings: ``offer_plain`` + ``Simulator.push_plain``, no objects)
+    against ``apply(gate.offer(...))`` for every reading: the same steps (decision, outcome,
+    output slot), and in the end a bit-identical state, the same statistics, outcomes and gate.
+    Drawn: repeated, backward, gapped and jumping-back stamps, NaN/Inf/over-rate values, large
+    rates that a tight rk4 budget cannot integrate (``restarted``/``rejected``), samples without
+    the specific force a model needs (the simulator refuses: ``rejected``, gate rolled back)."""
+    from gyro_platform.engine.simulator import Simulator
+    from gyro_platform.io.gate import GateConfig, TimeGate
+    from gyro_platform.io.messages import Reading
+    from gyro_platform.physics.options import ModelOptions
+    from gyro_platform.pipeline import Pipeline
+
+    opts = ModelOptions(effects=ModelOptions().effects | ({"mass_unbalance"} if needs_f else set()),
+                        **(dict(integrator="rk4", rtol=1e-8, atol=1e-11, max_substeps=4) if tight else {}))
+    pipes = [Pipeline(Simulator(options=opts), TimeGate(GateConfig()), rate) for _ in range(2)]
+    lane, ref = pipes
+    stamp = BASE
+    for i, (step, v, which, has_f, identity) in enumerate(draws):
+        stamp += step
+        w = [0.1, -0.2, 0.05]
+        w[which] = v
+        reading = Reading(tuple(w), (0.0, 0.0, 9.81) if has_f else None, stamp, "base_link", identity)
+        rx = BASE + i * MS if with_rx else None
+        a = lane.offer(reading, rx)
+        b = ref.apply(ref.gate.offer(reading, rx))
+        assert (a.outcome, a.emit, a.stamp_ns, a.source) == (b.outcome, b.emit, b.stamp_ns, b.source)
+        da, db = a.decision, b.decision
+        assert (da.action, da.reason, da.stamp_ns, da.source, da.detail) == \
+               (db.action, db.reason, db.stamp_ns, db.source, db.detail)
+        if db.sample is not None:
+            assert da.sample.t == db.sample.t and da.sample.omega.tolist() == db.sample.omega.tolist()
+    assert lane.sim.y.tobytes() == ref.sim.y.tobytes()
+    assert lane.sim.stats == ref.sim.stats and lane.outcomes == ref.outcomes
+    assert (lane.slot, lane.new_segment) == (ref.slot, ref.new_segment)
+    assert lane.gate.snapshot() == ref.gate.snapshot() and lane.gate._undo == ref.gate._undo
 
 
 def test_gimbal_lock_proximity_is_reported():

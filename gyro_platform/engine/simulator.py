@@ -132,6 +132,7 @@ class Simulator:
         self._compiled = compiled and self.engine.method is not None
         self._outk = OutputKernel(self.system)    # outputs (compiled)
         self._ydot = np.zeros(self.layout.n)
+        self._w_in, self._f_in = np.zeros(3), np.zeros(3)     # push_plain's input arrays
         self.reset()
 
     # ---- state (kept in the engine's buffers) ------------------------------------------
@@ -283,10 +284,7 @@ class Simulator:
             w = _vec3(w, "omega")
         f = sample.specific_force
         if f is None:
-            if self.needs_f:
-                raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
-                                 + " need the specific force, which this sample does not carry")
-            f, has_f = _ZERO3, False
+            f, has_f = self._no_force(), False
         else:
             if f.__class__ is not np.ndarray or f.dtype is not _F64 or f.shape != (3,):
                 f = _vec3(f, "specific_force")
@@ -294,6 +292,29 @@ class Simulator:
         t = sample.t
         if t.__class__ is not float:
             t = _time(t)
+        self._push_arrays(t, w, f, has_f)
+
+    def push_plain(self, t: float, omega: tuple, specific_force: tuple | None) -> None:
+        """:meth:`push` of a sample the input gate has checked (``TimeGate.offer_plain``): ``t``
+        s, ω rad/s and specific force m/s² (or None) as 3-tuples of floats, vehicle axes. No
+        sample object or array is made (the node's per-message path); same results, same errors."""
+        w = self._w_in
+        w[0], w[1], w[2] = omega
+        if specific_force is None:
+            f, has_f = self._no_force(), False
+        else:
+            f, has_f = self._f_in, True
+            f[0], f[1], f[2] = specific_force
+        self._push_arrays(t, w, f, has_f)
+
+    def _no_force(self) -> np.ndarray:
+        if self.needs_f:
+            raise InputError("effects " + ", ".join(sorted(self.options.effects & NEEDS_SPECIFIC_FORCE))
+                             + " need the specific force, which this sample does not carry")
+        return _ZERO3
+
+    def _push_arrays(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> None:
+        """:meth:`push` of checked arrays (read, never kept: ``push_plain`` reuses them)."""
         engine = self.engine
         if not engine.ih[J_STARTED]:
             self._first(t, w, f if has_f else None)

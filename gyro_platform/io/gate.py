@@ -117,6 +117,13 @@ class Decision:
         return self.action is not Action.DROP
 
 
+def plain_decision(p: tuple) -> Decision:
+    """The ``Decision`` of a plain reading from :attr:`TimeGate.last_plain`'s tuple ``(t,
+    omega, specific_force, stamp_ns, source)``: what :meth:`TimeGate.offer` returns for it."""
+    t, w, f, t_ns, source = p
+    return Decision(_A_ACCEPT, "ok", RateSample(t, np.array(w), None if f is None else np.array(f)), t_ns, source, "")
+
+
 @dataclass(frozen=True)
 class GateConfig:
     """Gate settings. ``max_gap`` s; ``on_gap``: ``reset`` | ``integrate``;
@@ -297,7 +304,8 @@ class TimeGate:
         self.counts: Counter[str] = Counter()     # decision reason -> count
         self.notes: Counter[str] = Counter()      # note -> count
         self.received = 0
-        self.last: Decision | None = None
+        self._last: Decision | None = None
+        self._plain: tuple | None = None          # the last decision, when offer_plain made it
         self.last_drop: Decision | None = None
         self._undo: tuple | None = None           # time base before the last accepted sample
 
@@ -308,7 +316,7 @@ class TimeGate:
         new = object.__new__(type(self))
         memo[id(self)] = new
         for k, v in vars(self).items():
-            if k in ("config", "last", "last_drop", "_undo"):
+            if k in ("config", "_last", "_plain", "last_drop", "_undo"):
                 new.__dict__[k] = v
             elif k == "_s":
                 new.__dict__[k] = copy.copy(v)
@@ -319,6 +327,18 @@ class TimeGate:
         return new
 
     # ---- properties -----------------------------------------------------------------
+    @property
+    def last(self) -> Decision | None:
+        """The last decision (None before the first)."""
+        p = self._plain
+        if p is not None:           # made by offer_plain: build it now, once
+            self._last, self._plain = plain_decision(p), None
+        return self._last
+
+    @last.setter
+    def last(self, d: Decision | None) -> None:
+        self._last, self._plain = d, None
+
     @property
     def origin_ns(self) -> int | None:
         """Input-time-base ns of ``sample.t == 0`` (the first accepted sample)."""
@@ -341,15 +361,87 @@ class TimeGate:
     # ---- the decision ---------------------------------------------------------------
     def offer(self, reading: Reading | Rejected, receive_ns: int | None = None) -> Decision:
         """Decide about one message; ``receive_ns`` is its receive time (ns) if known."""
-        if receive_ns is not None:              # arrival rate (every message, dropped ones too)
-            s = self._s
-            last = s.rx_last
-            if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
-                dt = (receive_ns - last) / NS
-                e = s.rx_dt_ema
-                s.rx_dt_ema = dt if e is None else e + self.config.rate_smoothing * (dt - e)
-            s.rx_last = int(receive_ns)
+        if receive_ns is not None:
+            self._arrival(receive_ns)
         return self._offer(reading, receive_ns)
+
+    def _arrival(self, receive_ns: int) -> None:
+        """The arrival-rate update (every message, dropped ones too)."""
+        s = self._s
+        last = s.rx_last
+        if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
+            dt = (receive_ns - last) / NS
+            e = s.rx_dt_ema
+            s.rx_dt_ema = dt if e is None else e + self.config.rate_smoothing * (dt - e)
+        s.rx_last = int(receive_ns)
+
+    def offer_plain(self, r: Reading | Rejected, receive_ns: int | None = None) -> tuple | None:
+        """:meth:`offer` for a plain reading — what :meth:`offer_block` vectorises: a
+        ``Reading`` of finite 3-vectors, ‖ω‖ ≤ ``max_rate``, a specific force if one is
+        required, its time (source locked) within (0, ``max_gap``] after the last — with the
+        same counters, notes, rate estimates and undo, but no ``Decision`` made: returns
+        ``(t, omega, specific_force, stamp_ns, source)`` (t s since the origin, the vectors as
+        float 3-tuples; :func:`plain_decision` makes the decision, :attr:`last` when asked).
+        None for any other reading, nothing changed: then call :meth:`offer`. The node's
+        per-message path (µs counted)."""
+        s, cfg = self._s, self.config
+        source, last_ns = s.source, s.last_ns
+        if r.__class__ is not Reading or source is None or last_ns is None:
+            return None
+        try:
+            if source == "header":
+                t_ns = r.stamp_ns
+                if t_ns is None or t_ns == 0:
+                    return None
+                t_ns = int(t_ns)
+            elif receive_ns is None:
+                return None
+            else:
+                t_ns = int(receive_ns)
+            dt_ns = t_ns - last_ns
+            if not 0 < dt_ns <= cfg.max_gap * NS:
+                return None
+            wx, wy, wz = r.omega
+            wx, wy, wz = float(wx), float(wy), float(wz)
+            # NaN and ±Inf fail this test too (and a finite ω whose norm overflows)
+            if not math.sqrt(wx * wx + wy * wy + wz * wz) <= cfg.max_rate:
+                return None
+            f = r.specific_force
+            if f is not None:
+                fx, fy, fz = f
+                f = (float(fx), float(fy), float(fz))
+                if not (f[0] - f[0]) + (f[1] - f[1]) + (f[2] - f[2]) == 0.0:     # NaN: x − x ≠ 0
+                    return None
+            elif cfg.require_specific_force:
+                return None
+        except (TypeError, ValueError, OverflowError):
+            return None                         # offer says what is wrong with it
+        # -- commit (as offer: accepted "ok")
+        if receive_ns is not None:
+            self._arrival(receive_ns)
+        self.received += 1
+        self.counts["ok"] += 1
+        note: tuple[str, ...] = ()
+        if source == "receive" or r.identity_assumed:
+            note = ("receive_time",) if source == "receive" else ()
+            if r.identity_assumed:
+                note += ("identity_frame",)
+            for n in note:
+                self.notes[n] += 1
+        e, origin = s.dt_ema, s.origin_ns
+        self._undo = (source, origin, last_ns, e, note)
+        dt = dt_ns / NS
+        s.dt_ema = dt if e is None else e + cfg.rate_smoothing * (dt - e)
+        s.last_ns = t_ns
+        self._last = None
+        self._plain = p = ((t_ns - origin) / NS, (wx, wy, wz), f, t_ns, source)
+        return p
+
+    @property
+    def last_plain(self) -> tuple | None:
+        """``(t, omega, specific_force, stamp_ns, source)`` of the last decision when
+        :meth:`offer_plain` made it and nobody has asked for :attr:`last` since, else None."""
+        return self._plain
 
     def _offer(self, reading: Reading | Rejected, receive_ns: int | None) -> Decision:
         self.received += 1

@@ -211,9 +211,8 @@ class NodeCore:
             step = pipe.offer(reading, rx)
             outcome = step.outcome
             if outcome == "pushed":
-                d = step.decision
-                if d.source == "header":      # the gate's time source; receive times say nothing about loss
-                    self.loss.on_stamp(d.stamp_ns, rx if rx is not None else self._last_rx_ns,
+                if step.source == "header":   # the gate's time source; receive times say nothing about loss
+                    self.loss.on_stamp(step.stamp_ns, rx if rx is not None else self._last_rx_ns,
                                        self.gate.config.max_gap)
             elif outcome in ("reset", "restarted"):
                 self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
@@ -221,7 +220,7 @@ class NodeCore:
             elif outcome == "rejected":
                 self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
             if step.emit:
-                result = self._emit(step.decision.stamp_ns)
+                result = self._emit(step.stamp_ns)
         except Exception as e:  # defensive: a message must never take the node down
             self.internal_errors += 1
             self.last_error = f"{type(e).__name__}: {e}"
