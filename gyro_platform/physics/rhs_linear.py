@@ -48,10 +48,28 @@ def rest_model_accel(mats, y, F, gyro, out, off):
 
 
 @njit(cache=True, inline="always")
+def _row8(m, k, i, f0, f1, f2, f3, f4, f5, f6, f7):
+    """Σ_j m[k, i, j] f_j over j = 0…7, summed in j order (as ``rest_model_accel``'s loops)."""
+    return (m[k, i, 0] * f0 + m[k, i, 1] * f1 + m[k, i, 2] * f2 + m[k, i, 3] * f3
+            + m[k, i, 4] * f4 + m[k, i, 5] * f5 + m[k, i, 6] * f6 + m[k, i, 7] * f7)
+
+
+@njit(cache=True, inline="always")
+def _servo(P, y, iqd, iz, ax):
+    """Mount axis ``ax``'s servo torque (N m) and its integral's rate (0 when saturated)."""
+    g = fx.servo_pickoff(ax)
+    m, saturated = fx.servo_axis(P, y[g], y[iqd + g], y[iz + ax])
+    return m, 0.0 if saturated else y[g]
+
+
+@njit(cache=True, inline="always")
 def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     """ẏ of the linear stabilised model into ``yd`` (state layout of ``I[0]``; ``P`` packed
     coefficients, whose first block is the effect vector ``k``; ``seg`` the input interval;
-    ``mats[0]`` = M0⁻¹, ``mats[1]`` = G0; ``F`` (8,) work). Returns 0 (no failure mode)."""
+    ``mats[0]`` = M0⁻¹, ``mats[1]`` = G0; ``F`` unused, kept for the kernels' signature).
+    Returns 0 (no failure mode). Every value is a local scalar until the stores at the end
+    (a store into ``yd`` could alias any float argument for the compiler and force reloads);
+    the sums are those of ``rest_model_accel`` in the same order (bit-identical results)."""
     # vehicle rate at t (linear over the interval), vehicle axes
     dt = seg[1]
     s = (t - seg[0]) / dt if dt > 0.0 else 0.0
@@ -63,38 +81,66 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     iqp = I[0, LAY_QIP]
     iqb = I[0, LAY_QIB]
     iz = I[0, LAY_Z]
-    quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
-    # R_PB = R_IPᵀ R_IB
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
-    r00 = a00 * b00 + a10 * b10 + a20 * b20
-    r01 = a00 * b01 + a10 * b11 + a20 * b21
-    r02 = a00 * b02 + a10 * b12 + a20 * b22
-    r10 = a01 * b00 + a11 * b10 + a21 * b20
-    r11 = a01 * b01 + a11 * b11 + a21 * b21
-    r12 = a01 * b02 + a11 * b12 + a21 * b22
-    r20 = a02 * b00 + a12 * b10 + a22 * b20
-    r21 = a02 * b01 + a12 * b11 + a22 * b21
-    r22 = a02 * b02 + a12 * b12 + a22 * b22
     Om0, Om1, Om2 = y[io], y[io + 1], y[io + 2]
     # platform torque: support friction, then the servo
     MP0, MP1, MP2 = 0.0, 0.0, 0.0
     if I[1, fx.SUPPORT]:
+        # R_PB = R_IPᵀ R_IB
+        a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
+        b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
+        r00 = a00 * b00 + a10 * b10 + a20 * b20
+        r01 = a00 * b01 + a10 * b11 + a20 * b21
+        r02 = a00 * b02 + a10 * b12 + a20 * b22
+        r10 = a01 * b00 + a11 * b10 + a21 * b20
+        r11 = a01 * b01 + a11 * b11 + a21 * b21
+        r12 = a01 * b02 + a11 * b12 + a21 * b22
+        r20 = a02 * b00 + a12 * b10 + a22 * b20
+        r21 = a02 * b01 + a12 * b11 + a22 * b21
+        r22 = a02 * b02 + a12 * b12 + a22 * b22
         MP0 += fx.support_friction_axis(P, Om0 - (r00 * wB0 + r01 * wB1 + r02 * wB2))
         MP1 += fx.support_friction_axis(P, Om1 - (r10 * wB0 + r11 * wB1 + r12 * wB2))
         MP2 += fx.support_friction_axis(P, Om2 - (r20 * wB0 + r21 * wB1 + r22 * wB2))
+    # gimbal axis torques (what is off costs nothing: one test for the four effects)
     springs, dampers, friction, bias = I[1, fx.SPRINGS], I[1, fx.DAMPERS], I[1, fx.FRICTION], I[1, fx.BIAS]
-    for i in range(5):
-        F[3 + i] = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, i, y[i], y[iqd + i])
+    Q0, Q1, Q2, Q3, Q4 = 0.0, 0.0, 0.0, 0.0, 0.0
+    if springs or dampers or friction or bias:
+        Q0 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 0, y[0], y[iqd])
+        Q1 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 1, y[1], y[iqd + 1])
+        Q2 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 2, y[2], y[iqd + 2])
+        Q3 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 3, y[3], y[iqd + 3])
+        Q4 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 4, y[4], y[iqd + 4])
+    z0, z1, z2 = 0.0, 0.0, 0.0
     if I[1, fx.SERVO]:
-        s0, s1, s2 = fx.servo_mount_torques(P, y, y, iqd, iz, yd)
-        MP0 += s0
-        MP1 += s1
-        MP2 += s2
-    else:
-        yd[iz], yd[iz + 1], yd[iz + 2] = 0.0, 0.0, 0.0
-    F[0], F[1], F[2] = MP0, MP1, MP2
-    rest_model_accel(mats, y, F, I[1, fx.GYRO], yd, 5)
+        m, z0 = _servo(P, y, iqd, iz, 0)
+        MP0 += m
+        m, z1 = _servo(P, y, iqd, iz, 1)
+        MP1 += m
+        m, z2 = _servo(P, y, iqd, iz, 2)
+        MP2 += m
+    # spec 6.3: M0 v̇ = F − G0 v over v = (Ω, q̇) = y[5:13]
+    F0, F1, F2, F3, F4, F5, F6, F7 = MP0, MP1, MP2, Q0, Q1, Q2, Q3, Q4
+    if I[1, fx.GYRO]:
+        v0, v1, v2, v3, v4, v5, v6, v7 = y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12]
+        F0 -= _row8(mats, 1, 0, v0, v1, v2, v3, v4, v5, v6, v7)
+        F1 -= _row8(mats, 1, 1, v0, v1, v2, v3, v4, v5, v6, v7)
+        F2 -= _row8(mats, 1, 2, v0, v1, v2, v3, v4, v5, v6, v7)
+        F3 -= _row8(mats, 1, 3, v0, v1, v2, v3, v4, v5, v6, v7)
+        F4 -= _row8(mats, 1, 4, v0, v1, v2, v3, v4, v5, v6, v7)
+        F5 -= _row8(mats, 1, 5, v0, v1, v2, v3, v4, v5, v6, v7)
+        F6 -= _row8(mats, 1, 6, v0, v1, v2, v3, v4, v5, v6, v7)
+        F7 -= _row8(mats, 1, 7, v0, v1, v2, v3, v4, v5, v6, v7)
+    d0 = _row8(mats, 0, 0, F0, F1, F2, F3, F4, F5, F6, F7)
+    d1 = _row8(mats, 0, 1, F0, F1, F2, F3, F4, F5, F6, F7)
+    d2 = _row8(mats, 0, 2, F0, F1, F2, F3, F4, F5, F6, F7)
+    d3 = _row8(mats, 0, 3, F0, F1, F2, F3, F4, F5, F6, F7)
+    d4 = _row8(mats, 0, 4, F0, F1, F2, F3, F4, F5, F6, F7)
+    d5 = _row8(mats, 0, 5, F0, F1, F2, F3, F4, F5, F6, F7)
+    d6 = _row8(mats, 0, 6, F0, F1, F2, F3, F4, F5, F6, F7)
+    d7 = _row8(mats, 0, 7, F0, F1, F2, F3, F4, F5, F6, F7)
+    # the stores
+    quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
+    yd[iz], yd[iz + 1], yd[iz + 2] = z0, z1, z2
+    yd[5], yd[6], yd[7], yd[8], yd[9], yd[10], yd[11], yd[12] = d0, d1, d2, d3, d4, d5, d6, d7
     for i in range(5):
         yd[i] = y[iqd + i]
     quat_rate_at(y, iqp, Om0, Om1, Om2, yd)
