@@ -547,11 +547,22 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
 def push_kernel(fb, ib, mi, md, t, w, f, has_f):
     """One sample (``w``, ``f`` (3,) arrays; ``f`` ignored unless ``has_f``): ``block_kernel``
     on a one-row chunk kept in the buffers (``F_PUSH``). Returns the status."""
+    if has_f:
+        return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], f[0], f[1], f[2], True)
+    return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], 0.0, 0.0, 0.0, False)
+
+
+@njit(cache=True)
+def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f):
+    """``push_kernel`` of a sample given as scalars (no input arrays to make or unbox: the
+    node's per-message path; ``fx, fy, fz`` ignored unless ``has_f``)."""
     o = ib[SLOT_W * F_PUSH]
     fb[o] = t
-    for m in range(3):
-        fb[o + 1 + m] = w[m]
-        fb[o + 4 + m] = f[m] if has_f else 0.0
+    fb[o + 1], fb[o + 2], fb[o + 3] = wx, wy, wz
+    if has_f:
+        fb[o + 4], fb[o + 5], fb[o + 6] = fx, fy, fz
+    else:
+        fb[o + 4], fb[o + 5], fb[o + 6] = 0.0, 0.0, 0.0
     n = ib[SLOT_W * F_Y + 1]
     return block_kernel(fb, ib, mi, md, fb[o:o + 1], view2(fb, o + 1, (1, 3)), view2(fb, o + 4, (1, 3)),
                         has_f, 0, ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0])
@@ -642,6 +653,15 @@ class Engine:
         """One sample through the compiled step (building missing matrices on the way)."""
         while True:
             st = push_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f)
+            if st != NEED_REGIME:
+                return st
+            self.add_matrices()
+
+    def push_values(self, t: float, wx: float, wy: float, wz: float, fx: float, fy: float, fz: float,
+                    has_f: bool) -> int:
+        """:meth:`push` of a sample given as floats."""
+        while True:
+            st = push_values_kernel(self.fb, self.ib, self.mi, self.md, t, wx, wy, wz, fx, fy, fz, has_f)
             if st != NEED_REGIME:
                 return st
             self.add_matrices()

@@ -132,7 +132,6 @@ class Simulator:
         self._compiled = compiled and self.engine.method is not None
         self._outk = OutputKernel(self.system)    # outputs (compiled)
         self._ydot = np.zeros(self.layout.n)
-        self._w_in, self._f_in = np.zeros(3), np.zeros(3)     # push_plain's input arrays
         self.reset()
 
     # ---- state (kept in the engine's buffers) ------------------------------------------
@@ -297,15 +296,26 @@ class Simulator:
     def push_plain(self, t: float, omega: tuple, specific_force: tuple | None) -> None:
         """:meth:`push` of a sample the input gate has checked (``TimeGate.offer_plain``): ``t``
         s, ω rad/s and specific force m/s² (or None) as 3-tuples of floats, vehicle axes. No
-        sample object or array is made (the node's per-message path); same results, same errors."""
-        w = self._w_in
-        w[0], w[1], w[2] = omega
+        sample object or array is made on the compiled path (the node's per-message path);
+        same results, same errors."""
         if specific_force is None:
-            f, has_f = self._no_force(), False
+            self._no_force()
+            fx = fy = fz = 0.0
+            has_f = False
         else:
-            f, has_f = self._f_in, True
-            f[0], f[1], f[2] = specific_force
-        self._push_arrays(t, w, f, has_f)
+            fx, fy, fz = specific_force
+            has_f = True
+        engine = self.engine
+        if not engine.ih.item(J_STARTED) or self._python_now():
+            self._push_arrays(t, np.array(omega), np.array((fx, fy, fz)), has_f)
+            return
+        wx, wy, wz = omega
+        try:
+            st = engine.push_values(t, wx, wy, wz, fx, fy, fz, has_f)
+        except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
+            raise self._failed(t, e) from e
+        if st:
+            self._refused(st, t, np.array(omega), np.array((fx, fy, fz)), has_f)
 
     def _no_force(self) -> np.ndarray:
         if self.needs_f:
@@ -314,7 +324,7 @@ class Simulator:
         return _ZERO3
 
     def _push_arrays(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> None:
-        """:meth:`push` of checked arrays (read, never kept: ``push_plain`` reuses them)."""
+        """:meth:`push` of checked arrays."""
         engine = self.engine
         if not engine.ih[J_STARTED]:
             self._first(t, w, f if has_f else None)
@@ -325,11 +335,14 @@ class Simulator:
         try:
             st = engine.push(t, w, f, has_f)
         except ArithmeticError as e:          # ZeroDivisionError etc. inside the compiled kernels
-            self.system.seg[:] = self.engine.segsave
-            raise SimulationError(f"integration failed at t = {t} ({type(e).__name__}: {e}); "
-                                  f"state kept at t = {self.t}") from e
+            raise self._failed(t, e) from e
         if st:
             self._refused(st, t, w, f, has_f)
+
+    def _failed(self, t: float, e: ArithmeticError) -> SimulationError:
+        """A compiled step raised: ``seg`` restored, the error to raise."""
+        self.system.seg[:] = self.engine.segsave
+        return SimulationError(f"integration failed at t = {t} ({type(e).__name__}: {e}); state kept at t = {self.t}")
 
     def _refused(self, st: int, t: float, w, f, has_f: bool) -> None:
         """A compiled sample came back with status ``st``: hand it to auto's fallback or raise
