@@ -326,6 +326,7 @@ class Step:
 
     @property
     def decision(self) -> Decision:
+        """The gate's decision (made from the plain tuple on the first call)."""
         if self._decision is None:
             self._decision = plain_decision(self._plain)
         return self._decision

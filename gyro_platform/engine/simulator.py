@@ -295,7 +295,7 @@ class Simulator:
 
     def push_plain(self, t: float, omega: tuple, specific_force: tuple | None) -> None:
         """:meth:`push` of a sample the input gate has checked (``TimeGate.offer_plain``): ``t``
-        s, ω rad/s and specific force m/s² (or None) as 3-tuples of floats, vehicle axes. No
+        s (a float), ω rad/s and specific force m/s² (or None) as 3-tuples of floats, vehicle axes. No
         sample object or array is made on the compiled path (the node's per-message path);
         same results, same errors."""
         if specific_force is None:
