@@ -128,22 +128,23 @@ def servo_axis(k, y, yd, z):
 
 
 @njit(cache=True, inline="always")
+def servo_mount_axis(k, y, qd, qd_off, z_off, ax):
+    """The servo of mount axis ``ax`` (spec 9.3) on state ``y``: its torque (N m, platform axis
+    ``ax``) from the pick-off ``y[servo_pickoff(ax)]``, that gimbal's rate ``qd[qd_off + g]``
+    and the integral ``y[z_off + ax]``, and the integral's rate (0 on a saturated axis:
+    conditional integration, anti-windup)."""
+    g = servo_pickoff(ax)
+    m, saturated = servo_axis(k, y[g], qd[qd_off + g], y[z_off + ax])
+    return m, 0.0 if saturated else y[g]
+
+
+@njit(cache=True, inline="always")
 def servo_mount_torques(k, y, qd, qd_off, z_off, yd):
-    """The servo of the three mount axes (spec 9.3) on state ``y``: their torques (N m,
-    platform axes 1, 2, 3) from the pick-offs ``y[servo_pickoff(ax)]``, gimbal rates
-    ``qd[qd_off + g]`` and integrals ``y[z_off + ax]``; the integrals' rates go to
-    ``yd[z_off:z_off + 3]`` (0 on a saturated axis: conditional integration, anti-windup)."""
-    m0, m1, m2 = 0.0, 0.0, 0.0
-    for ax in range(3):
-        g = servo_pickoff(ax)
-        m, saturated = servo_axis(k, y[g], qd[qd_off + g], y[z_off + ax])
-        yd[z_off + ax] = 0.0 if saturated else y[g]
-        if ax == 0:
-            m0 = m
-        elif ax == 1:
-            m1 = m
-        else:
-            m2 = m
+    """:func:`servo_mount_axis` of the three mount axes: their torques (N m, platform axes 1,
+    2, 3); the integrals' rates go to ``yd[z_off:z_off + 3]``."""
+    m0, yd[z_off] = servo_mount_axis(k, y, qd, qd_off, z_off, 0)
+    m1, yd[z_off + 1] = servo_mount_axis(k, y, qd, qd_off, z_off, 1)
+    m2, yd[z_off + 2] = servo_mount_axis(k, y, qd, qd_off, z_off, 2)
     return m0, m1, m2
 
 

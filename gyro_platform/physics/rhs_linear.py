@@ -55,14 +55,6 @@ def _row8(m, k, i, f0, f1, f2, f3, f4, f5, f6, f7):
 
 
 @njit(cache=True, inline="always")
-def _servo(P, y, iqd, iz, ax):
-    """Mount axis ``ax``'s servo torque (N m) and its integral's rate (0 when saturated)."""
-    g = fx.servo_pickoff(ax)
-    m, saturated = fx.servo_axis(P, y[g], y[iqd + g], y[iz + ax])
-    return m, 0.0 if saturated else y[g]
-
-
-@njit(cache=True, inline="always")
 def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     """ẏ of the linear stabilised model into ``yd`` (state layout of ``I[0]``; ``P`` packed
     coefficients, whose first block is the effect vector ``k``; ``seg`` the input interval;
@@ -111,11 +103,11 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
         Q4 = fx.gimbal_axis_torque(springs, dampers, friction, bias, P, 4, y[4], y[iqd + 4])
     z0, z1, z2 = 0.0, 0.0, 0.0
     if I[1, fx.SERVO]:
-        m, z0 = _servo(P, y, iqd, iz, 0)
+        m, z0 = fx.servo_mount_axis(P, y, y, iqd, iz, 0)
         MP0 += m
-        m, z1 = _servo(P, y, iqd, iz, 1)
+        m, z1 = fx.servo_mount_axis(P, y, y, iqd, iz, 1)
         MP1 += m
-        m, z2 = _servo(P, y, iqd, iz, 2)
+        m, z2 = fx.servo_mount_axis(P, y, y, iqd, iz, 2)
         MP2 += m
     # spec 6.3: M0 v̇ = F − G0 v over v = (Ω, q̇) = y[5:13]
     F0, F1, F2, F3, F4, F5, F6, F7 = MP0, MP1, MP2, Q0, Q1, Q2, Q3, Q4
