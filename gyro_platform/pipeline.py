@@ -386,21 +386,20 @@ class Pipeline:
         except SimulationError:
             outcome = restart_at(self.sim, gate.last.sample)
         else:
-            outcomes = self.outcomes
-            outcomes["pushed"] = outcomes.get("pushed", 0) + 1
-            return Step(None, "pushed", self.due(plain[3]), plain)
+            return self._settle(None, "pushed", plain)
         return self._settle(gate.last, outcome)
 
     def apply(self, decision: Decision) -> Step:
         """A gate decision: simulator, outcome count, output grid (restarted on a reset)."""
         return self._settle(decision, apply_decision(self.sim, decision))
 
-    def _settle(self, decision: Decision, outcome: str) -> Step:
-        """Count the simulator's ``outcome`` of ``decision``; gate roll-back, output grid."""
+    def _settle(self, decision: Decision | None, outcome: str, plain: tuple | None = None) -> Step:
+        """Count the simulator's ``outcome`` of ``decision`` (None: a pushed ``plain`` reading,
+        ``TimeGate.offer_plain``); gate roll-back, output grid."""
         outcomes = self.outcomes
         outcomes[outcome] = outcomes.get(outcome, 0) + 1
         if outcome == "pushed":
-            return Step(decision, outcome, self.due(decision.stamp_ns))
+            return Step(decision, outcome, self.due(plain[3] if decision is None else decision.stamp_ns), plain)
         if outcome == "rejected":       # the gate must not keep a time the simulator refused
             self.gate.refuse("the simulator refused the sample")
         if outcome in ("reset", "restarted"):

@@ -200,6 +200,12 @@ class GateBlock:
 _EXACT_NS = 2 ** 53
 
 
+def _ema_add(e: float | None, dt: float, a: float) -> float:
+    """One interval ``dt`` (s) into the average ``e``: ``dt`` if none yet, else ``e + a·(dt − e)``
+    (the scalar gate's update; the compiled passes' is ``_ema_step``)."""
+    return dt if e is None else e + a * (dt - e)
+
+
 def _ema(e: float | None, d_ns: np.ndarray, a: float) -> float | None:
     """``e`` after ``e = dt if e is None else e + a·(dt − e)`` for every interval ``dt = d/NS``
     of ``d_ns`` (int64 ns) in order: the same float operations as the scalar gate's."""
@@ -207,8 +213,7 @@ def _ema(e: float | None, d_ns: np.ndarray, a: float) -> float | None:
         return e
     if np.abs(d_ns).max() >= _EXACT_NS:
         for dn in d_ns.tolist():
-            dt = dn / NS
-            e = dt if e is None else e + a * (dt - e)
+            e = _ema_add(e, dn / NS, a)
         return e
     return float(_ema_kernel(np.nan if e is None else e, e is None, d_ns, a))
 
@@ -370,9 +375,7 @@ class TimeGate:
         s = self._s
         last = s.rx_last
         if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
-            dt = (receive_ns - last) / NS
-            e = s.rx_dt_ema
-            s.rx_dt_ema = dt if e is None else e + self.config.rate_smoothing * (dt - e)
+            s.rx_dt_ema = _ema_add(s.rx_dt_ema, (receive_ns - last) / NS, self.config.rate_smoothing)
         s.rx_last = int(receive_ns)
 
     def offer_plain(self, r: Reading | Rejected, receive_ns: int | None = None) -> tuple | None:
@@ -430,8 +433,7 @@ class TimeGate:
                 self.notes[n] += 1
         e, origin = s.dt_ema, s.origin_ns
         self._undo = (source, origin, last_ns, e, note)
-        dt = dt_ns / NS
-        s.dt_ema = dt if e is None else e + cfg.rate_smoothing * (dt - e)
+        s.dt_ema = _ema_add(e, dt_ns / NS, cfg.rate_smoothing)
         s.last_ns = t_ns
         self._last = None
         self._plain = p = ((t_ns - origin) / NS, (wx, wy, wz), f, t_ns, source)
@@ -544,8 +546,7 @@ class TimeGate:
                 else:
                     note = ("gap_integrated",)
             else:
-                dt = dt_ns / NS
-                dt_ema = dt if dt_ema is None else dt_ema + cfg.rate_smoothing * (dt - dt_ema)
+                dt_ema = _ema_add(dt_ema, dt_ns / NS, cfg.rate_smoothing)
 
         # -- commit
         if source == "receive":
