@@ -65,3 +65,9 @@ def test_a_bag_with_rosbags_definitions_decodes_with_the_core_store(tmp_path):
     other = SimpleNamespace(msgtype=m.IMU, msgdef=MessageDefinition(MessageDefinitionFormat.MSG, "# comment\n" + text))
     store = typestore_for(other)
     assert store is not CORE and store.get_msgdef(m.IMU).fields == CORE.get_msgdef(m.IMU).fields
+    # no definition (bags recorded before Iron): Jazzy's, from the core store for its types only
+    for fmt, data in ((MessageDefinitionFormat.NONE, ""), (MessageDefinitionFormat.MSG, "")):
+        bare = SimpleNamespace(msgtype=m.TWIST_STAMPED, msgdef=MessageDefinition(fmt, data))
+        assert typestore_for(bare) is CORE
+    odom = SimpleNamespace(msgtype="nav_msgs/msg/Odometry", msgdef=MessageDefinition(MessageDefinitionFormat.NONE, ""))
+    assert typestore_for(odom) is JAZZY

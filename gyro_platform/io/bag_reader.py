@@ -250,12 +250,14 @@ class InputBag:
 
 def typestore_for(conn: Any) -> Any:
     """Typestore that decodes ``conn``: one built from the bag's own message definition (MSG
-    or IDL) when it has a usable one, else the Jazzy typestore."""
+    or IDL) when it has a usable one, else the Jazzy typestore — for the types of
+    :mod:`.typedefs` its small copy (``core_typestore``: the same definitions and bytes)."""
     rb = rosbags_api()
     fmt = rb["MsgDefFormat"]
-    if (conn.msgdef.format == fmt.MSG and has_type(conn.msgtype)
-            and conn.msgdef.data == core_msgdef(conn.msgtype)):    # the text rosbags writes: no parsing
-        return core_typestore()
+    if has_type(conn.msgtype) and (
+            (conn.msgdef.format == fmt.MSG and conn.msgdef.data == core_msgdef(conn.msgtype))  # rosbags' text
+            or conn.msgdef.format == fmt.NONE or not conn.msgdef.data):     # no definition: Jazzy's
+        return core_typestore()         # the Jazzy definitions of these types (not the ~0.25 s full store)
     if conn.msgdef.format != fmt.NONE and conn.msgdef.data:
         try:
             store = rb["get_typestore"](rb["Stores"].EMPTY)
