@@ -96,8 +96,16 @@ def command_of(argv: list[str]) -> str:
     return next((a for a in argv if not a.startswith("-")), "")
 
 
+#: commands that end with a plot unless told ``--no-plot`` (their helper starts first: io.plot_process)
+PLOTTING = ("run", "replay")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser(command_of(sys.argv[1:] if argv is None else argv))
+    words = sys.argv[1:] if argv is None else argv
+    if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
+        from .io import plot_process
+        plot_process.start()            # matplotlib imported beside this process's start-up
+    parser = build_parser(command_of(words))
     args = parser.parse_args(argv)
     _check_scalar_values(parser, args)
     err = getattr(args, "_import_error", None)

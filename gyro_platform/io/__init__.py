@@ -2,7 +2,8 @@
 
 Holds the ROS message mapping (``messages``: inputs → readings, outputs → messages, topics,
 diagnostics, TF), the input time gate (``gate``: stamps, gaps, rates, resets), the recorder
-(``recording``: CSV, JSON summaries, plots) and the URDF generated from the parameters
+(``recording``: CSV, JSON summaries, plots; ``plot_process``: the helper process that draws a
+command's plot while it runs) and the URDF generated from the parameters
 (``urdf``), and rosbag2 bags: where their files are (``bag_paths``), reading an intact bag
 (``bag_reader``; fast block readers ``bag_fast``), salvaging a damaged one (``bag_salvage``),
 writing the output bag (``bag_writer``); the fast path's array blocks (``blocks``: RowChunk,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -354,86 +355,117 @@ class Recorder:
         return (M.inv() * AB.inv() * M * AP).as_rotvec()
 
     # ---- plot ---------------------------------------------------------------------------
+    def plot_data(self) -> PlotData:
+        """The series the figure shows (:class:`PlotData`)."""
+        return PlotData(self.t_rel, self.gimbal_angles, self.drift_angle,
+                        {b: self.bearing(b) for b in self.bearings()}, self.field("servo_torque"),
+                        self.field("vehicle_omega") if "vehicle_omega" in self._extra else None)
+
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
         """:meth:`figure` written as PNG."""
-        path = Path(path_png)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.figure(title, summary).savefig(path, dpi=100)
-        return path
+        return save_plot(self.plot_data(), path_png, title, summary if summary is not None else self.summary())
 
     def figure(self, title: str | None = None, summary: dict | None = None):
-        """Gimbal angles, drift angle (with fitted drift rates in °/h), bearing torques and the
-        vehicle rate against time (matplotlib Agg backend). Every panel has a title, axis
-        labels with units and a legend; ``title`` (wrapped, never cut) heads the figure; margins
-        fixed in inches (room for the labels, the wrapped title and the panel titles). A plain
-        ``matplotlib.figure.Figure`` on an Agg canvas (no pyplot: nothing to close, ~0.1 s
-        less to import)."""
-        import textwrap
+        """:func:`figure` of :meth:`plot_data` (``summary``: of :meth:`summary` if not given)."""
+        return figure(self.plot_data(), title, summary if summary is not None else self.summary())
 
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-        from matplotlib.ticker import LogFormatter
 
-        s = summary if summary is not None else self.summary()
-        t = self.t_rel
-        has_vehicle = "vehicle_omega" in self._extra
-        n = 4 if has_vehicle else 3
-        height = 2.8 * n + 0.8                      # inches
-        fig = Figure(figsize=(10, height))
-        FigureCanvasAgg(fig)                    # the Agg canvas: draw(), get_renderer(), savefig
-        axs = fig.subplots(n, 1, sharex=True)
-        q = self.gimbal_angles
-        for i, g in enumerate(GIMBAL_NAMES):
-            axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
-        axs[0].set_ylabel("gimbal angle [mrad]")
-        axs[0].set_title("gimbal angles", fontsize=10)
-        axs[0].legend(loc="upper right", ncol=5, fontsize=8)
-        d = self.drift_angle
-        rates = s.get("drift_rate_deg_per_h", {})
-        t0f = s.get("drift_fit_start", 0.0)
+@dataclass
+class PlotData:
+    """What a run's figure shows, over its N output instants: ``t_rel`` (N,) s since the first,
+    ``gimbal_angles`` (N, 5) rad, ``drift_angle`` (N, 3) rad, ``bearings`` name → (N, 3) N m
+    (``BEARING_NAMES`` order, the reported ones), ``servo_torque`` (N, 3) N m or None,
+    ``vehicle_omega`` (N, 3) rad/s body axes or None. Small to pickle (``io.plot_process``)."""
+
+    t_rel: np.ndarray
+    gimbal_angles: np.ndarray
+    drift_angle: np.ndarray
+    bearings: dict[str, np.ndarray]
+    servo_torque: np.ndarray | None
+    vehicle_omega: np.ndarray | None
+
+
+def save_plot(data: PlotData, path_png: Any, title: str | None, summary: dict) -> Path:
+    """:func:`figure` written as PNG (folders made)."""
+    path = Path(path_png)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure(data, title, summary).savefig(path, dpi=100)
+    return path
+
+
+def figure(data: PlotData, title: str | None, summary: dict):
+    """Gimbal angles, drift angle (with fitted drift rates in °/h from ``summary``), bearing
+    torques and the vehicle rate against time (matplotlib Agg backend). Every panel has a
+    title, axis labels with units and a legend; ``title`` (wrapped, never cut) heads the
+    figure; margins fixed in inches (room for the labels, the wrapped title and the panel
+    titles). A plain ``matplotlib.figure.Figure`` on an Agg canvas (no pyplot: nothing to
+    close, ~0.1 s less to import)."""
+    import textwrap
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import LogFormatter
+
+    s = summary
+    t = data.t_rel
+    has_vehicle = data.vehicle_omega is not None
+    n = 4 if has_vehicle else 3
+    height = 2.8 * n + 0.8                      # inches
+    fig = Figure(figsize=(10, height))
+    FigureCanvasAgg(fig)                    # the Agg canvas: draw(), get_renderer(), savefig
+    axs = fig.subplots(n, 1, sharex=True)
+    q = data.gimbal_angles
+    for i, g in enumerate(GIMBAL_NAMES):
+        axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
+    axs[0].set_ylabel("gimbal angle [mrad]")
+    axs[0].set_title("gimbal angles", fontsize=10)
+    axs[0].legend(loc="upper right", ncol=5, fontsize=8)
+    d = data.drift_angle
+    rates = s.get("drift_rate_deg_per_h", {})
+    t0f = s.get("drift_fit_start", 0.0)
+    for i, ax in enumerate(AXES):
+        lbl = f"{ax}: {rates.get(ax, float('nan')):+.4g} °/h"
+        line, = axs[1].plot(t, d[:, i] * 1e6, label=lbl, lw=1)
+        r = s.get("drift_rate", {}).get(ax)
+        if r is not None and t.size > 1:
+            win = t >= t0f
+            c = d[win, i].mean() - r * t[win].mean()
+            axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
+    axs[1].set_ylabel("drift angle [µrad]")
+    axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
+    axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
+    for b, torque in data.bearings.items():
+        axs[2].plot(t, np.linalg.norm(torque, axis=1), label=b, lw=1)
+    st = data.servo_torque
+    if st is not None:
+        axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
+    axs[2].set_ylabel("|torque| [N m]")
+    axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
+                     + " (magnitude)", fontsize=10)
+    if data.bearings:
+        axs[2].set_yscale("symlog", linthresh=1e-9)
+        # plain-text tick labels ("1e-06"): the default ones are mathtext, whose parser
+        # costs ~0.45 s to build on its first use
+        axs[2].yaxis.set_major_formatter(LogFormatter(labelOnlyBase=True))
+    if data.bearings or st is not None:
+        axs[2].legend(loc="upper right", ncol=5, fontsize=7)
+    if has_vehicle:
+        w = data.vehicle_omega
         for i, ax in enumerate(AXES):
-            lbl = f"{ax}: {rates.get(ax, float('nan')):+.4g} °/h"
-            line, = axs[1].plot(t, d[:, i] * 1e6, label=lbl, lw=1)
-            r = s.get("drift_rate", {}).get(ax)
-            if r is not None and t.size > 1:
-                win = t >= t0f
-                c = d[win, i].mean() - r * t[win].mean()
-                axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
-        axs[1].set_ylabel("drift angle [µrad]")
-        axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
-        axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
-        for b in self.bearings():
-            axs[2].plot(t, np.linalg.norm(self.bearing(b), axis=1), label=b, lw=1)
-        st = self.field("servo_torque")
-        if st is not None:
-            axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
-        axs[2].set_ylabel("|torque| [N m]")
-        axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
-                         + " (magnitude)", fontsize=10)
-        if self.bearings():
-            axs[2].set_yscale("symlog", linthresh=1e-9)
-            # plain-text tick labels ("1e-06"): the default ones are mathtext, whose parser
-            # costs ~0.45 s to build on its first use
-            axs[2].yaxis.set_major_formatter(LogFormatter(labelOnlyBase=True))
-        if self.bearings() or st is not None:
-            axs[2].legend(loc="upper right", ncol=5, fontsize=7)
-        if has_vehicle:
-            w = self.field("vehicle_omega")
-            for i, ax in enumerate(AXES):
-                axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
-            axs[3].set_ylabel("vehicle rate [rad/s]")
-            axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10)
-            axs[3].legend(loc="upper right", ncol=3, fontsize=8)
-        axs[-1].set_xlabel("time since the first output [s]")
-        for a in axs:
-            a.grid(True, alpha=0.3)
-        head = textwrap.fill(title or "gyro_platform outputs", 100)
-        fig.suptitle(head)
-        # fixed margins (inches) instead of a layout engine: constrained layout draws the whole
-        # figure once more to measure it (~0.25 s of the ~0.6 s a replay's plot takes)
-        fig.subplots_adjust(left=0.95 / 10, right=1 - 0.25 / 10, bottom=0.55 / height,
-                            top=1 - (0.55 + 0.22 * (head.count("\n") + 1)) / height, hspace=0.22)
-        return fig
+            axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
+        axs[3].set_ylabel("vehicle rate [rad/s]")
+        axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10)
+        axs[3].legend(loc="upper right", ncol=3, fontsize=8)
+    axs[-1].set_xlabel("time since the first output [s]")
+    for a in axs:
+        a.grid(True, alpha=0.3)
+    head = textwrap.fill(title or "gyro_platform outputs", 100)
+    fig.suptitle(head)
+    # fixed margins (inches) instead of a layout engine: constrained layout draws the whole
+    # figure once more to measure it (~0.25 s of the ~0.6 s a replay's plot takes)
+    fig.subplots_adjust(left=0.95 / 10, right=1 - 0.25 / 10, bottom=0.55 / height,
+                        top=1 - (0.55 + 0.22 * (head.count("\n") + 1)) / height, hspace=0.22)
+    return fig
 
 
 class CsvWriter:

@@ -463,6 +463,7 @@ class _Run:
         if not self.series.items:
             return None, None
         try:
+            from ..io.plot_process import draw
             from ..io.recording import Recorder
         except ImportError as e:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
@@ -471,8 +472,8 @@ class _Run:
         for o in self.series.outputs():
             rec.append(o)
         try:
-            rec.plot(path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
-                                 f"({self.sim.options.mode}, {self.sim.options.fidelity})")
+            draw(rec, path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
+                                  f"({self.sim.options.mode}, {self.sim.options.fidelity})")
             return str(path), rec.summary()
         except Exception as e:  # a plot must not lose the replay
             print(f"gyro-platform replay: warning: plot failed: {e}", file=sys.stderr)

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import BagReadError, SimulationError, deferred_signals
 from ..io.bag_reader import InputBag
 from ..io.gate import TimeGate
+from ..io.plot_process import draw
 from ..io.recording import CsvWriter, Recorder
 from ..pipeline import (ADVANCED, OUTCOMES, ChunkPacer, Pipeline, bag_chunks, new_slots, no_sample_hint,
                         push_block)
@@ -185,7 +186,7 @@ def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None
                              for c, p, det in results],
             "simulator": sim.stats,
         })
-        rec.plot(out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
+        draw(rec, out / "plot.png", title=f"{scene.name}: {scene.description}".rstrip(": "), summary=summary)
     return summary, results
 
 

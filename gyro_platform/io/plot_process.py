@@ -1,0 +1,103 @@
+"""A helper process that draws a command's plot (``Recorder.plot``).
+
+Importing matplotlib takes ~0.75 s on a 2 GHz core, about a fifth of a whole ``replay`` or
+``run`` command. :func:`start`, called when the command begins, starts ``python -m
+gyro_platform.io.plot_process``: it imports matplotlib on another core while this process
+starts up and simulates, then waits for one job on its stdin. :func:`draw` sends it the
+figure's series (``recording.PlotData``, ~100 kB: not the recorder's objects, whose pickling
+would cost more than the import), the path, the title and the summary, and waits until the
+PNG is written. Whatever
+goes wrong with the helper (it could not start, died, was killed, timed out, could not unpickle
+the job, failed to draw), :func:`draw` draws in this process instead, as without a helper: the
+plot never depends on it. The helper ignores SIGINT (a Ctrl-C stops the command in order, which
+then still plots) and exits at the end of its stdin (the command ended without a plot).
+May import ``recording`` only.
+"""
+from __future__ import annotations
+
+import atexit
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+#: the longest wait for the helper's plot (s), after which it is killed and this process draws
+TIMEOUT_S = 120.0
+
+_helper: subprocess.Popen | None = None
+
+
+def start() -> None:
+    """Start this process's helper (once; nothing when it cannot be started)."""
+    global _helper
+    if _helper is not None:
+        return
+    root = str(Path(__file__).resolve().parents[2])        # the folder holding gyro_platform
+    path = os.environ.get("PYTHONPATH")
+    env = dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))
+    try:
+        _helper = subprocess.Popen([sys.executable, "-m", "gyro_platform.io.plot_process"], stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+    except (OSError, ValueError):
+        _helper = None
+        return
+    atexit.register(stop)
+
+
+def stop() -> None:
+    """End the helper if it is still there (its job not sent)."""
+    global _helper
+    helper, _helper = _helper, None
+    if helper is not None and helper.poll() is None:
+        helper.kill()
+        helper.wait()
+
+
+def draw(rec: Any, path: Any, title: str | None = None, summary: dict | None = None) -> Path:
+    """``rec.plot(path, title, summary)`` (a ``recording.Recorder``): by the helper when one
+    was started and it draws it, else here (the same figure; the same errors raised)."""
+    global _helper
+    helper, _helper = _helper, None
+    if summary is None:
+        summary = rec.summary()
+    if helper is not None:
+        try:
+            job = (rec.plot_data(), str(path), title, summary)
+            pickle.dump(job, helper.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            helper.stdin.close()
+            reply = helper.stdout.read()
+            if helper.wait(timeout=TIMEOUT_S) == 0 and reply == b"ok\n":
+                return Path(path)
+        except (OSError, ValueError, pickle.PicklingError, subprocess.TimeoutExpired):
+            pass
+        finally:
+            if helper.poll() is None:
+                helper.kill()
+                helper.wait()
+    return rec.plot(path, title=title, summary=summary)
+
+
+def _main() -> int:
+    """The helper: matplotlib imported first, then one job from stdin."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import matplotlib.backends.backend_agg  # noqa: F401  (the slow import, done while waiting)
+    import matplotlib.figure  # noqa: F401
+    import matplotlib.ticker  # noqa: F401
+
+    from .recording import save_plot
+
+    try:
+        data, path, title, summary = pickle.load(sys.stdin.buffer)
+    except EOFError:
+        return 0                                # the command ended without a plot
+    save_plot(data, path, title, summary)
+    sys.stdout.write("ok\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_main())
