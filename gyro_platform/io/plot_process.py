@@ -4,7 +4,7 @@ Importing matplotlib takes ~0.75 s on a 2 GHz core, about a fifth of a whole ``r
 ``run`` command. :func:`start`, called when the command begins, starts ``python -m
 gyro_platform.io.plot_process``: it imports matplotlib on another core while this process
 starts up and simulates, then waits for one job on its stdin. :func:`draw` sends it the
-figure's series (``recording.PlotData``, ~100 kB: not the recorder's objects, whose pickling
+figure's series (``recording.PlotData``, arrays of ~1 MB: not the recorder's objects, whose pickling
 would cost more than the import), the path, the title and the summary, and waits until the
 PNG is written. Whatever
 goes wrong with the helper (it could not start, died, was killed, timed out, could not unpickle

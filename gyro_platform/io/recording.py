@@ -362,12 +362,12 @@ class Recorder:
                         self.field("vehicle_omega") if "vehicle_omega" in self._extra else None)
 
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
-        """:meth:`figure` written as PNG."""
+        """:meth:`figure` written as PNG (:func:`save_plot`)."""
         return save_plot(self.plot_data(), path_png, title, summary if summary is not None else self.summary())
 
     def figure(self, title: str | None = None, summary: dict | None = None):
-        """:func:`figure` of :meth:`plot_data` (``summary``: of :meth:`summary` if not given)."""
-        return figure(self.plot_data(), title, summary if summary is not None else self.summary())
+        """:func:`make_figure` of :meth:`plot_data` (``summary``: :meth:`summary` if not given)."""
+        return make_figure(self.plot_data(), title, summary if summary is not None else self.summary())
 
 
 @dataclass
@@ -386,14 +386,14 @@ class PlotData:
 
 
 def save_plot(data: PlotData, path_png: Any, title: str | None, summary: dict) -> Path:
-    """:func:`figure` written as PNG (folders made)."""
+    """:func:`make_figure` written as PNG (folders made)."""
     path = Path(path_png)
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure(data, title, summary).savefig(path, dpi=100)
+    make_figure(data, title, summary).savefig(path, dpi=100)
     return path
 
 
-def figure(data: PlotData, title: str | None, summary: dict):
+def make_figure(data: PlotData, title: str | None, summary: dict):
     """Gimbal angles, drift angle (with fitted drift rates in °/h from ``summary``), bearing
     torques and the vehicle rate against time (matplotlib Agg backend). Every panel has a
     title, axis labels with units and a legend; ``title`` (wrapped, never cut) heads the
