@@ -1,6 +1,6 @@
 """The plot helper process (io.plot_process): the PNG it draws is byte for byte the one this
 process would draw, matplotlib is then never imported here, and whatever happens to the helper
-(killed, interrupted, unused) the plot is still drawn or the helper goes away on its own."""
+(killed, hung, interrupted, unused) the plot is still drawn or the helper goes away on its own."""
 from __future__ import annotations
 
 import os
@@ -26,6 +26,9 @@ SCRIPT = textwrap.dedent("""
     what = {what!r}
     if what == "kill":
         helper.kill(); helper.wait()
+    elif what == "hang":
+        helper.send_signal(signal.SIGSTOP)       # a helper that never answers
+        plot_process.TIMEOUT_S = 2.0
     elif what == "sigint":
         time.sleep(3.0)                         # matplotlib imported by now: the handler is set
         helper.send_signal(signal.SIGINT); time.sleep(0.5)
@@ -50,8 +53,9 @@ def test_the_helper_draws_the_same_png_and_this_process_never_imports_matplotlib
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and png == ref
 
 
-def test_a_killed_helper_leaves_the_plot_to_this_process(tmp_path):
-    said, png, ref = run(tmp_path, "kill")
+@pytest.mark.parametrize("what", ["kill", "hang"])
+def test_a_killed_or_hung_helper_leaves_the_plot_to_this_process(tmp_path, what):
+    said, png, ref = run(tmp_path, what)
     assert said == f"helper {-signal.SIGKILL} matplotlib here True"
     assert png == ref
 

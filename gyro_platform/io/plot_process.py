@@ -64,11 +64,9 @@ def draw(rec: Any, path: Any, title: str | None = None, summary: dict | None = N
         summary = rec.summary()
     if helper is not None:
         try:
-            job = (rec.plot_data(), str(path), title, summary)
-            pickle.dump(job, helper.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            helper.stdin.close()
-            reply = helper.stdout.read()
-            if helper.wait(timeout=TIMEOUT_S) == 0 and reply == b"ok\n":
+            job = pickle.dumps((rec.plot_data(), str(path), title, summary), protocol=pickle.HIGHEST_PROTOCOL)
+            reply, _ = helper.communicate(job, timeout=TIMEOUT_S)
+            if helper.returncode == 0 and reply == b"ok\n":
                 return Path(path)
         except (OSError, ValueError, pickle.PicklingError, subprocess.TimeoutExpired):
             pass
