@@ -352,7 +352,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 nrm = 0.0
                 for sub in range(nsub):
                     t = tc + sub * h
-                    # one call site of the (inlined) right-hand side: stage j evaluates f at U_j
+                    # one call site of the right-hand side: stage j evaluates f at U_j
                     for j in range(ss + 1):
                         if j == 0:
                             if have_k1:

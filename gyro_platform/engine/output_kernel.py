@@ -88,7 +88,7 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-# ---- the model's right-hand side (one inlined copy, called up to three times) -----------------
+# ---- the model's right-hand side (the one compiled platform_rhs, called up to three times) ------
 
 @njit(cache=True, error_model="numpy")
 def _rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c, tau_ext, fb,

@@ -73,15 +73,18 @@ def chol_solve(M, b, x, work):
     return True
 
 
-@njit(cache=True, inline="always", fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH)
 def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
                  R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
     """ẏ of the platform (see module doc). Writes ``yd``; returns a status code
     (0 ok, 1 precession gimbal lock, 2 mass matrix not positive definite).
 
-    Inputs are grouped (fewer than 30 arguments, so numba can inline this into the batch
-    loop; every array argument of a non-inlined call costs ~5 ns of reference counting):
-    ``I`` int rows (layout, effect flags, tree parent/jtype/qidx/vidx), ``P`` packed floats
+    One compiled function that the batch, push and output kernels call (not inlined into
+    each: a first run compiled it three times, 154 s of the default scene's first run on a
+    2 GHz core, now 95 s; the call's 28 array arguments cost nothing measurable against the
+    ~3 µs of the tree's right-hand side: default scene 0.63–0.68 s per 20 s either way; the
+    linear stabilised model keeps its inlined right-hand side in the batch kernel).
+    Inputs are grouped: ``I`` int rows (layout, effect flags, tree parent/jtype/qidx/vidx), ``P`` packed floats
     (effect coefficients, L, linear coefficients, ω_IN; offsets ``P_*``), ``seg`` the input
     interval, ``mats`` (5, 8, 8): M0⁻¹, G0, I_frozen, I_frozen⁻¹, R_PB (mounting). Work arrays
     are preallocated and indexed directly (no views on the linear hot path): the tree's,
