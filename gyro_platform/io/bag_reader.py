@@ -257,7 +257,7 @@ def typestore_for(conn: Any) -> Any:
     if has_type(conn.msgtype) and (
             (conn.msgdef.format == fmt.MSG and conn.msgdef.data == core_msgdef(conn.msgtype))  # rosbags' text
             or conn.msgdef.format == fmt.NONE or not conn.msgdef.data):     # no definition: Jazzy's
-        return core_typestore()         # the Jazzy definitions of these types (not the ~0.25 s full store)
+        return core_typestore()         # the Jazzy definitions of these types (not the 0.13 s full store)
     if conn.msgdef.format != fmt.NONE and conn.msgdef.data:
         try:
             store = rb["get_typestore"](rb["Stores"].EMPTY)

@@ -4,14 +4,13 @@ Importing matplotlib takes ~0.75 s on a 2 GHz core, about a fifth of a whole ``r
 ``run`` command. :func:`start`, called when the command begins, starts ``python -m
 gyro_platform.io.plot_process``: it imports matplotlib on another core while this process
 starts up and simulates, then waits for one job on its stdin. :func:`draw` sends it the
-figure's series (``recording.PlotData``, arrays of ~1 MB: not the recorder's objects, whose pickling
-would cost more than the import), the path, the title and the summary, and waits until the
-PNG is written. Whatever
-goes wrong with the helper (it could not start, died, was killed, timed out, could not unpickle
-the job, failed to draw), :func:`draw` draws in this process instead, as without a helper: the
-plot never depends on it. The helper ignores SIGINT (a Ctrl-C stops the command in order, which
-then still plots) and exits at the end of its stdin (the command ended without a plot).
-May import ``recording`` only.
+figure's series (``recording.PlotData``, arrays of ~1 MB: not the recorder's objects, whose
+pickling would cost more than the import), the path, the title and the summary, and waits
+until the PNG is written. Whatever goes wrong with the helper (it could not start, died, was
+killed, timed out, could not unpickle the job, failed to draw), :func:`draw` draws in this
+process instead, as without a helper: the plot never depends on it. The helper ignores SIGINT
+(a Ctrl-C stops the command in order, which then still plots) and exits at the end of its
+stdin (the command ended without a plot). May import ``recording`` only.
 """
 from __future__ import annotations
 
