@@ -444,8 +444,8 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
                      + " (magnitude)", fontsize=10)
     if data.bearings:
         axs[2].set_yscale("symlog", linthresh=1e-9)
-        # plain-text tick labels ("1e-06"): the default ones are mathtext, whose parser
-        # costs ~0.45 s to build on its first use
+        # plain-text tick labels ("1e-06"): the default ones are mathtext, whose parser is
+        # built on its first use (~0.15 s of a replay's plot, measured)
         axs[2].yaxis.set_major_formatter(LogFormatter(labelOnlyBase=True))
     if data.bearings or st is not None:
         axs[2].legend(loc="upper right", ncol=5, fontsize=7)

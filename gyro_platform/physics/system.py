@@ -84,9 +84,9 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     2 GHz core, now 95 s; the call's 28 array arguments cost nothing measurable against the
     ~3 µs of the tree's right-hand side: default scene 0.63–0.68 s per 20 s either way; the
     linear stabilised model keeps its inlined right-hand side in the batch kernel).
-    Inputs are grouped: ``I`` int rows (layout, effect flags, tree parent/jtype/qidx/vidx), ``P`` packed floats
-    (effect coefficients, L, linear coefficients, ω_IN; offsets ``P_*``), ``seg`` the input
-    interval, ``mats`` (5, 8, 8): M0⁻¹, G0, I_frozen, I_frozen⁻¹, R_PB (mounting). Work arrays
+    Inputs are grouped: ``I`` int rows (layout, effect flags, tree parent/jtype/qidx/vidx),
+    ``P`` packed floats (effect coefficients, L, linear coefficients, ω_IN; offsets ``P_*``),
+    ``seg`` the input interval, ``mats`` (5, 8, 8): M0⁻¹, G0, I_frozen, I_frozen⁻¹, R_PB (mounting). Work arrays
     are preallocated and indexed directly (no views on the linear hot path): the tree's,
     ``RR`` (4, 3, 3) rotations R_IP, R_IB, R_PB, R_IC, ``V`` (9, 3) small vectors (rows
     ``V_*``), ``W`` rows q̇, tree v, zero a, dvisc, Qf. The linear stabilised model without

@@ -472,9 +472,10 @@ class _Run:
         for o in self.series.outputs():
             rec.append(o)
         try:
+            summary = rec.summary()
             draw(rec, path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
-                                  f"({self.sim.options.mode}, {self.sim.options.fidelity})")
-            return str(path), rec.summary()
+                                  f"({self.sim.options.mode}, {self.sim.options.fidelity})", summary=summary)
+            return str(path), summary
         except Exception as e:  # a plot must not lose the replay
             print(f"gyro-platform replay: warning: plot failed: {e}", file=sys.stderr)
             return None, {"error": str(e)}
