@@ -577,14 +577,34 @@ class Pipeline:
                 self.new_segment = False
             if failed is None:
                 return
-            if len(block) < np.count_nonzero(out_idx < n_done):   # the outputs at r[n_done - 1] failed
-                i = int(r[n_done - 1])
-                res.output_failed.append(i)
-                self._error(f"t={int(gb.stamp_ns[i])}: outputs failed: {failed}")
-                start += n_done
-            else:                                       # the integration to r[n_done] failed
-                self._scalar(r[n_done:n_done + 1], rb, res)
-                start += n_done + 1
+            if failed.output_failed is not None:
+                self._outputs_after(failed, r[out_idx], gb, res)
+            if n_done == len(r):                        # only outputs failed
+                return
+            self._scalar(r[n_done:n_done + 1], rb, res)   # the integration to r[n_done] failed
+            start += n_done + 1
+
+    def _outputs_after(self, failed: SimulationError, rows: np.ndarray, gb: Any, res: BlockResult) -> None:
+        """The recorded instants of a ``push_block`` from its first failed output on
+        (``failed.output_failed``; ``rows``: their rows): each failing instant counted as
+        ``output_failed``, the outputs of the others kept — as on the per-message path, where
+        a failed output stops neither the simulation nor the outputs after it."""
+        snaps, k, err = failed.snapshots, failed.output_failed, failed.output_error
+        while k is not None:
+            i = int(rows[k])
+            res.output_failed.append(i)
+            self._error(f"t={int(gb.stamp_ns[i])}: outputs failed: {err}")
+            if k + 1 == len(snaps):
+                return
+            try:
+                block, nxt = self.sim.outputs_at(snaps.take(slice(k + 1, None))), None
+            except SimulationError as e:
+                block, err = e.block, e
+                nxt = k + 1 + len(block)
+            if len(block):
+                res.outputs.append(RunOutputs(rows[k + 1:k + 1 + len(block)], block, self.new_segment))
+                self.new_segment = False
+            k = nxt
 
 
     def _scalar(self, rows: np.ndarray, rb: Any, res: BlockResult) -> None:

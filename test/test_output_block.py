@@ -308,7 +308,7 @@ def test_block_instants_are_exactly_outputs(mode, fid):
     rng = np.random.default_rng(1)
     sim = _sim(mode, fid, None)
     snaps, outs = _snapshots_along(sim, 15, rng)
-    block = sim._outputs_at(snaps)
+    block = sim.outputs_at(snaps)
     assert len(block) == 15
     for i, o in enumerate(outs):
         assert_identical(block[i], o)
@@ -326,7 +326,7 @@ def test_block_instants_are_exactly_outputs(mode, fid):
     assert len(block[3:3]) == 0 and block[3:3].as_rows() == []
     empty = OutputBlock.stack([], stabilised=mode == "stabilised")
     assert len(empty) == 0 and (empty.mount_angles is None) == (mode == "carried")
-    assert len(sim._outputs_at(Snapshots.empty(sim.layout.n))) == 0
+    assert len(sim.outputs_at(Snapshots.empty(sim.layout.n))) == 0
     with pytest.raises(IndexError):
         block[15]
 
@@ -349,7 +349,7 @@ def test_block_items_are_copies_and_stack_keeps_extra_status():
     rng = np.random.default_rng(2)
     sim = _sim("stabilised", "linear", None)
     snaps, outs = _snapshots_along(sim, 3, rng)
-    block = sim._outputs_at(snaps)
+    block = sim.outputs_at(snaps)
     o = block[1]
     o.gimbal_angles[:] = 99.0
     assert np.all(block.gimbal_angles[1] != 99.0)
@@ -388,7 +388,7 @@ def test_block_stops_at_the_first_non_finite_instant_and_carries_the_ones_before
     seg[3, 8:14] = 1e250                 # instant 3: absurd specific force
     bad = Snapshots(snaps.t, snaps.t_rel, snaps.y, seg, snaps.n_steps)
     with pytest.raises(NonFiniteOutputError) as ei:
-        sim._outputs_at(bad)
+        sim.outputs_at(bad)
     e = ei.value
     assert e.t == snaps.t[3]
     assert len(e.block) == 3
@@ -406,7 +406,7 @@ def test_precession_gimbal_lock_in_a_block_raises_the_model_error_with_the_block
     snaps = Snapshots(np.zeros(3), np.zeros(3), y, np.repeat(sim.system.seg[None], 3, 0), np.zeros(3, np.int64))
     seg_before = sim.system.seg.copy()
     with pytest.raises(GimbalLockError, match="gimbal lock") as ei:
-        sim._outputs_at(snaps)
+        sim.outputs_at(snaps)
     assert len(ei.value.block) == 2
     np.testing.assert_array_equal(sim.system.seg, seg_before)
     sim.y = y[2].copy()

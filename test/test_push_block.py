@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.engine.simulator import Simulator
-from gyro_platform.errors import InputError, SimulationError
+from gyro_platform.errors import InputError, NonFiniteOutputError, SimulationError
 from gyro_platform.physics.options import ModelOptions, OptionsError
 from gyro_platform.physics.params import NAV1, ParameterError, PlatformParams
 
@@ -338,3 +338,25 @@ def test_an_interval_up_to_slack_past_max_step_is_one_rk4_step(compiled):
         for i in range(n + 1):
             sim.push(RateSample(i * dt, np.zeros(3), None))
         assert sim.n_steps == n * per_interval
+
+
+def test_failed_outputs_carry_what_the_caller_needs_to_go_on():
+    """Outputs that fail (1e200 m/s² with anisoelastic: not finite) do not stop the block's
+    integration; the error says how far it went (``n_done``), which recorded instant failed,
+    and carries those instants (``snapshots``) so that the outputs after it can be computed."""
+    eff = ("rotor_gyroscopic", "coriolis", "anisoelastic", "servo")
+    t = np.arange(4) * 1e-3
+    w = np.zeros((4, 3))
+    f = np.tile([0.0, 0.0, 9.81], (4, 1))
+    f[0] = (1e200, 5e199, -1e200)
+    sim = Simulator(NAV1, ModelOptions.make("stabilised", "full", eff))
+    with pytest.raises(NonFiniteOutputError) as ei:         # outputs only: every sample taken
+        sim.push_block(t[:1], w[:1], f[:1], [0])
+    e = ei.value
+    assert (e.n_done, e.output_failed, len(e.block), len(e.snapshots)) == (1, 0, 0, 1) and e.output_error is e
+    sim = Simulator(NAV1, ModelOptions.make("stabilised", "full", eff))
+    with pytest.raises(SimulationError) as ei:              # then the next interval fails too
+        sim.push_block(t, w, f, [0, 1, 2, 3])
+    e = ei.value
+    assert not isinstance(e, NonFiniteOutputError) and e.n_done == 1
+    assert e.output_failed == 0 and isinstance(e.output_error, NonFiniteOutputError) and len(e.snapshots) == 1

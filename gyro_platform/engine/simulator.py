@@ -107,6 +107,24 @@ _F64 = np.dtype(float)
 _ZERO3 = np.zeros(3)
 
 
+def _with_outputs(exc: SimulationError, sim: "Simulator", snaps: Snapshots,
+                  output_error: SimulationError | None = None) -> None:
+    """Attach to ``exc`` (a failure of ``push_block``) the outputs of the recorded instants
+    ``snaps`` up to the first that fails: ``.block``, ``.snapshots``, ``.output_failed`` (index
+    of that instant or None) and ``.output_error``. ``output_error``: that failure, already
+    raised by ``outputs_at(snaps)`` (then ``exc`` is it)."""
+    if output_error is None:
+        try:
+            exc.block = sim.outputs_at(snaps)
+        except SimulationError as e:
+            output_error = e
+    if output_error is not None:
+        exc.block = output_error.block
+    exc.snapshots = snaps
+    exc.output_failed = None if output_error is None else len(exc.block)
+    exc.output_error = output_error
+
+
 class Simulator:
     """Three-gyro platform simulation driven by vehicle rate samples (ROS-free).
 
@@ -422,7 +440,13 @@ class Simulator:
         Raises ``InputError`` before touching the state if any sample or index is bad. If the
         integration fails at some sample, the ``SimulationError`` carries ``.block`` (the
         outputs computed before the failure) and ``.n_done`` (samples of this call taken);
-        the state is that after the last good sample."""
+        the state is that after the last good sample. If the outputs of an instant fail
+        (``NonFiniteOutputError``, the model refusing the state) the integration is not
+        stopped: the error raised is the output error (``.n_done`` = N) or, when the
+        integration failed later, the integration error. Either carries ``.snapshots`` (the
+        instants recorded), ``.output_failed`` (index into them of the first whose outputs
+        failed, or None), ``.output_error`` (its error) and ``.block`` (the outputs of the
+        instants before it): the caller may go on with ``outputs_at`` after it."""
         t, w, f, has_f, idx = check_block(t, omega, specific_force, out_idx, self.t_start, self.t_rel,
                                           self.options.effects & NEEDS_SPECIFIC_FORCE if self.needs_f else ())
         n, k = len(t), len(idx)
@@ -458,9 +482,15 @@ class Simulator:
                 j = self._record(idx, j, done - 1, y_out, seg_out, ns_out)
         except SimulationError as exc:
             exc.n_done = done
-            exc.block = self._outputs_at(self._snapshots(t, idx[:j], y_out[:j], seg_out[:j], ns_out[:j]))
+            _with_outputs(exc, self, self._snapshots(t, idx[:j], y_out[:j], seg_out[:j], ns_out[:j]))
             raise
-        return self._outputs_at(self._snapshots(t, idx, y_out, seg_out, ns_out))
+        snaps = self._snapshots(t, idx, y_out, seg_out, ns_out)
+        try:
+            return self.outputs_at(snaps)
+        except SimulationError as exc:      # outputs failed at an instant; every sample was taken
+            exc.n_done = n
+            _with_outputs(exc, self, snaps, exc)
+            raise
 
     def _record(self, idx, j: int, i: int, y_out, seg_out, ns_out) -> int:
         """Snapshot the current instant as sample ``i`` of a block for every ``idx[j] == i``."""
@@ -572,7 +602,7 @@ class Simulator:
 
     def outputs(self) -> Outputs:
         """Outputs at the current time (see ``outputs.Outputs``), by the compiled output kernel
-        (``output_kernel``; the one-instant case of ``_outputs_at``). Raises
+        (``output_kernel``; the one-instant case of ``outputs_at``). Raises
         ``NonFiniteOutputError`` rather than return a NaN or Inf, and the model's
         ``SimulationError`` for a state it refuses (precession at gimbal lock)."""
         return outputs_of_row(self.output_row(), self._outk.stabilised)
@@ -588,7 +618,7 @@ class Simulator:
         t_rel = fh.item(H_T_REL)
         return self._outk.values(fh.item(H_T_START) + t_rel, t_rel, e.ih.item(J_NSTEPS), e.y, self.system.seg)
 
-    def _outputs_at(self, snaps: Snapshots) -> OutputBlock:
+    def outputs_at(self, snaps: Snapshots) -> OutputBlock:
         """Outputs at the instants of ``snaps`` in one compiled call. A failure at an instant
         raises (``NonFiniteOutputError``, the model's ``SimulationError``) with ``.block``: the
         outputs of the instants before it."""
