@@ -495,8 +495,9 @@ class Pipeline:
             parts.append((a, res))
             break
         res = parts[0][1] if len(parts) == 1 else _concat_results(parts)
-        for r in snaps.tolist():
-            res.snapshots[r] = (gate_snaps[r], self._count(res, r + 1, dict(self.outcomes)))
+        rows = snaps.tolist()
+        for r, counted in zip(rows, self._counts_after(res, rows)):
+            res.snapshots[r] = (gate_snaps[r], counted)
         self._count(res)
         return res
 
@@ -650,6 +651,29 @@ class Pipeline:
             into[key] = into.get(key, 0) + n
         return into
 
+
+    def _counts_after(self, res: BlockResult, rows: list[int]) -> list[dict]:
+        """``_count(res, r + 1, dict(outcomes))`` for each ``r`` of ``rows`` (increasing), from
+        running counts made once (a count per snapshot row over the whole prefix grew with the
+        block times its snapshots)."""
+        if not rows:
+            return []
+        outcome = res.outcome
+        codes = [(int(np.argmax(outcome == c)), c) for c in np.flatnonzero(
+            np.bincount(outcome[outcome >= 0], minlength=len(OUTCOMES))).tolist()]
+        running = {c: np.cumsum(outcome == c) for _, c in codes}
+        failed = np.sort(np.asarray(res.output_failed, np.int64))
+        n_failed = np.searchsorted(failed, rows, side="right").tolist() if failed.size else [0] * len(rows)
+        out = []
+        for r, nf in zip(rows, n_failed):
+            events = [(float(first), OUTCOMES[c], int(running[c][r])) for first, c in codes if first <= r]
+            if nf:
+                events.append((int(failed[0]) + 0.5, "output_failed", nf))
+            into = dict(self.outcomes)
+            for _, key, n in sorted(events):
+                into[key] = into.get(key, 0) + n
+            out.append(into)
+        return out
 
     def _error(self, text: str) -> None:
         if len(self.errors) < MAX_ERRORS:
