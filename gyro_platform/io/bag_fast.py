@@ -193,11 +193,30 @@ def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple
 
 
 @njit(cache=True, nogil=True)
-def gather_rows(buf, beg, size):  # pragma: no cover - compiled
-    """(len(beg), size) uint8: ``size`` bytes of ``buf`` from each offset of ``beg``."""
-    out = np.empty((beg.shape[0], size), np.uint8)
-    for i in range(beg.shape[0]):
-        out[i] = buf[beg[i]:beg[i] + size]
+def mcap_records(hdr, buf, beg, end):  # pragma: no cover - compiled
+    """MCAP message records, one flat uint8 array: for each row ``i`` its 31-byte record header
+    ``hdr[i]`` ((m, 31) uint8) and then its payload ``buf[beg[i]:end[i]]`` (one copy, in one
+    pass: what copying an input chunk to the output bag costs). The bytes are copied between
+    per-row views: with indices from 0 the compiler makes the loop a vector copy (``out[p + j]
+    = buf[b + j]`` was 7x slower: 5.4 against 0.8 ms per 12 000 Imu records)."""
+    m = beg.shape[0]
+    total = 0
+    for i in range(m):
+        total += 31 + end[i] - beg[i]
+    out = np.empty(total, np.uint8)
+    p = 0
+    for i in range(m):
+        o = out[p:p + 31]
+        h = hdr[i]
+        for j in range(31):
+            o[j] = h[j]
+        p += 31
+        k = end[i] - beg[i]
+        o = out[p:p + k]
+        src = buf[beg[i]:end[i]]
+        for j in range(k):
+            o[j] = src[j]
+        p += k
     return out
 
 

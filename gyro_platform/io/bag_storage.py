@@ -31,7 +31,7 @@ from typing import Any, Iterator, Sequence
 import apsw
 import numpy as np
 
-from .bag_fast import gather_rows
+from .bag_fast import mcap_records
 from .blocks import RawRows, row_lens
 
 #: commit bound: a chunk is committed after this many messages …
@@ -110,10 +110,7 @@ def _fixed(seg: Any, lens: np.ndarray) -> np.ndarray | None:
     if isinstance(seg, np.ndarray):
         return seg
     if len(lens) and lens[0] == lens[-1] and not np.any(lens != lens[0]):
-        size = int(lens[0])
-        if isinstance(seg, RawRows):          # gathered from the buffer they lie in
-            return gather_rows(seg.buf, seg.beg, size)
-        return np.frombuffer(b"".join(seg), np.uint8).reshape(len(seg), size)
+        return np.frombuffer(b"".join(seg), np.uint8).reshape(len(seg), int(lens[0]))
     return None
 
 
@@ -372,6 +369,11 @@ def storage_classes():
             a = 0
             for seg in segs:
                 m = len(seg)
+                if isinstance(seg, RawRows):     # one piece, built from the buffer the payloads lie in
+                    parts.append(mcap_records(hdr[a:a + m].view(np.uint8).reshape(m, 31), seg.buf, seg.beg,
+                                              seg.end))
+                    a += m
+                    continue
                 data = _fixed(seg, lens[a:a + m] - 31)
                 if data is not None:     # one piece: records of one size as rows of one array
                     rec = np.empty((m, 31 + data.shape[1]), np.uint8)
