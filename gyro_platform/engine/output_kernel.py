@@ -5,7 +5,10 @@ angles and rates (precession: from the model), axial gimbal torques, platform ra
 drift angle and rate (carried mode: of the gyros' own inertial reference), the Newton–Euler
 bearing torques with the g-sensitive body torques, motor torques, mount angles and rates, servo
 torque and the status figures — into preallocated rows (layout ``outputs.C_*``).
-``output_row`` is the one-instant entry of the same code (``Simulator.outputs()``).
+``output_row`` is the one-instant entry of the same code (``Simulator.outputs()``). The loop over
+the instants is inside one compiled function and the linear stabilised model's right-hand side
+is inlined there: a call per instant with ~40 array arguments, and the general right-hand side's
+28, cost more than the outputs (5.2 -> 2.4 µs per instant, default model).
 
 An instant whose outputs are not all finite (a state that is finite can still give an overflow,
 e.g. anisoelastic torques under |f| ≥ 1e30 m/s²) stops the evaluation there:
@@ -24,7 +27,8 @@ from ..physics import effects as fx
 from ..physics.options import NEEDS_SPECIFIC_FORCE
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
                                  rotvec_matrix_into)
-from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, P_L, P_WIN, PRECESSION,
+from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
+from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, P_L, P_WIN, PRECESSION,
                               PlatformSystem, platform_rhs)
 from ..physics.tree import kinematics_rw, newton_euler, rotor_torques
 from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE,
@@ -97,13 +101,15 @@ def _rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, 
                         tau_ext, fb, chol, F, a, Q, RR, V, W)
 
 
-# ---- one instant --------------------------------------------------------------------------
+# ---- the instants ------------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
-def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f,
-             M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E):
-    """Outputs of one instant into ``out`` (N_COL,). Returns OK, or RHS_FAILED with the failing
-    right-hand side's (t, y) in ``E`` (E[0] = t, E[1:] = y)."""
+def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f,
+              M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E):
+    """Outputs of K instants into the rows of ``OUT`` (K, N_COL) (arguments: ``output_rows``;
+    the loop over the instants is in here: a call per instant with its ~40 array arguments
+    cost more than the outputs themselves). Returns (done, code, detail) as ``output_rows``;
+    RHS_FAILED with the failing right-hand side's (t, y) in ``E`` (E[0] = t, E[1:] = y)."""
     fid = OI[I_FID]
     nb = OI[I_NB]
     nr = OI[I_NR]
@@ -125,173 +131,182 @@ def _instant(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, yd, yp, ym, ydp
     wIN = P[P_WIN:P_WIN + 3]
     stab = lay[LAY_STAB] == 1
     nv = lay[LAY_NV]
-    n = y.shape[0]
-    # --- generalised velocities and accelerations of the tree (Simulator._accelerations) ----
-    st = _rhs(t_rel, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
-              tau_ext, fb, chol, F, a, Q, RR, V, W)
-    if st != 0:
-        E[0] = t_rel
-        for i in range(n):
-            E[1 + i] = y[i]
-        return RHS_FAILED
-    if fid != PRECESSION:
-        for i in range(nv):
-            v[i] = y[5 + i]
-            acc[i] = yd[5 + i]
-    else:
-        # q̇ from the model, q̈ by a central difference along the motion
-        eps = PRECESSION_EPS
-        for i in range(n):
-            yp[i] = y[i] + eps * yd[i]
-            ym[i] = y[i] - eps * yd[i]
-        for sgn in range(2):
-            tt = t_rel + eps if sgn == 0 else t_rel - eps
-            yy = yp if sgn == 0 else ym
-            st = _rhs(tt, yy, ydp if sgn == 0 else ydm, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w,
-                      wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
-            if st != 0:
-                E[0] = tt
-                for i in range(n):
-                    E[1 + i] = yy[i]
-                return RHS_FAILED
-        off = nv - 5
+    n = Y.shape[1]
+    for kk in range(Y.shape[0]):
+        t, t_rel, n_steps = T[kk], TR[kk], NS[kk]
+        y, seg, out = Y[kk], SEG[kk], OUT[kk]
+        # --- generalised velocities and accelerations of the tree (Simulator._accelerations) ----
+        if takes_linear_path(fid == LINEAR, I):     # what platform_rhs hands over to, inlined here
+            st = stabilised_linear_rhs(t_rel, y, yd, I, P, seg, mats, F)
+        else:
+            st = _rhs(t_rel, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
+                      tau_ext, fb, chol, F, a, Q, RR, V, W)
+        if st != 0:
+            E[0] = t_rel
+            for i in range(n):
+                E[1 + i] = y[i]
+            return kk, RHS_FAILED, 0
+        if fid != PRECESSION:
+            for i in range(nv):
+                v[i] = y[5 + i]
+                acc[i] = yd[5 + i]
+        else:
+            # q̇ from the model, q̈ by a central difference along the motion
+            eps = PRECESSION_EPS
+            for i in range(n):
+                yp[i] = y[i] + eps * yd[i]
+                ym[i] = y[i] - eps * yd[i]
+            for sgn in range(2):
+                tt = t_rel + eps if sgn == 0 else t_rel - eps
+                yy = yp if sgn == 0 else ym
+                st = _rhs(tt, yy, ydp if sgn == 0 else ydm, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w,
+                          wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
+                if st != 0:
+                    E[0] = tt
+                    for i in range(n):
+                        E[1 + i] = yy[i]
+                    return kk, RHS_FAILED, 0
+            off = nv - 5
+            if stab:
+                io = lay[LAY_OM]
+                for i in range(3):
+                    v[i] = y[io + i]
+                    acc[i] = yd[io + i]
+            for i in range(5):
+                v[off + i] = yd[i]
+                acc[off + i] = (ydp[i] - ydm[i]) / (2 * eps)
+        qd = v[nv - 5:nv]
+        # --- frames: X rows are 3-vectors, MM 3×3 matrices ----------------------------------------
+        wB = seg[5:8]
+        fB = seg[11:14]
+        R_IB = MM[0]
+        R_IP = MM[1]
+        R_PB = mats[4, :3, :3]
+        T1 = MM[2]
+        T2 = MM[3]
+        R_IC = MM[4]
+        quat_to_matrix_at(y, lay[LAY_QIB], MM, 0)
+        if stab:
+            quat_to_matrix_at(y, lay[LAY_QIP], MM, 1)
+        else:
+            for i in range(3):              # R_IP = R_IB R_BP, R_BP = R_PBᵀ
+                for j in range(3):
+                    R_IP[i, j] = R_IB[i, 0] * R_PB[j, 0] + R_IB[i, 1] * R_PB[j, 1] + R_IB[i, 2] * R_PB[j, 2]
+        for i in range(3):
+            X[0, i] = wIN[i] * t_rel
+        rotvec_matrix_into(X[0], R_IC)
+        Om = X[1]                           # platform rate (platform axes)
+        w0 = X[2]
+        wd0 = X[3]
         if stab:
             io = lay[LAY_OM]
             for i in range(3):
-                v[i] = y[io + i]
-                acc[i] = yd[io + i]
+                Om[i] = y[io + i]
+                w0[i] = 0.0
+                wd0[i] = 0.0
+        else:
+            _mv(R_PB, wB, Om)
+            for i in range(3):
+                w0[i] = Om[i]
+                X[4, i] = (seg[5 + i] - seg[2 + i]) / seg[1] if seg[1] > 0 else 0.0
+            _mv(R_PB, X[4], wd0)
+        # --- axial gimbal torques of the effects ---------------------------------------------------
+        wc = X[5]
+        if on[fx.EARTH]:
+            _mv(R_IC, wIN, X[4])
+            _mtv(R_IP, X[4], wc)
+        else:
+            wc[0] = wc[1] = wc[2] = 0.0
+        fx.gimbal_forces(on, k, Lsys, y, qd, wc, Q)
         for i in range(5):
-            v[off + i] = yd[i]
-            acc[off + i] = (ydp[i] - ydm[i]) / (2 * eps)
-    qd = v[nv - 5:nv]
-    # --- frames: X rows are 3-vectors, MM 3×3 matrices ----------------------------------------
-    wB = seg[5:8]
-    fB = seg[11:14]
-    R_IB = MM[0]
-    R_IP = MM[1]
-    R_PB = mats[4, :3, :3]
-    T1 = MM[2]
-    T2 = MM[3]
-    R_IC = MM[4]
-    quat_to_matrix_at(y, lay[LAY_QIB], MM, 0)
-    if stab:
-        quat_to_matrix_at(y, lay[LAY_QIP], MM, 1)
-    else:
-        for i in range(3):              # R_IP = R_IB R_BP, R_BP = R_PBᵀ
-            for j in range(3):
-                R_IP[i, j] = R_IB[i, 0] * R_PB[j, 0] + R_IB[i, 1] * R_PB[j, 1] + R_IB[i, 2] * R_PB[j, 2]
-    for i in range(3):
-        X[0, i] = wIN[i] * t_rel
-    rotvec_matrix_into(X[0], R_IC)
-    Om = X[1]                           # platform rate (platform axes)
-    w0 = X[2]
-    wd0 = X[3]
-    if stab:
-        io = lay[LAY_OM]
+            out[C_AXIAL + i] = Q[i]
+        # --- Newton–Euler with the full tree, true rotor momenta, g-sensitive body torques ---------
+        for b in range(nb):
+            for i in range(3):
+                tau_ext[b, i] = 0.0
+        if OI[I_NEEDS_F]:
+            kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, Om, R, w)
+            _mv(R_IB, fB, X[4])
+            _mtv(R_IP, X[4], X[6])          # f in platform axes
+            fx.body_specific_force(R, parent, X[6], fb)
+            fx.g_sensitive_torques(k, on[fx.UNBALANCE], on[fx.ANISO], rhost, raxis, fb, tau_ext)
+        kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, w0, R, w)
+        newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, Lout, v, acc, wd0, R, w,
+                     True, True, tau_ext, wd, f)
+        rotor_torques(rhost, raxis, CF[F_C:F_C + 3], CF[F_A:F_A + 3], Lout, w, wd, rtau)
         for i in range(3):
-            Om[i] = y[io + i]
-            w0[i] = 0.0
-            wd0[i] = 0.0
-    else:
-        _mv(R_PB, wB, Om)
-        for i in range(3):
-            w0[i] = Om[i]
-            X[4, i] = (seg[5 + i] - seg[2 + i]) / seg[1] if seg[1] > 0 else 0.0
-        _mv(R_PB, X[4], wd0)
-    # --- axial gimbal torques of the effects ---------------------------------------------------
-    wc = X[5]
-    if on[fx.EARTH]:
-        _mv(R_IC, wIN, X[4])
-        _mtv(R_IP, X[4], wc)
-    else:
-        wc[0] = wc[1] = wc[2] = 0.0
-    fx.gimbal_forces(on, k, Lsys, y, qd, wc, Q)
-    for i in range(5):
-        out[C_AXIAL + i] = Q[i]
-    # --- Newton–Euler with the full tree, true rotor momenta, g-sensitive body torques ---------
-    for b in range(nb):
-        for i in range(3):
-            tau_ext[b, i] = 0.0
-    if OI[I_NEEDS_F]:
-        kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, Om, R, w)
-        _mv(R_IB, fB, X[4])
-        _mtv(R_IP, X[4], X[6])          # f in platform axes
-        fx.body_specific_force(R, parent, X[6], fb)
-        fx.g_sensitive_torques(k, on[fx.UNBALANCE], on[fx.ANISO], rhost, raxis, fb, tau_ext)
-    kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, w0, R, w)
-    newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, Lout, v, acc, wd0, R, w,
-                 True, True, tau_ext, wd, f)
-    rotor_torques(rhost, raxis, CF[F_C:F_C + 3], CF[F_A:F_A + 3], Lout, w, wd, rtau)
-    for i in range(3):
-        out[C_BEAR + i] = f[0, i]
-    for g in range(5):                  # joint torque minus its axial part
-        b = g + 1
-        nf = _dot(axis[b], f[b])
-        for i in range(3):
-            out[C_BEAR + 3 + 3 * g + i] = f[b, i] - nf * axis[b, i]
-    for r in range(nr):
-        s = raxis[r]
-        m = _dot(s, rtau[r])
-        out[C_MOTOR + r] = m
-        for i in range(3):
-            out[C_BEAR + 18 + 3 * r + i] = rtau[r, i] - m * s[i]
-    # --- drift, mount, servo -------------------------------------------------------------------
-    if stab:
-        _mtm(R_IC, R_IP, T1)            # R_CP
+            out[C_BEAR + i] = f[0, i]
+        for g in range(5):                  # joint torque minus its axial part
+            b = g + 1
+            nf = _dot(axis[b], f[b])
+            for i in range(3):
+                out[C_BEAR + 3 + 3 * g + i] = f[b, i] - nf * axis[b, i]
+        for r in range(nr):
+            s = raxis[r]
+            m = _dot(s, rtau[r])
+            out[C_MOTOR + r] = m
+            for i in range(3):
+                out[C_BEAR + 18 + 3 * r + i] = rtau[r, i] - m * s[i]
+        # --- drift, mount, servo -------------------------------------------------------------------
+        if stab:
+            _mtm(R_IC, R_IP, T1)            # R_CP
+            d = X[17]
+            matrix_rotvec_into(T1, d)
+            _mtv(T1, wIN, X[4])
+            for i in range(3):
+                out[C_DRIFT + i] = d[i]
+                out[C_DRATE + i] = Om[i] - X[4, i]
+                out[C_SERVO + i] = 0.0
+            if on[fx.SERVO]:
+                iz = lay[LAY_Z]
+                for ax in range(3):
+                    gi = fx.servo_pickoff(ax)
+                    out[C_SERVO + ax] = fx.servo_axis(k, y[gi], qd[gi], y[iz + ax])[0]
+            _mtm(R_IB, R_IP, T2)            # R_BP (actual)
+            _mm(R_PB, T2, T1)
+            mount = X[16]
+            euler_xyz_into(T1, mount)
+            _mv(R_IB, wB, X[4])
+            _mtv(R_IP, X[4], X[6])
+            for i in range(3):
+                X[6, i] = Om[i] - X[6, i]
+            euler_xyz_rates_into(mount, X[6], X[7])
+            for i in range(3):
+                out[C_MOUNT + i] = mount[i]
+                out[C_MRATE + i] = X[7, i]
+        else:
+            _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out)
+            for i in range(3):
+                out[C_MOUNT + i] = 0.0
+                out[C_MRATE + i] = 0.0
+                out[C_SERVO + i] = 0.0
+        # --- the rest --------------------------------------------------------------------------
         d = X[17]
-        matrix_rotvec_into(T1, d)
-        _mtv(T1, wIN, X[4])
+        matrix_rotvec_into(R_IP, d)
+        th = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if th < 1e-300:
+            out[C_QUAT], out[C_QUAT + 1], out[C_QUAT + 2], out[C_QUAT + 3] = 0.0, 0.0, 0.0, 1.0
+        else:
+            sh = math.sin(th / 2)
+            for i in range(3):
+                out[C_QUAT + i] = d[i] / th * sh
+            out[C_QUAT + 3] = math.cos(th / 2)
+        out[C_T] = t
+        mx = 0.0
+        for i in range(5):
+            out[C_ANG + i] = y[i]
+            out[C_RATE + i] = qd[i]
+            mx = max(mx, abs(y[i]))
         for i in range(3):
-            out[C_DRIFT + i] = d[i]
-            out[C_DRATE + i] = Om[i] - X[4, i]
-            out[C_SERVO + i] = 0.0
-        if on[fx.SERVO]:
-            iz = lay[LAY_Z]
-            for ax in range(3):
-                gi = fx.servo_pickoff(ax)
-                out[C_SERVO + ax] = fx.servo_axis(k, y[gi], qd[gi], y[iz + ax])[0]
-        _mtm(R_IB, R_IP, T2)            # R_BP (actual)
-        _mm(R_PB, T2, T1)
-        mount = X[16]
-        euler_xyz_into(T1, mount)
-        _mv(R_IB, wB, X[4])
-        _mtv(R_IP, X[4], X[6])
-        for i in range(3):
-            X[6, i] = Om[i] - X[6, i]
-        euler_xyz_rates_into(mount, X[6], X[7])
-        for i in range(3):
-            out[C_MOUNT + i] = mount[i]
-            out[C_MRATE + i] = X[7, i]
-    else:
-        _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out)
-        for i in range(3):
-            out[C_MOUNT + i] = 0.0
-            out[C_MRATE + i] = 0.0
-            out[C_SERVO + i] = 0.0
-    # --- the rest --------------------------------------------------------------------------
-    d = X[17]
-    matrix_rotvec_into(R_IP, d)
-    th = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    if th < 1e-300:
-        out[C_QUAT], out[C_QUAT + 1], out[C_QUAT + 2], out[C_QUAT + 3] = 0.0, 0.0, 0.0, 1.0
-    else:
-        sh = math.sin(th / 2)
-        for i in range(3):
-            out[C_QUAT + i] = d[i] / th * sh
-        out[C_QUAT + 3] = math.cos(th / 2)
-    out[C_T] = t
-    mx = 0.0
-    for i in range(5):
-        out[C_ANG + i] = y[i]
-        out[C_RATE + i] = qd[i]
-        mx = max(mx, abs(y[i]))
-    for i in range(3):
-        out[C_OM + i] = Om[i]
-        out[C_ROTOR + i] = CF[F_SPEED + i]
-    out[C_MARGIN] = min(abs(math.cos(y[1])), abs(math.cos(y[2])), abs(math.cos(y[4])))
-    out[C_MAXANG] = mx
-    out[C_NSTEPS] = n_steps
-    return OK
+            out[C_OM + i] = Om[i]
+            out[C_ROTOR + i] = CF[F_SPEED + i]
+        out[C_MARGIN] = min(abs(math.cos(y[1])), abs(math.cos(y[2])), abs(math.cos(y[4])))
+        out[C_MAXANG] = mx
+        out[C_NSTEPS] = n_steps
+        j = _first_bad(out)
+        if j >= 0:
+            return kk, NON_FINITE, j
+    return Y.shape[0], OK, 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -369,7 +384,6 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
     (done, code, detail): the instants ``[0, done)`` are written and finite; code OK,
     RHS_FAILED (the model refused the state of instant ``done``; its (t, y) in E) or
     NON_FINITE (column ``detail`` of instant ``done``)."""
-    K = Y.shape[0]
     n = Y.shape[1]
     nb = OI[I_NB]
     nr = OI[I_NR]
@@ -411,15 +425,8 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
     o += 3 * nr
     X = WK[o:o + 3 * N_X].reshape((N_X, 3))
     MM = WK[o + 3 * N_X:o + 3 * N_X + 9 * N_MM].reshape((N_MM, 3, 3))
-    for kk in range(K):
-        st = _instant(T[kk], TR[kk], NS[kk], Y[kk], SEG[kk], OUT[kk], I, P, mats, CF, OI, yd, yp, ym, ydp, ydm,
-                      v, acc, R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E)
-        if st != OK:
-            return kk, st, 0
-        j = _first_bad(OUT[kk])
-        if j >= 0:
-            return kk, NON_FINITE, j
-    return K, OK, 0
+    return _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f, M,
+                     c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E)
 
 
 @njit(cache=True, error_model="numpy")
