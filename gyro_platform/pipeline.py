@@ -635,27 +635,17 @@ class Pipeline:
                 self.new_segment = False
 
 
-    def _count(self, res: BlockResult, rows: int | None = None, into: dict | None = None) -> dict:
-        """Add a block's outcomes (of its first ``rows`` rows; None: all) to ``into`` (default
-        ``outcomes``; new keys in the order the per-message path would have added them)."""
-        into = self.outcomes if into is None else into
-        events = []
-        outcome = res.outcome if rows is None else res.outcome[:rows]
-        failed = res.output_failed if rows is None else [i for i in res.output_failed if i < rows]
-        counts = np.bincount(outcome[outcome >= 0], minlength=len(OUTCOMES))
-        for code in np.flatnonzero(counts).tolist():
-            events.append((float(np.argmax(outcome == code)), OUTCOMES[code], int(counts[code])))
-        if failed:
-            events.append((failed[0] + 0.5, "output_failed", len(failed)))
-        for _, key, n in sorted(events):
-            into[key] = into.get(key, 0) + n
-        return into
+    def _count(self, res: BlockResult) -> None:
+        """Add a block's outcomes to ``outcomes`` (new keys in the order the per-message path
+        would have added them)."""
+        if len(res.outcome):
+            self._counts_after(res, [len(res.outcome) - 1], into=self.outcomes)
 
-
-    def _counts_after(self, res: BlockResult, rows: list[int]) -> list[dict]:
-        """``_count(res, r + 1, dict(outcomes))`` for each ``r`` of ``rows`` (increasing), from
-        running counts made once (a count per snapshot row over the whole prefix grew with the
-        block times its snapshots)."""
+    def _counts_after(self, res: BlockResult, rows: list[int], into: dict | None = None) -> list[dict]:
+        """The outcome counts after each ``r`` of ``rows`` (increasing): ``outcomes`` plus the
+        block's rows up to ``r``, new keys in the order the per-message path would have added
+        them; each a new dict, or (one row) added to ``into``. From running counts made once
+        (a count per snapshot row over the whole prefix grew with the block times its snapshots)."""
         if not rows:
             return []
         outcome = res.outcome
@@ -669,10 +659,10 @@ class Pipeline:
             events = [(float(first), OUTCOMES[c], int(running[c][r])) for first, c in codes if first <= r]
             if nf:
                 events.append((int(failed[0]) + 0.5, "output_failed", nf))
-            into = dict(self.outcomes)
+            counted = dict(self.outcomes) if into is None else into
             for _, key, n in sorted(events):
-                into[key] = into.get(key, 0) + n
-            out.append(into)
+                counted[key] = counted.get(key, 0) + n
+            out.append(counted)
         return out
 
     def _error(self, text: str) -> None:
