@@ -287,11 +287,15 @@ def test_line_fit_many_equals_streaming():
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.integers(2, 9), st.lists(st.integers(0, 40), max_size=12))
-def test_plot_series_blocks_keep_the_same_items(cap, sizes):
-    """PlotSeries.add_block keeps the outputs K calls of add keep (thinned, bounded)."""
+@given(st.integers(1, 5), st.lists(st.integers(0, 40), max_size=12))
+def test_plot_series_buckets_hold_every_outputs_extremes(half_cap, sizes):
+    """PlotSeries: add_block keeps the buckets K calls of add keep, and each bucket holds the
+    minimum and maximum over exactly its ``stride`` outputs (brute force over all of them),
+    however the outputs arrive; at most ``cap`` buckets."""
     from gyro_platform.engine.outputs import OutputBlock
+    from gyro_platform.replay.stats import plot_columns
 
+    cap = 2 * half_cap
     outs = _outputs(sum(sizes))
     a, b, n = PlotSeries(cap), PlotSeries(cap), 0
     for k in sizes:
@@ -300,11 +304,49 @@ def test_plot_series_blocks_keep_the_same_items(cap, sizes):
         if k:
             b.add_block(OutputBlock.stack(outs[n:n + k]))
         n += k
-        assert (a.stride, a.i, len(a.items)) == (b.stride, b.i, len(b.items))
-        assert [o.t for o in b.outputs()] == [o.t for o in a.outputs()]
-        assert all(np.array_equal(x.bearing_torques["gimbal5"], y.bearing_torques["gimbal5"])
-                   and x.status == y.status for x, y in zip(a.outputs(), b.outputs()))
-    assert len(b.items) < cap
+        assert (a.stride, a.n, a.nb) == (b.stride, b.n, b.nb) and b.nb <= cap
+        for x, y in zip(a.columns(), b.columns()):
+            assert np.array_equal(x, y)
+        if n:
+            m = plot_columns(OutputBlock.stack(outs[:n]))
+            t = np.array([o.t for o in outs[:n]])
+            edges = np.arange(0, n, b.stride)
+            assert len(edges) == b.nb
+            tb, lo, hi = b.columns()
+            assert np.array_equal(lo, np.minimum.reduceat(m, edges, axis=0))
+            assert np.array_equal(hi, np.maximum.reduceat(m, edges, axis=0))
+            assert np.array_equal(tb, t[edges]) and np.array_equal(b.t_last[:b.nb], t[np.r_[edges[1:], n] - 1])
+            assert np.array_equal(b.last, m[-1])
+
+
+def test_plot_series_summary_is_the_recorders_over_every_output():
+    """The replay's ``recorder`` figures from a PlotSeries thinned 64-fold equal
+    ``Recorder.summary`` over all outputs (maxima, final values; the drift rate of the
+    replay's own least-squares fit), and the plot strokes span every output's range."""
+    from gyro_platform.engine.outputs import OutputBlock
+    from gyro_platform.io.recording import Recorder
+
+    outs = _outputs(500)
+    ps, stats, rec = PlotSeries(8), Stats(), Recorder()
+    for i in range(0, 500, 70):
+        blk = OutputBlock.stack(outs[i:i + 70])
+        ps.add_block(blk)
+        stats.add_block(blk, i == 0)
+    for o in outs:
+        rec.append(o)
+    assert ps.stride == 64
+    got, want = ps.summary(stats.drift_fit()), rec.summary()
+    for key in ("n_outputs", "t_start", "duration", "max_abs_gimbal_angle", "final_gimbal_angle",
+                "max_abs_bearing_torque", "max_abs_motor_torque", "max_abs_servo_torque",
+                "final_drift_angle", "max_abs_drift_angle", "drift_fit_start"):
+        assert got[key] == pytest.approx(want[key], rel=1e-12, abs=1e-300), key
+    for key in ("drift_rate", "drift_rate_deg_per_h"):
+        assert got[key] == pytest.approx(want[key], rel=1e-6), key
+    data, full = ps.plot_data(), rec.plot_data()
+    assert len(data.t_rel) == 2 * ps.nb and data.t_rel[-1] <= full.t_rel[-1]
+    for x, y in ((data.gimbal_angles, full.gimbal_angles), (data.drift_angle, full.drift_angle),
+                 (data.bearings["gimbal10"], full.bearings["gimbal10"]), (data.servo_torque, full.servo_torque)):
+        assert np.array_equal(x.min(axis=0), y.min(axis=0)) and np.array_equal(x.max(axis=0), y.max(axis=0))
 
 
 _OUTS: list = []

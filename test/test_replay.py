@@ -24,7 +24,6 @@ from gyro_platform.io import messages as m
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
 from gyro_platform.io.bag_paths import read_metadata
 from gyro_platform.io.gate import Action, GateConfig, TimeGate
-from gyro_platform.replay.stats import PlotSeries
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"
@@ -287,11 +286,6 @@ def test_read_samples_cabrillo_uses_receive_time():
     assert 9.5 < gate.snapshot()["input_rate_hz"] < 10.5
 
 
-def test_plot_series_is_bounded():
-    ps = PlotSeries(cap=100)
-    for i in range(10_000):
-        ps.add(i)
-    assert len(ps.items) < 100 and ps.items == list(range(0, ps.items[-1] + 1, ps.stride))
 
 
 # ---- damaged bags ------------------------------------------------------------------------

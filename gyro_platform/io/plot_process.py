@@ -55,15 +55,18 @@ def stop() -> None:
 
 
 def draw(rec: Any, path: Any, title: str | None = None, summary: dict | None = None) -> Path:
-    """``rec.plot(path, title, summary)`` (a ``recording.Recorder``): by the helper when one
-    was started and it draws it, else here (the same figure; the same errors raised)."""
+    """``recording.save_plot(rec.plot_data(), path, title, summary)`` (``rec``: a
+    ``recording.Recorder`` or anything with ``plot_data()``; ``summary`` by default
+    ``rec.summary()``): by the helper when one was started and it draws it, else here (the
+    same figure; the same errors raised)."""
     global _helper
     helper, _helper = _helper, None
     if summary is None:
         summary = rec.summary()
+    data = rec.plot_data()
     if helper is not None:
         try:
-            job = pickle.dumps((rec.plot_data(), str(path), title, summary), protocol=pickle.HIGHEST_PROTOCOL)
+            job = pickle.dumps((data, str(path), title, summary), protocol=pickle.HIGHEST_PROTOCOL)
             reply, _ = helper.communicate(job, timeout=TIMEOUT_S)
             if helper.returncode == 0 and reply == b"ok\n":
                 return Path(path)
@@ -73,7 +76,9 @@ def draw(rec: Any, path: Any, title: str | None = None, summary: dict | None = N
             if helper.poll() is None:
                 helper.kill()
                 helper.wait()
-    return rec.plot(path, title=title, summary=summary)
+    from .recording import save_plot
+
+    return save_plot(data, path, title, summary)
 
 
 def _main() -> int:

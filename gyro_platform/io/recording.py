@@ -357,8 +357,10 @@ class Recorder:
     # ---- plot ---------------------------------------------------------------------------
     def plot_data(self) -> PlotData:
         """The series the figure shows (:class:`PlotData`)."""
+        st = self.field("servo_torque")
         return PlotData(self.t_rel, self.gimbal_angles, self.drift_angle,
-                        {b: self.bearing(b) for b in self.bearings()}, self.field("servo_torque"),
+                        {b: np.linalg.norm(self.bearing(b), axis=1) for b in self.bearings()},
+                        None if st is None else np.linalg.norm(st, axis=1),
                         self.field("vehicle_omega") if "vehicle_omega" in self._extra else None)
 
     def plot(self, path_png, title: str | None = None, summary: dict | None = None) -> Path:
@@ -372,10 +374,12 @@ class Recorder:
 
 @dataclass
 class PlotData:
-    """What a run's figure shows, over its N output instants: ``t_rel`` (N,) s since the first,
-    ``gimbal_angles`` (N, 5) rad, ``drift_angle`` (N, 3) rad, ``bearings`` name → (N, 3) N m
-    (``BEARING_NAMES`` order, the reported ones), ``servo_torque`` (N, 3) N m or None,
-    ``vehicle_omega`` (N, 3) rad/s body axes or None. Small to pickle (``io.plot_process``)."""
+    """What a run's figure shows, at N points: ``t_rel`` (N,) s since the first output,
+    ``gimbal_angles`` (N, 5) rad, ``drift_angle`` (N, 3) rad, ``bearings`` name → (N,) N m
+    torque magnitudes (``BEARING_NAMES`` order, the reported ones), ``servo_torque`` (N,) N m
+    magnitude or None, ``vehicle_omega`` (N, 3) rad/s body axes or None. The points are the
+    output instants, or (a long replay, ``replay.stats.PlotSeries``) each bucket of outputs'
+    minimum and maximum. Small to pickle (``io.plot_process``)."""
 
     t_rel: np.ndarray
     gimbal_angles: np.ndarray
@@ -435,10 +439,10 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
     axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
     axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
     for b, torque in data.bearings.items():
-        axs[2].plot(t, np.linalg.norm(torque, axis=1), label=b, lw=1)
+        axs[2].plot(t, torque, label=b, lw=1)
     st = data.servo_torque
     if st is not None:
-        axs[2].plot(t, np.linalg.norm(st, axis=1), label="servo", lw=1, ls=":")
+        axs[2].plot(t, st, label="servo", lw=1, ls=":")
     axs[2].set_ylabel("|torque| [N m]")
     axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
                      + " (magnitude)", fontsize=10)

@@ -459,24 +459,23 @@ class _Run:
         return res
 
     def plot(self, path: Path) -> tuple[str | None, Any]:
-        """PNG and Recorder summary of the (thinned) output series, via ``recording.Recorder``."""
-        if not self.series.items:
+        """PNG of the outputs (``recording.save_plot`` of the plot series' minima and maxima) and
+        the summary's ``recorder`` figures (``PlotSeries.summary``: over every output)."""
+        if not self.series.n:
             return None, None
+        summary = self.series.summary(self.stats.drift_fit())
         try:
             from ..io.plot_process import draw
-            from ..io.recording import Recorder
         except ImportError as e:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
-            return None, {"unavailable": str(e)}
-        rec = Recorder()
-        for o in self.series.outputs():
-            rec.append(o)
+            return None, {**summary, "unavailable": str(e)}
         try:
-            summary = rec.summary()
-            draw(rec, path, title=f"replay of {self.bag.path.name}, topic {self.bag.topic} "
-                                  f"({self.sim.options.mode}, {self.sim.options.fidelity})", summary=summary)
+            title = (f"replay of {self.bag.path.name}, topic {self.bag.topic} "
+                     f"({self.sim.options.mode}, {self.sim.options.fidelity})")
+            if self.series.stride > 1:
+                title += f"; each stroke: min to max of {self.series.stride} outputs"
+            draw(self.series, path, title=title, summary=summary)
             return str(path), summary
         except Exception as e:  # a plot must not lose the replay
             print(f"gyro-platform replay: warning: plot failed: {e}", file=sys.stderr)
-            return None, {"error": str(e)}
-
+            return None, {**summary, "error": str(e)}

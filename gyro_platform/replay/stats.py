@@ -1,5 +1,6 @@
 """Statistics of a replay's outputs, streamed: min/max per output column, the least-squares
-drift rate of the last segment, and a bounded, evenly thinned series for the plot."""
+drift rate of the last segment, and bounded min/max buckets of the plotted quantities for the
+figure and the summary's maxima."""
 from __future__ import annotations
 
 import math
@@ -7,7 +8,10 @@ from typing import Any
 
 import numpy as np
 
-PLOT_POINTS = 4000              # at most this many outputs are kept for the plot
+from ..engine.outputs import BEARING_NAMES
+
+N_BEARINGS = len(BEARING_NAMES)
+PLOT_BUCKETS = 2000             # at most this many min/max buckets of outputs are kept for the plot
 
 
 class Stats:
@@ -138,6 +142,12 @@ class Stats:
         self._fold()
         return {k: [self.lo[k], self.hi[k]] for k in self.lo}
 
+    def drift_fit(self) -> tuple[float, np.ndarray] | None:
+        """``(first time s, slope (3,) rad/s)`` of the drift fit over the last segment, or None
+        (fewer than 2 outputs with a finite drift angle)."""
+        slope = self._fit.slope()
+        return None if slope is None else (self._fit.t0, slope)
+
     def drift(self) -> dict[str, Any]:
         """Final drift angle (rad) and the least-squares drift rate of the last segment (rad/s
         and deg/h, per platform axis and norm; absent with fewer than 2 outputs)."""
@@ -202,53 +212,159 @@ class _Last:
 
 
 class PlotSeries:
-    """At most ``cap`` outputs, evenly thinned (stride doubles when full): bounded memory.
-    ``items``: ``Outputs`` (:meth:`add`) or ``(block, row)`` of a thinned copy of an
-    ``OutputBlock`` (:meth:`add_block`); :meth:`outputs` gives them all as ``Outputs``."""
+    """What a replay's figure and its summary's ``recorder`` figures need of every output, in
+    bounded memory: the outputs in buckets of ``stride`` consecutive ones (at most ``cap``
+    buckets; when full, neighbouring buckets merge and the stride doubles), each bucket
+    holding the smallest and largest value of every plotted quantity (:data:`PLOT_COLUMNS`:
+    gimbal angles, drift angle, bearing torque magnitudes …), its first and last time and
+    the last output's values. The figure draws each bucket as a stroke from its minimum to its
+    maximum, so a peak between two thinned instants still shows (no aliasing: at
+    ``cap`` = 2000 a bucket is about half a pixel wide), and the maxima reported are those of
+    all outputs. ``add`` (one ``Outputs``) and ``add_block`` (an ``OutputBlock``) keep the
+    same buckets."""
 
-    def __init__(self, cap: int = PLOT_POINTS):
-        self.cap, self.stride, self.i, self.items = cap, 1, 0, []
+    def __init__(self, cap: int = PLOT_BUCKETS):
+        if cap < 2 or cap % 2:
+            raise ValueError(f"cap must be an even number >= 2, not {cap}")
+        self.cap, self.stride, self.n, self.nb = cap, 1, 0, 0
+        self.stabilised: bool | None = None
+        self.lo = self.hi = self.last = np.zeros(0)
+        self.t_first = self.t_last = np.zeros(0)
 
     def add(self, out: Any) -> None:
-        if self.i % self.stride == 0:
-            self.items.append(out)
-            if len(self.items) >= self.cap:
-                self.items = self.items[::2]
-                self.stride *= 2
-        self.i += 1
+        """One output instant (``Outputs``)."""
+        from ..engine.outputs import OutputBlock
+
+        self.add_block(OutputBlock.stack([out]))
 
     def add_block(self, block: Any) -> None:
-        """The outputs of an ``OutputBlock``: the same items as one :meth:`add` each; the kept
-        rows are copied out of the block at once (one fancy index per field)."""
-        k, j = len(block), 0
-        new: list[int] = []             # block rows kept, in order: the last len(new) items
+        """The K outputs of an ``OutputBlock``, in order after the ones added before."""
+        k = len(block)
+        if k == 0:
+            return
+        m = plot_columns(block)
+        t = np.asarray(block.t, dtype=float)
+        if self.stabilised is None:
+            self.stabilised = bool(block.stabilised)
+            c = m.shape[1]
+            self.lo, self.hi = np.empty((self.cap, c)), np.empty((self.cap, c))
+            self.t_first, self.t_last = np.empty(self.cap), np.empty(self.cap)
+        elif bool(block.stabilised) != self.stabilised:
+            raise ValueError("outputs of one mode only (stabilised or carried) in a plot series")
+        j = 0
         while j < k:
-            first = j + (-self.i) % self.stride     # the next index whose count is a multiple of the stride
-            room = self.cap - len(self.items)
-            take = range(first, k, self.stride)[:room]
-            new += take
-            self.items += [None] * len(take)
-            if len(self.items) >= self.cap:
-                stop = int(take[-1]) + 1            # halve after the item that filled it
-                self.i += stop - j
-                j = stop
-                at = len(self.items) - len(new)     # where the new rows start; even places stay
-                new = new[at % 2::2]
-                self.items = self.items[::2]
-                self.stride *= 2
+            room = self.cap * self.stride - self.n      # rows the buckets take before a merge
+            if room <= 0:
+                self._merge()
+                continue
+            r = min(k - j, room)
+            pos = self.n + np.arange(r)
+            bid = pos // self.stride
+            starts = np.flatnonzero(np.r_[True, bid[1:] != bid[:-1]])
+            part = m[j:j + r]
+            lo = np.fmin.reduceat(part, starts, axis=0)
+            hi = np.fmax.reduceat(part, starts, axis=0)
+            ends = np.r_[starts[1:], r] - 1
+            b0 = int(bid[0])
+            if self.n % self.stride:                  # the first bucket holds outputs already
+                lo[0] = np.fmin(lo[0], self.lo[b0])
+                hi[0] = np.fmax(hi[0], self.hi[b0])
+                tf = np.r_[self.t_first[b0], t[j + starts[1:]]]
             else:
-                self.i += k - j
-                j = k
-        if new:
-            sub = take_rows(block, np.array(new, dtype=np.int64))
-            self.items[len(self.items) - len(new):] = [(sub, r) for r in range(len(new))]
+                tf = t[j + starts]
+            nb = len(starts)
+            self.lo[b0:b0 + nb], self.hi[b0:b0 + nb] = lo, hi
+            self.t_first[b0:b0 + nb], self.t_last[b0:b0 + nb] = tf, t[j + ends]
+            self.nb = b0 + nb
+            self.n += r
+            j += r
+        self.last = m[-1].copy()
 
-    def outputs(self) -> list[Any]:
-        """The kept outputs as ``Outputs``, in order."""
-        return [it[0][it[1]] if type(it) is tuple else it for it in self.items]
+    def _merge(self) -> None:
+        """Neighbouring buckets pairwise into one (the buckets are full: ``nb == cap``)."""
+        h = self.cap // 2
+        self.lo[:h] = np.fmin(self.lo[0::2], self.lo[1::2])
+        self.hi[:h] = np.fmax(self.hi[0::2], self.hi[1::2])
+        self.t_first[:h], self.t_last[:h] = self.t_first[0::2], self.t_last[1::2]
+        self.nb, self.stride = h, self.stride * 2
+
+    def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(t, lo, hi)``: per bucket its first time (s), the minima and maxima (nb, C)."""
+        nb = self.nb
+        return self.t_first[:nb], self.lo[:nb], self.hi[:nb]
+
+    def plot_data(self) -> Any:
+        """The figure's series (``recording.PlotData``): one point per output while every
+        bucket holds one, else two per bucket — its minimum at its first time, its maximum
+        halfway to its last — so the line strokes each bucket's whole range."""
+        from ..io.recording import PlotData
+
+        t, lo, hi = self.columns()
+        if self.stride > 1:
+            t = np.column_stack([t, 0.5 * (t + self.t_last[:self.nb])]).ravel()
+            v = np.stack([lo, hi], axis=1).reshape(2 * len(lo), -1)
+        else:
+            v = lo
+        t = t - t[0] if t.size else t
+        c = column_slices(bool(self.stabilised))
+        return PlotData(t, v[:, c["gimbal"]], v[:, c["drift"]],
+                        {b: v[:, c["bearing"].start + i] for i, b in enumerate(BEARING_NAMES)},
+                        v[:, c["servo_norm"]] if self.stabilised else None, None)
+
+    def summary(self, drift: tuple[float, np.ndarray] | None) -> dict[str, Any]:
+        """The figures ``Recorder.summary`` gives that bounded data keeps exactly, over every
+        output: maxima of |value| (from the buckets' minima and maxima), final values, and
+        the drift rate of ``drift`` = ``(fit start time s, slope (3,) rad/s)`` (the replay's
+        least-squares fit over the last segment, ``Stats.drift_fit``; the plot's legend)."""
+        from ..io.recording import AXES, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
+
+        s: dict[str, Any] = {"n_outputs": self.n}
+        if self.n == 0:
+            return s
+        t, lo, hi = self.columns()
+        big = np.fmax(np.abs(lo), np.abs(hi)).max(axis=0)
+        c = column_slices(bool(self.stabilised))
+        last = self.last
+        axes = lambda v: {ax: float(v[i]) for i, ax in enumerate(AXES)}     # noqa: E731
+        s["t_start"] = float(t[0])
+        s["duration"] = float(self.t_last[self.nb - 1] - t[0])
+        s["max_abs_gimbal_angle"] = dict(zip(GIMBAL_NAMES, big[c["gimbal"]].tolist()))
+        s["final_gimbal_angle"] = dict(zip(GIMBAL_NAMES, last[c["gimbal"]].tolist()))
+        s["max_abs_bearing_torque"] = dict(zip(BEARING_NAMES, big[c["bearing"]].tolist()))
+        s["max_abs_motor_torque"] = dict(zip(ROTORS, big[c["motor"]].tolist()))
+        if self.stabilised:
+            s["max_abs_servo_torque"] = {**axes(big[c["servo"]]), "norm": float(big[c["servo_norm"]])}
+        d = last[c["drift"]]
+        s["final_drift_angle"] = {**axes(d), "norm": float(np.linalg.norm(d))}
+        s["max_abs_drift_angle"] = {**axes(big[c["drift"]]), "norm": float(big[c["drift_norm"]])}
+        if drift is not None:
+            start, rate = drift
+            s["drift_fit_start"] = float(start - t[0])
+            s["drift_rate"] = {**axes(rate), "norm": float(np.linalg.norm(rate))}
+            s["drift_rate_deg_per_h"] = {k: v * RAD_S_TO_DEG_H for k, v in s["drift_rate"].items()}
+        s["units"] = {k: SUMMARY_UNITS[k] for k in s if k in SUMMARY_UNITS}
+        s["plot"] = {"buckets": self.nb, "outputs_per_bucket": self.stride}
+        return s
 
 
-#: the per-instant array fields of an OutputBlock (first axis K; ``rotor_rates`` is not one)
-def take_rows(block: Any, idx: np.ndarray) -> Any:
-    """Rows ``idx`` of an ``OutputBlock`` (a copy)."""
-    return block[np.asarray(idx, dtype=np.int64)]
+def column_slices(stabilised: bool) -> dict[str, Any]:
+    """Where each quantity sits in a :func:`plot_columns` row."""
+    c = {"gimbal": slice(0, 5), "drift": slice(5, 8), "drift_norm": 8, "bearing": slice(9, 9 + N_BEARINGS),
+         "motor": slice(9 + N_BEARINGS, 12 + N_BEARINGS)}
+    if stabilised:
+        c["servo"] = slice(12 + N_BEARINGS, 15 + N_BEARINGS)
+        c["servo_norm"] = 15 + N_BEARINGS
+    return c
+
+
+def plot_columns(block: Any) -> np.ndarray:
+    """(K, C) per output of an ``OutputBlock``: gimbal angles (5) rad, drift angle (3) and its
+    norm rad, bearing torque magnitudes (``BEARING_NAMES``) N m, motor torques (3) N m and, in
+    stabilised mode, the servo torque (3) and its magnitude N m (:func:`column_slices`)."""
+    d = np.asarray(block.drift_angle, dtype=float)
+    parts = [block.gimbal_angles, d, np.sqrt(np.einsum("ij,ij->i", d, d))[:, None],
+             np.sqrt(np.einsum("ijk,ijk->ij", block.bearing_torques, block.bearing_torques)), block.motor_torques]
+    if block.stabilised:
+        st = np.asarray(block.servo_torque, dtype=float)
+        parts += [st, np.sqrt(np.einsum("ij,ij->i", st, st))[:, None]]
+    return np.concatenate(parts, axis=1)
