@@ -339,6 +339,52 @@ def test_corrupt_chunk_mid_stream_ends_replay_with_readable_output(tmp_path, cap
     assert 0 < len(got["/imu/data"]) < 11865 and len(got["/gimbal/joint_states"]) > 0
 
 
+def _small_mcap(path: Path) -> Path:
+    """A 200-message 1 kHz Imu bag in MCAP (rosbags, Jazzy)."""
+    return write_bag(path, [(T0 + i * 10**6, imu_msg(T0 + i * 10**6, (0.01, 0.0, 0.02))) for i in range(200)],
+                     "mcap", topic="/imu/data")
+
+
+@pytest.mark.parametrize("head", [0, 1, 5, 8, 9, 10, 20, 26, 40])
+def test_mcap_file_of_a_few_bytes_is_a_damaged_bag_not_a_traceback(head, tmp_path, capsys):
+    bag = _small_mcap(tmp_path / "src")
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(next(bag.glob("*.mcap")).read_bytes()[:head])
+    code = cli.main(["replay", str(cut), "--out", str(tmp_path / "out"), "--quiet", "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_DATA and "Traceback" not in err
+    assert err.count("\n") == 1 and err.startswith(f"gyro-platform replay: error: {cut}"), err
+
+
+@pytest.mark.parametrize("field,value", [
+    ("  starting_time:\n    nanoseconds_since_epoch: ", "abc"),   # text where a number belongs
+    ("  - message_count: ", "lots"),                                # the input topic's count
+    ("  - message_count: ", "-5"),
+    ("  compression_mode: ", "file"),                               # compressed, but the file is not
+])
+def test_damaged_metadata_is_salvaged_with_one_line_not_a_traceback(field, value, tmp_path, capsys):
+    """A metadata.yaml field rosbags chokes on (TypeError, a decompressor's error …) or that
+    says nothing sensible: the bag is damaged (exit 3), its messages salvaged, one line each."""
+    bag = _small_mcap(tmp_path / "src")
+    meta = bag / "metadata.yaml"
+    text = meta.read_text()
+    lines = text.split("\n")
+    key = field.rsplit("\n", 1)[-1]
+    i = max(j for j, ln in enumerate(lines) if ln.startswith(key)) if "\n" not in field else \
+        [j for j, ln in enumerate(lines) if ln == field.split("\n")[0]][-1] + 1
+    lines[i] = key + value
+    if value == "file":
+        lines = [ln.replace("compression_format: ''", "compression_format: zstd") for ln in lines]
+    meta.write_text("\n".join(lines))
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_DATA and "Traceback" not in err, err
+    assert all(ln.startswith("gyro-platform replay: ") for ln in err.splitlines()), err
+    summary = json.loads(rp.sidecar_paths(out)[0].read_text())
+    assert summary["input"]["salvaged"] and summary["counts"]["in"] == 200
+
+
 # ---- bad input end to end (synthetic bag) ------------------------------------------------
 def imu_msg(stamp_ns, w, frame="base_link", cov_w=0.0):
     cov = np.zeros(9)

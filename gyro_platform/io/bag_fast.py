@@ -287,7 +287,7 @@ class McapFile:
                 reader = make_reader(f)
                 profile = reader.get_header().profile
                 summary = reader.get_summary()
-        except (McapError, OSError, ValueError, EOFError, KeyError) as e:
+        except Exception as e:     # McapError, OSError, struct.error, TypeError …: whatever the bytes make it raise
             raise ValueError(f"{path}: not a readable MCAP file: {type(e).__name__}: {e}") from None
         if summary is None or summary.statistics is None or not summary.chunk_indexes:
             raise ValueError(f"{path}: MCAP file without summary statistics and chunk index")

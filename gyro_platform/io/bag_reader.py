@@ -30,6 +30,13 @@ CHUNK_BYTES = 64 * 2 ** 20
 FETCH_ROWS = 4096
 
 
+def _check_counts(conns: Any) -> None:
+    """ValueError unless every connection's message count (``metadata.yaml``) is a count."""
+    for c in conns:
+        if type(c.msgcount) is not int or c.msgcount < 0:
+            raise ValueError(f"metadata.yaml: topic {c.topic}: message_count {c.msgcount!r} is not a count")
+
+
 class InputBag:
     """Streaming reader of one rosbag2 bag: connections up front, messages as a generator
     (:meth:`messages`) or in blocks (:meth:`chunks`).
@@ -84,8 +91,11 @@ class InputBag:
         try:
             reader = rb["Reader"](reader_path(path))
             reader.open()
-        except (rb["ReaderError"], OSError, KeyError, ValueError) as e:
-            why = f"rosbags cannot open it: {type(e).__name__ + ': ' if isinstance(e, KeyError) else ''}{e}"
+            _check_counts(reader.connections)
+        except Exception as e:      # ReaderError, OSError, a decompressor's or YAML's error …: a damaged bag
+            named = not isinstance(e, (rb["ReaderError"], OSError, ValueError)) or isinstance(e, UnicodeError)
+            text = " ".join(str(e).split())        # one line (YAML errors span several)
+            why = f"rosbags cannot open it: {type(e).__name__ + ': ' if named else ''}{text}"
             self._mcap = self._foreign_mcap(path, why) if self.storage == "mcap" else None
             if self._mcap is not None:
                 conns = list(self._mcap.connections)
