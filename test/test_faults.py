@@ -153,6 +153,49 @@ def test_a_storm_of_signals_while_closing_leaves_a_readable_bag(big, tmp_path):
     assert sum(read_bag(out).values()) == summary["output"]["messages"] > 0
 
 
+@pytest.mark.parametrize("where,sig", [
+    ("setting up the output", signal.SIGINT),          # OutputBag.add_output: before the loop
+    ("writing the last chunk", signal.SIGTERM),        # _Run._written: held, raised after it
+    ("closing the bag", signal.SIGINT),                # OutputBag.close: held, raised after it
+    ("drawing the plot", signal.SIGTERM),              # _Run.plot: held until the summary is written
+])
+def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path, monkeypatch, capsys):
+    """A signal arriving outside the chunk loop (found by an audit: the summary and the plot were
+    lost, with exit 130/143) still leaves a closed bag, a summary saying why and a plot. The
+    signal is real (os.kill of this process inside the window), the stop the command's own."""
+    from gyro_platform.io.bag_writer import OutputBag
+    from gyro_platform.replay import loop
+
+    target = {"setting up the output": (OutputBag, "add_output"), "writing the last chunk": (loop._Run, "_written"),
+              "closing the bag": (OutputBag, "close"), "drawing the plot": (loop._Run, "plot")}[where]
+    original = getattr(*target)
+    sent = []
+
+    def with_signal(*a, **k):
+        last = where != "writing the last chunk" or sys._getframe(1).f_code.co_name == "loop"   # not a chunk's hand-off
+        if not sent and last:
+            sent.append(sig)
+            os.kill(os.getpid(), sig)
+        return original(*a, **k)
+
+    monkeypatch.setattr(*target, with_signal)
+    bag = make_bag(tmp_path / "in", 0.5, storage="mcap")
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--output-rate", "100"])
+    err = capsys.readouterr().err
+    word = "terminated" if sig == signal.SIGTERM else "interrupted"
+    assert sent and code == (143 if sig == signal.SIGTERM else 130), err
+    assert err.strip().splitlines()[-1] == f"gyro-platform replay: {word}; the output bag is closed and readable"
+    summary_path, plot_path = sidecar_paths(out)
+    summary = json.loads(summary_path.read_text())
+    assert summary["error"] == word and summary["interrupted_by"] == signal.Signals(sig).name
+    got = read_bag(out)
+    assert got.get("/imu", 0) == summary["counts"]["in"] and got.get("/gimbal/joint_states", 0) == summary["counts"]["out"]
+    if summary["counts"]["out"]:
+        assert summary["files"]["plot"] == str(plot_path) and plot_path.stat().st_size > 10_000
+    assert (summary["counts"]["in"] == 0) == (where == "setting up the output")
+
+
 def test_sigkill_leaves_no_crash_for_the_next_reader(big, tmp_path):
     """SIGKILL cannot be caught: no summary. Whatever is left must not crash a reader: replaying
     it ends with a documented exit code and no traceback."""

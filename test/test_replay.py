@@ -385,6 +385,41 @@ def test_damaged_metadata_is_salvaged_with_one_line_not_a_traceback(field, value
     assert summary["input"]["salvaged"] and summary["counts"]["in"] == 200
 
 
+def test_salvaged_bag_out_of_time_order_reports_its_whole_duration(tmp_path):
+    """A salvaged bag is read in file order, which need not be time order (a killed recorder's
+    last rows can be older than the ones before): ``duration_s`` is the span of the record
+    times, not last-in-file minus first (it said 0.0 s here before)."""
+    items = [(T0 + i * 10**6, imu_msg(T0 + i * 10**6, (0.01, 0.0, 0.02))) for i in range(200)]
+    late = T["std_msgs/msg/String"](data="written last, stamped first")
+    bag = write_bag(tmp_path / "src", items, "mcap", topic="/imu/data",
+                    extra=[("/note", "std_msgs/msg/String", [(T0, late)])])
+    f = next(bag.glob("*.mcap"))
+    f.write_bytes(f.read_bytes()[:-8])                 # no end magic: rosbags refuses, salvage reads it
+    summary = rp.replay(bag, tmp_path / "out", rp.ReplayConfig(plot=False, progress=False))
+    assert summary["input"]["salvaged"] and summary["counts"]["in"] == 200
+    assert summary["duration_s"] == pytest.approx(0.199, abs=1e-9)
+
+
+def test_no_output_at_all_is_said_in_the_summary_too(tmp_path, capsys):
+    """Samples simulated but every output failing (1e300 m/s² through the anisoelastic and
+    unbalance effects: not finite): exit 3 and the summary's warnings say why (they were empty)."""
+    items = []
+    for i in range(50):
+        msg = imu_msg(T0 + i * 10**6, (0.01, 0.0, 0.02))
+        msg.linear_acceleration.x = msg.linear_acceleration.y = msg.linear_acceleration.z = 1e300
+        items.append((T0 + i * 10**6, msg))
+    bag = write_bag(tmp_path / "in", items, "mcap", topic="/imu/data")
+    scene = tmp_path / "s.yaml"
+    scene.write_text("mode: stabilised\neffects: [defaults, anisoelastic, mass_unbalance]\nduration: 2\n"
+                     "motion: {type: constant, omega: [0, 0, 0]}\n")
+    out = tmp_path / "out"
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", "--scene", str(scene)])
+    capsys.readouterr()
+    summary = json.loads(rp.sidecar_paths(out)[0].read_text())
+    assert code == cli.EXIT_DATA and summary["counts"]["out"] == 0 and summary["simulated"] == 50
+    assert any("no output could be computed" in w for w in summary["warnings"]), summary["warnings"]
+
+
 # ---- bad input end to end (synthetic bag) ------------------------------------------------
 def imu_msg(stamp_ns, w, frame="base_link", cov_w=0.0):
     cov = np.zeros(9)

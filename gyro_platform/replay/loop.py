@@ -85,7 +85,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     in_bag, out_bag = Path(in_bag), Path(out_bag)
     if out_bag.exists():
         raise ReplayError(f"{out_bag}: exists already; choose another --out (nothing is overwritten)")
-    summary_path, plot_path = sidecar_paths(out_bag)
+    summary_path = sidecar_paths(out_bag)[0]
     wall0 = time.perf_counter()
     bag = InputBag(in_bag, cfg.topic)
     bag.open()
@@ -108,23 +108,44 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             kwargs["options"] = cfg.options
         sim = Simulator(**kwargs)
         out = OutputBag(out_bag, cfg.storage or bag.storage)
+        run = _Run(bag, out, sim, cfg)
+        # a Ctrl-C/SIGTERM from here on stops the run in order: the bag is closed, the summary
+        # and the plot of what was simulated are written, the summary's error says why
         try:
-            for conn in bag.connections:
-                out.copy_connection(conn, bag.store_for(conn))
-            for topic, typ in out_topics.items():
-                out.add_output(topic, typ)
-            run = _Run(bag, out, sim, cfg)
-            run.loop()
-        finally:
-            with deferred_signals():   # a signal now would cut the index + metadata: held until closed
-                out.close()       # index + metadata written: the bag is readable whatever happened
+            try:
+                for conn in bag.connections:
+                    out.copy_connection(conn, bag.store_for(conn))
+                for topic, typ in out_topics.items():
+                    out.add_output(topic, typ)
+                run.loop()
+            except KeyboardInterrupt as e:  # setting up the output, or held while its last chunk was written
+                run.stopped(e)
+            finally:
+                with deferred_signals():   # a signal now would cut the index + metadata: held until closed
+                    out.close()       # index + metadata written: the bag is readable whatever happened
+        except KeyboardInterrupt as e:      # held while the bag was closed
+            run.stopped(e)
     finally:
         bag.close()
-    summary = run.summary(in_bag, out_bag, time.perf_counter() - wall0)
-    if out.skipped:
-        summary["output"]["skipped_topics"] = out.skipped
+    wall = time.perf_counter() - wall0
+    try:
+        with deferred_signals():            # held until the summary and the plot are written
+            summary = _results(run, in_bag, out_bag, wall, cfg.plot)
+    except KeyboardInterrupt as e:          # it arrived while they were written: they are; say so
+        run.stopped(e)
+        summary["interrupted_by"], summary["error"] = run.interrupted, run.error
+        summary_path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
+    return summary
+
+
+def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, plot: bool) -> dict[str, Any]:
+    """The run's summary, its plot when asked, both written next to ``out_bag``."""
+    summary_path, plot_path = sidecar_paths(out_bag)
+    summary = run.summary(in_bag, out_bag, wall)
+    if run.out.skipped:
+        summary["output"]["skipped_topics"] = run.out.skipped
     summary["files"] = {"bag": str(out_bag), "summary": str(summary_path), "plot": None}
-    if cfg.plot:
+    if plot:
         summary["files"]["plot"], summary["recorder"] = run.plot(plot_path)
     summary_path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
     return summary
@@ -197,8 +218,7 @@ class _Run:
         except BagReadError as e:
             self.error = str(e)
         except KeyboardInterrupt as e:              # Ctrl-C, or SIGTERM (errors.Terminated)
-            self.interrupted = "SIGTERM" if stop_reason(e) == "terminated" else "SIGINT"
-            self.error = stop_reason(e)
+            self.stopped(e)
         finally:
             progress.close()
             try:
@@ -208,13 +228,20 @@ class _Run:
                 if self._writer is not None:
                     self._writer.shutdown()
 
+    def stopped(self, e: KeyboardInterrupt) -> None:
+        """A Ctrl-C (KeyboardInterrupt) or SIGTERM (``errors.Terminated``) stopped the run: the
+        summary says so (``interrupted_by``, ``error``; the first signal counts)."""
+        if self.interrupted is None:
+            self.interrupted = "SIGTERM" if stop_reason(e) == "terminated" else "SIGINT"
+            self.error = stop_reason(e)
+
     # ---- chunked path -----------------------------------------------------------------------
     def _chunk(self, chunk: Any, parts: list[tuple[np.ndarray, Any]]) -> None:
         """A RowChunk and its decoded input rows (``Pipeline.decode``) through gate and simulator
         here; copied and written on the writer thread (:meth:`_handoff`)."""
-        if self.first_ts is None:
-            self.first_ts = int(chunk.ts[0])
-        self.last_ts = int(chunk.ts[-1])
+        lo, hi = int(chunk.ts.min()), int(chunk.ts.max())      # (a salvaged bag may be out of order)
+        self.first_ts = lo if self.first_ts is None else min(self.first_ts, lo)
+        self.last_ts = hi if self.last_ts is None else max(self.last_ts, hi)
         self.n_msgs += len(chunk.ts)
         done: list[tuple] = []
         try:
@@ -326,9 +353,8 @@ class _Run:
     # ---- per-message path (the reference) -----------------------------------------------------
     def _message(self, conn: Any, ts: int, raw: bytes) -> None:
         self.n_msgs += 1
-        if self.first_ts is None:
-            self.first_ts = ts
-        self.last_ts = ts
+        self.first_ts = ts if self.first_ts is None else min(self.first_ts, ts)
+        self.last_ts = ts if self.last_ts is None else max(self.last_ts, ts)
         copy = self.out.copy_connection(conn, self.bag.store_for(conn))
         if copy is not None:
             self.out.write_raw(copy, ts, raw)
@@ -453,6 +479,9 @@ class _Run:
             res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in))
         elif self.n_in and not self.simulated:
             res.append(f"none of the {snap['accepted']} accepted samples could be simulated "
+                       f"(simulator: {dict(self.outcomes)}; errors: {self.sim_errors[:1]}): no outputs")
+        elif self.n_in and not self.n_out and self.error is None:
+            res.append(f"{self.simulated} samples simulated but no output could be computed "
                        f"(simulator: {dict(self.outcomes)}; errors: {self.sim_errors[:1]}): no outputs")
         elif self.n_in == 0 and self.error is None:
             res.append(f"topic {self.bag.topic} has no messages: no outputs")
