@@ -205,6 +205,22 @@ def restart_at(sim: Any, sample: RateSample) -> str:
 
 
 
+#: Hz: the highest output (and diagnostics) grid rate. Above it the slot numbers of a long run
+#: would leave int64 (1e20 Hz: slot ~1e20 after a second); any rate above the input's gives an
+#: output after every sample, which rate 0 asks for directly
+MAX_GRID_RATE = 1e6
+
+
+def check_grid_rate(rate: float | None, name: str, zero_ok: bool = True) -> None:
+    """ValueError (one line naming ``name``) unless ``rate`` is None, 0 (``zero_ok``) or a
+    finite rate in (0, ``MAX_GRID_RATE``] Hz."""
+    if rate is None or (zero_ok and rate == 0):
+        return
+    if not (math.isfinite(rate) and 0 < rate <= MAX_GRID_RATE):
+        every = " (0 = every sample)" if zero_ok else ""
+        raise ValueError(f"{name} {rate:g}: must be a rate in (0, {MAX_GRID_RATE:g}] Hz{every}")
+
+
 def grid_index(t_ns: int, origin_ns: int, rate: float) -> int:
     """Index of the output slot of ``t_ns``: floor((t − origin)·rate) (times in ns, rate in Hz)."""
     return math.floor((t_ns - origin_ns) * 1e-9 * rate + 1e-9)
@@ -356,6 +372,7 @@ class Pipeline:
 
     def __init__(self, sim: Any, gate: TimeGate, output_rate: float | None,
                  mounting: Mounting | None = None):
+        check_grid_rate(output_rate if output_rate is None or output_rate > 0 else None, "output rate")
         self.sim, self.gate, self.output_rate = sim, gate, output_rate
         self.mounting = mounting or Mounting()
         self.outcomes: dict[str, int] = {}

@@ -420,6 +420,33 @@ def test_no_output_at_all_is_said_in_the_summary_too(tmp_path, capsys):
     assert any("no output could be computed" in w for w in summary["warnings"]), summary["warnings"]
 
 
+@pytest.mark.parametrize("flag,value", [("--output-rate", "1e20"), ("--output-rate", "1e300"),
+                                        ("--diagnostics-rate", "1e300"), ("--output-rate", "1.0000001e6")])
+def test_rates_beyond_the_grid_are_refused_before_the_start(flag, value, tmp_path, capsys):
+    """An output or diagnostics rate whose slot numbers would leave int64 (found by an audit:
+    1e20 Hz gave 93 outputs of 2000 and a drift rate 100x off, with numpy warnings) is refused
+    with one line and exit 2, nothing written; 1e6 Hz and 0 give an output after every sample."""
+    bag = _small_mcap(tmp_path / "src")
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", flag, value]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"error: {flag} " in err and "1e+06] Hz" in err and not out.exists()
+    for ok in ("1e6", "0"):
+        code = cli.main(["replay", str(bag), "--out", str(tmp_path / ok), "--quiet", "--no-plot", "--output-rate", ok])
+        assert code == 0 and json.loads(rp.sidecar_paths(tmp_path / ok)[0].read_text())["counts"]["out"] == 200
+
+
+@pytest.mark.parametrize("flag", ["--max-gap", "--reset-on-jump-back"])
+def test_gate_times_beyond_int64_ns_are_taken_as_no_limit(flag, tmp_path, capsys):
+    """1e300 s as a gap or jump limit (found by an audit: OverflowError traceback, an output bag
+    without summary): no limit, as 1e20 s was already."""
+    bag = _small_mcap(tmp_path / "src")
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", flag, "1e300"]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    assert json.loads(rp.sidecar_paths(out)[0].read_text())["counts"]["accepted"] == 200
+
+
 # ---- bad input end to end (synthetic bag) ------------------------------------------------
 def imu_msg(stamp_ns, w, frame="base_link", cov_w=0.0):
     cov = np.zeros(9)

@@ -285,7 +285,8 @@ def _arrival_ema(rx, first, has_first, gap_ns, e, unset, a):  # pragma: no cover
 
 def _ns_floor(seconds: float) -> int:
     """Largest integer ns ≤ ``seconds``·1e9, so that ``d > seconds*NS`` ⟺ ``d > _ns_floor`` for int d."""
-    return min(math.floor(seconds * NS), 2**62)
+    x = seconds * NS
+    return 2**62 if x >= 2**62 else math.floor(x)       # (1e300 s: x is inf, which floor refuses)
 
 
 def reading_of(rb: "RateBlock", i: int) -> Reading | Rejected:

@@ -21,7 +21,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import re
 import sys
 from typing import Any
@@ -30,7 +29,7 @@ from ..errors import (EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXI
                       BagPathError, BagReadError, OutputError, ReplayError, check_output_path, write_failure)
 from ..io.gate import GateConfig
 from ..io.messages import Mounting
-from ..pipeline import no_sample_hint
+from ..pipeline import check_grid_rate, no_sample_hint
 from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, ReplayConfig, replay, sidecar_paths
 
 #: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
@@ -114,12 +113,13 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         cfg.params, cfg.options = scene.params, scene.options
         if getattr(scene, "output_rate", None):
             cfg.output_rate = float(scene.output_rate)
+    try:
+        check_grid_rate(args.output_rate, "--output-rate")
+        check_grid_rate(cfg.diagnostics_rate, "--diagnostics-rate", zero_ok=False)
+    except ValueError as e:
+        raise ReplayError(str(e)) from None
     if args.output_rate is not None:
-        if not (math.isfinite(args.output_rate) and args.output_rate >= 0):
-            raise ReplayError(f"--output-rate {args.output_rate}: must be a finite rate >= 0 Hz (0 = every sample)")
         cfg.output_rate = args.output_rate if args.output_rate > 0 else None
-    if not (math.isfinite(cfg.diagnostics_rate) and cfg.diagnostics_rate > 0):
-        raise ReplayError(f"--diagnostics-rate {cfg.diagnostics_rate}: must be a finite rate > 0 Hz")
     check_namespace(cfg.namespace)
     return cfg
 
