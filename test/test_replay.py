@@ -7,6 +7,7 @@ replay code.
 from __future__ import annotations
 
 import json
+import os
 import math
 import shutil
 from pathlib import Path
@@ -445,6 +446,17 @@ def test_gate_times_beyond_int64_ns_are_taken_as_no_limit(flag, tmp_path, capsys
     assert cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", flag, "1e300"]) == 0
     assert "Traceback" not in capsys.readouterr().err
     assert json.loads(rp.sidecar_paths(out)[0].read_text())["counts"]["accepted"] == 200
+
+
+def test_a_fifo_as_input_is_refused_as_a_path(tmp_path, capsys):
+    """A FIFO named like a bag is an input problem (exit 2, one line), not a write failure
+    (it said exit 4, "cannot write the output: …: Not a directory")."""
+    fifo = tmp_path / "x.mcap"
+    os.mkfifo(fifo)
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(fifo), "--out", str(out), "--quiet", "--no-plot"]) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == f"gyro-platform replay: error: {fifo}: not a rosbag2 bag (neither a folder nor a regular file)\n"
+    assert not out.exists()
 
 
 # ---- bad input end to end (synthetic bag) ------------------------------------------------

@@ -41,6 +41,8 @@ def resolve_bag_path(path: Path) -> Path:
     BagPathError for a missing path, a ROS 1 bag and folders or files that hold no bag."""
     if not path.exists():
         raise BagPathError(f"{path}: no such file or directory")
+    if not (path.is_file() or path.is_dir()):          # a FIFO, a socket, a device
+        raise BagPathError(f"{path}: not a rosbag2 bag (neither a folder nor a regular file)")
     if path.is_file() and path.name == "metadata.yaml":
         path = path.parent
     ros1 = [path] if path.is_file() else sorted(path.glob("*.bag"))
