@@ -164,8 +164,11 @@ class Integrator(ABC):
     def refuse(self, t: float, estimate: float, norm: float, h: float, why: str = "") -> ToleranceError:
         """The error raised when the tolerance cannot be met within the budget (t: the
         integration time of the failing step, s)."""
-        if not norm < math.inf:
-            why = why or " (non-finite state or failed stage)"
+        if not norm < math.inf:     # a stage or the state went non-finite: no estimate to quote
+            return ToleranceError(
+                f"{self.name} cannot meet the tolerance at t={t!r} s: the state or a stage is not finite "
+                f"even with steps of {h:.3g} s (budget: max_step/{self.max_substeps}){why}; "
+                f"state kept at the interval start")
         return ToleranceError(
             f"{self.name} cannot meet the tolerance at t={t!r} s: error estimate {estimate:.3g} "
             f"({norm:.3g}× the tolerance rtol={self.rtol:g}, atol={self.atol:g}) even with steps of "
