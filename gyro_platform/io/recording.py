@@ -31,7 +31,7 @@ QUAT = ("qx", "qy", "qz", "qw")
 #: meaning). ``<…>`` stands for each name listed in the meaning; the unit is also the name's
 #: suffix (``_rad``, ``_rad_s`` = rad/s, ``_N_m`` = N m; quaternions and counts have none).
 CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
-    ("t_s", "s", "output instant (synthetic scene: from 0; bag: the input's time base, s since the epoch)"),
+    ("t_s", "s", "output instant, s since the first accepted input sample (synthetic scene: its start; bag: its first sample, whose stamp the output messages' header stamps continue)"),
     ("<gimbal>_rad", "rad", "gimbal angle; <gimbal> = alpha4, beta5, beta7, alpha9, beta10"),
     ("<gimbal>_rate_rad_s", "rad/s", "gimbal angle rate"),
     ("<gimbal>_axial_torque_N_m", "N m", "torque applied about the gimbal axis (spring, damper, friction, torquer)"),
