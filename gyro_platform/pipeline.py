@@ -218,7 +218,7 @@ def check_grid_rate(rate: float | None, name: str, zero_ok: bool = True) -> None
         return
     if not (math.isfinite(rate) and 0 < rate <= MAX_GRID_RATE):
         every = " (0 = every sample)" if zero_ok else ""
-        raise ValueError(f"{name} {rate:g}: must be a rate in (0, {MAX_GRID_RATE:g}] Hz{every}")
+        raise ValueError(f"{name} {rate!r}: must be a finite rate in (0, {MAX_GRID_RATE:g}] Hz{every}")
 
 
 def grid_index(t_ns: int, origin_ns: int, rate: float) -> int:

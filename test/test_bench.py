@@ -203,3 +203,48 @@ def test_bench_refuses_an_unwritable_out_before_running(tmp_path, capsys):
     assert cli.main(["bench", "consumer", "--out", str(blocker / "results")]) == cli.EXIT_USAGE
     err = capsys.readouterr().err
     assert "gyro-platform bench: error: --out " in err and "is a file, not a folder" in err and "Traceback" not in err
+
+
+@pytest.fixture
+def no_benchmark(monkeypatch):
+    """Every benchmark runner fails the test if called: option checks must refuse first."""
+    from gyro_platform.bench import command, peer_mujoco
+    from gyro_platform.sweep import scaling
+
+    def ran(*a, **k):
+        raise AssertionError("a benchmark ran although its options are refused")
+
+    for mod, names in ((command, ("consumer", "accuracy", "hard", "effects_cost", "hotpath")),
+                       (peer_mujoco, ("peer",)), (scaling, ("scaling",))):
+        for name in names:
+            monkeypatch.setattr(mod, name, ran)
+
+
+@pytest.mark.parametrize("what", [[], ["consumer"], ["peer"], ["accuracy"], ["effects"], ["hotpath"], ["hard"],
+                                  ["sweep"]], ids=lambda w: w[0] if w else "default")
+@pytest.mark.parametrize("value", ["0", "-1", "10001"])
+def test_every_bench_refuses_bad_runs_before_writing(what, value, tmp_path, capsys, no_benchmark):
+    out = tmp_path / "out"
+    assert cli.main(["bench", *what, "--runs", value, "--out", str(out)]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err == f"gyro-platform bench: error: --runs must be between 1 and 10000, got {value}\n"
+    assert not out.exists()
+
+
+def test_bench_hard_refuses_an_unknown_case_naming_the_known_ones(tmp_path, capsys, no_benchmark):
+    from gyro_platform.engine.hardcases import CASES
+
+    out = tmp_path / "out"
+    assert cli.main(["bench", "hard", "--case", "free_platform", "--case", "nope", "--out", str(out)]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith("gyro-platform bench: error: --case nope: unknown hard case; known: ")
+    assert err.count("\n") == 1 and all(c.name in err for c in CASES) and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_hard_table_refuses_an_unknown_case(tmp_path):
+    from gyro_platform.bench.hard import hard
+
+    with pytest.raises(ValueError, match="unknown case nope; known: carried_large_angles"):
+        hard(tmp_path / "out", cases=["nope"])
+    assert not (tmp_path / "out").exists()

@@ -245,6 +245,25 @@ def test_bad_scene_is_exit_2_with_one_line(case, tmp_path, capsys):
     assert words in one_line_error(capsys.readouterr().err, "replay")
 
 
+@pytest.mark.parametrize("text, says", [
+    ("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\na: [1, 2\n",
+     "not valid YAML: line 4:1: expected ',' or ']', but got '<stream end>' (while parsing a flow sequence at line 3:4)"),
+    ("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\nduration: 3\n",
+     "not valid YAML: line 3:1: duplicate key 'duration' (first at line 1:1)"),
+    ("duration: 2\nmotion:\n  type: constant\n  omega: [0.0, 0.0, 0.0]\n  omega: [1.0, 0.0, 0.0]\n",
+     "not valid YAML: line 5:3: duplicate key 'omega' (first at line 4:3)"),
+], ids=["syntax", "duplicate", "nested_duplicate"])
+def test_scene_yaml_error_is_one_line_with_line_and_column(text, says, tmp_path, capsys):
+    """PyYAML's message spans several lines; a scene gives one. YAML forbids a key given twice
+    (PyYAML would keep the last): refused, exit 2, nothing written."""
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    out = tmp_path / "out"
+    assert cli.main(["run", str(p), "--out", str(out)]) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == f"gyro-platform run: error: scene 's.yaml': {says}\n"
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("args,words", [
     (["run", "no_such_scene"], "no such file or scene name (scenes: coning,"),
     (["run", "default", "--duration", "-1"], "--duration must be a finite number > 0"),
@@ -586,7 +605,8 @@ def test_runs_too_big_to_run_are_refused_with_an_estimate(args, words, capsys):
     ("params: {bias_torque: [[0, 0], [0, 0, 1.0e-7]]}\n", "params.bias_torque[0]: expected a number, got a list"),
     ("sample_rate: 1.0e+9\n", "sample_rate: 1e+09 makes the run too big to start"),
     ("max_step: 1.0e-12\n", "max_step: option 'max_step' = 1e-12 s; allowed [1e-06, 1] s"),
-    ("rtol: 1.0e-300\n", "rtol: must be ≥ 1e-14"),
+    ("rtol: 1.0e-300\n", "rtol: must be ≥ 1e-13"),
+    ("rtol: 1.0e-14\n", "rtol: must be ≥ 1e-13"),        # one floor, one message (options.RTOL_MIN)
 ])
 def test_scene_values_that_cannot_be_meant_are_refused(extra, words, tmp_path, capsys):
     p = tmp_path / "s.yaml"

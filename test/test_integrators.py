@@ -286,7 +286,7 @@ def test_rk4_held_to_tolerance_substeps_to_stability_and_accuracy():
 
 
 def test_a_non_finite_state_is_named_not_quoted_as_an_infinite_ratio():
-    """A system that returns NaN: the refusal says the state is not finite (it said "error
+    """A system that returns NaN: the refusal says the state is non-finite (it said "error
     estimate 0 (inf× the tolerance …)", found by an audit)."""
     class Nan(Oscillator):
         def rhs(self, t, y):
@@ -295,7 +295,7 @@ def test_a_non_finite_state_is_named_not_quoted_as_an_infinite_ratio():
     integ = make_integrator("rk4", max_step=1e-3, rtol=1e-8, atol=1e-12, max_substeps=4)
     with pytest.raises(ToleranceError) as e:
         integ.advance(Nan(1e2, 1.0), 0.0, np.array([1.0, 0.0]), 1e-3)
-    assert "not finite" in str(e.value) and "inf×" not in str(e.value) and "error estimate" not in str(e.value)
+    assert "is non-finite" in str(e.value) and "inf×" not in str(e.value) and "error estimate" not in str(e.value)
 
 
 # --------------------------------------------------------------------------- quadratic invariants

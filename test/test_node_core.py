@@ -579,6 +579,28 @@ def test_params_file_sections_merge_wildcard_then_node(tmp_path):
         NodeConfig.from_yaml(f)
 
 
+def test_params_file_reads_exponent_numbers_as_doubles_as_rcl_does(tmp_path):
+    """rcl reads a plain ``1e2`` or ``1.0e3`` as a double (strtod); YAML 1.1 (PyYAML) reads it
+    as text. The plain-DDS node (``build_config``) reads it as rcl does; a quoted one stays text."""
+    import argparse
+
+    from gyro_platform.ros.command import build_config
+
+    f = tmp_path / "p.yaml"
+    f.write_text("/**:\n  ros__parameters:\n    output_rate: 1.0e3\n    gate:\n      max_gap: 1e2\n"
+                 "    physics:\n      latitude: -2.5E-3\n      bias_torque: [1e-4, 0.0, 0.0, 0.0, 0.0]\n"
+                 "      servo_kp: 1500.0\n")
+    cfg = build_config(argparse.Namespace(params_file=str(f), scene=""), P.NODE_NAME)
+    assert cfg["output_rate"] == 1000.0 and cfg.gate.max_gap == 100.0
+    assert cfg["physics.latitude"] == -2.5e-3 and cfg["physics.bias_torque"][0] == 1e-4
+    f.write_text("/**:\n  ros__parameters:\n    output_rate: '1e3'\n")
+    with pytest.raises(ConfigError, match=r"'output_rate'.*expected a double, got str '1e3'"):
+        build_config(argparse.Namespace(params_file=str(f), scene=""), P.NODE_NAME)
+    f.write_text("/**:\n  ros__parameters:\n    output_rate: 5\n")      # an integer stays an integer
+    with pytest.raises(ConfigError, match=r"'output_rate'.*write 5.0"):
+        build_config(argparse.Namespace(params_file=str(f), scene=""), P.NODE_NAME)
+
+
 @pytest.mark.parametrize("text, says", [
     ("/**:\n  ros__parameters: [1, 2]\n", "must be a mapping"),
     ("/**:\n  ros__parameters: 3\n", "must be a mapping"),
@@ -596,6 +618,15 @@ def test_bad_params_files_give_one_line_naming_the_file(tmp_path, text, says):
     with pytest.raises(ConfigError) as e:
         NodeConfig.from_yaml(f)
     assert says in str(e.value) and str(f) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_node_scene_with_a_repeated_key_is_refused_in_one_line(tmp_path):
+    f = tmp_path / "dup.yaml"
+    f.write_text("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\noutput_rate: 5.0\noutput_rate: 50.0\n")
+    with pytest.raises(ConfigError) as e:
+        NodeConfig.from_ros_params({"scene": str(f)})
+    assert str(e.value) == ("parameter 'scene': scene 'dup.yaml': not valid YAML: line 4:1: duplicate key "
+                            "'output_rate' (first at line 3:1)")
 
 
 def test_precession_with_a_rotor_at_rest_is_refused_at_node_start(tmp_path):

@@ -230,6 +230,17 @@ def test_yaml_errors(tmp_path):
         load_scene(tmp_path / "missing.yaml")
 
 
+def test_repeated_scene_keys_are_refused_and_merge_keys_still_work(tmp_path):
+    p = tmp_path / "dup.yaml"
+    p.write_text("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0], type: sines}\n")
+    with pytest.raises(ScenarioError, match=r"^scene 'dup.yaml': not valid YAML: line 2:50: duplicate key 'type' "
+                                            r"\(first at line 2:10\)$"):
+        load_scene(p)
+    p.write_text("duration: 2\nname: &n a\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\ndescription: *n\n"
+                 "params:\n  <<: {unbalance: 1.0e-8}\n  unbalance: 2.0e-8\n")
+    assert load_scene(p).params.unbalance == 2.0e-8     # a merge key may be overridden (YAML's rule)
+
+
 def test_husky_bag_path_resolves_against_the_repository_root():
     sc = load_scene(REPO / "config" / "scenes" / "husky_replay.yaml")
     assert sc.motion.path == (REPO / ".." / "shared" / "data" / "bags" / "robot_localization_husky_test1").resolve()

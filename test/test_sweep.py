@@ -77,6 +77,14 @@ def test_bad_sweep_files_are_refused_naming_the_key(tmp_path, text, fragment):
     assert "\n" not in str(e.value).strip()
 
 
+def test_sweep_scene_with_a_repeated_key_is_refused(tmp_path):
+    _write(tmp_path, "duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\nduration: 3\n", "dup.yaml")
+    spec = _write(tmp_path, "scene: dup.yaml\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n")
+    with pytest.raises(SweepSpecError, match=r"^sweep 'sweep.yaml': scene dup.yaml: not valid YAML: line 3:1: "
+                                             r"duplicate key 'duration' \(first at line 1:1\)$"):
+        load_sweep(spec)
+
+
 def test_draws_depend_on_seed_and_run_only(tmp_path):
     text = ("scene: default\nseed: 11\nruns: {n}\nvary:\n"
             "  unbalance: {{dist: normal, mean: 2.5e-8, std: 1.0e-8}}\n"
@@ -190,3 +198,20 @@ def test_ctrl_c_leaves_a_readable_table_and_exit_130(tmp_path):
     rows = _table(out)
     assert 2 <= len(rows) < 400 and all(r["status"] == "ok" for r in rows)
     assert len(rows) == len(list((out / "runs").glob("run_*.json")))
+
+
+@pytest.mark.parametrize("address, says", [("tcp://127.0.0.1:1", "Timed out trying to connect"),
+                                           ("nonsense://x", "unknown address scheme")])
+def test_unreachable_scheduler_is_refused_before_anything_is_written(tmp_path, monkeypatch, capsys, address, says):
+    """Exit 2 means refused before anything is written: the scheduler is tried first."""
+    from gyro_platform import cli
+    from gyro_platform.sweep import command
+
+    monkeypatch.setattr(command, "SCHEDULER_TIMEOUT_S", 1.0, raising=False)
+    spec = _write(tmp_path, BIAS_SWEEP)
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--scheduler", address, "--no-plots"]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith(f"gyro-platform sweep: error: --scheduler {address}: no Dask scheduler reachable: ")
+    assert says in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists()

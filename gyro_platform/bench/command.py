@@ -37,12 +37,14 @@ def add_arguments(p) -> None:
                         "ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
-    p.add_argument("--runs", type=int, default=8, help="sweep: Monte Carlo runs per worker count (default 8)")
+    p.add_argument("--runs", type=int, default=8,
+                   help=f"sweep: Monte Carlo runs per worker count, 1..{MAX_RUNS} (default 8)")
     p.add_argument("--no-whole-command", action="store_true",
                    help="consumer: skip the subprocess runs of the whole replay command (start-up included)")
 
 
 MAX_REPEATS = 1000
+MAX_RUNS = 10_000
 
 
 def _error(text: str) -> int:
@@ -50,12 +52,29 @@ def _error(text: str) -> int:
     return EXIT_USAGE
 
 
+def check_options(args) -> str | None:
+    """Why the options are refused (one line), or None: checked the same way for every
+    benchmark, before anything runs or is written (``--repeats``, ``--runs``, ``--case``)."""
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        return f"--repeats must be between 1 and {MAX_REPEATS}, got {args.repeats}"
+    if not 1 <= args.runs <= MAX_RUNS:
+        return f"--runs must be between 1 and {MAX_RUNS}, got {args.runs}"
+    if args.case:
+        from .hard import case_names, unknown_cases
+
+        bad = unknown_cases(args.case)
+        if bad:
+            return f"--case {', '.join(bad)}: unknown hard case; known: {', '.join(case_names())}"
+    return None
+
+
 def run(args) -> int:
     """Run the benchmark ``args.what``; exit code (``hard``: 1 if any cell is WRONG, else 0;
     2 a bad flag or an unwritable ``--out``, refused before any run)."""
     out = Path(args.out)
-    if not 1 <= args.repeats <= MAX_REPEATS:
-        return _error(f"--repeats must be between 1 and {MAX_REPEATS}, got {args.repeats}")
+    why = check_options(args)
+    if why:
+        return _error(why)
     try:
         check_output_path(out, "--out")
     except OutputError as e:
@@ -76,8 +95,6 @@ def run(args) -> int:
     elif args.what == "sweep":
         from ..sweep.scaling import scaling, table
 
-        if not 1 <= args.runs <= 10_000:
-            return _error(f"--runs must be between 1 and 10000, got {args.runs}")
         rows = scaling(out, runs=args.runs)
         print(table(rows), end="")
         return 0 if all(r["identical_to_1_worker"] for r in rows) else 1

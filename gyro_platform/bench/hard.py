@@ -12,13 +12,32 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["hard", "write_hard", "plot_hard"]
+__all__ = ["hard", "write_hard", "plot_hard", "case_names", "unknown_cases"]
+
+
+def case_names() -> list[str]:
+    """Names of the hard cases (``hardcases.CASES``), in table order."""
+    from ..engine.hardcases import CASES
+
+    return [c.name for c in CASES]
+
+
+def unknown_cases(cases: list[str] | None) -> list[str]:
+    """The names in ``cases`` that are no hard case (empty when all are known or none given)."""
+    if not cases:
+        return []
+    known = set(case_names())
+    return [c for c in dict.fromkeys(cases) if c not in known]
 
 
 def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> list[dict]:
     """Case × method table (``hardcases``): error against the reference, CPU s per simulated s,
     verdict (ok / refused / WRONG). ``quick``: the tests' durations (the hour: 60 s)."""
     from ..engine.hardcases import ASK, CASES, OK_RAD, run_case, run_reference, verdict
+
+    bad = unknown_cases(cases)
+    if bad:
+        raise ValueError(f"unknown case {', '.join(bad)}; known: {', '.join(case_names())}")
     rows: list[dict] = []
     for case in CASES:
         if cases and case.name not in cases:

@@ -92,6 +92,8 @@ class InputBag:
             reader = rb["Reader"](reader_path(path))
             reader.open()
             _check_counts(reader.connections)
+        except (ReplayError, BagReadError):    # the path itself (BagPathError: several files, no metadata …)
+            raise
         except Exception as e:      # ReaderError, OSError, a decompressor's or YAML's error …: a damaged bag
             named = not isinstance(e, (rb["ReaderError"], OSError, ValueError)) or isinstance(e, UnicodeError)
             text = " ".join(str(e).split())        # one line (YAML errors span several)

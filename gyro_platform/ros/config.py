@@ -13,6 +13,8 @@
 from __future__ import annotations
 
 import difflib
+import functools
+import re
 from dataclasses import dataclass, field, fields as dc_fields
 from pathlib import Path
 from typing import Any, Mapping
@@ -51,18 +53,19 @@ def resolve_scene(name: str) -> Path:
 def load_node_scene(name: str):
     """Load a scene for the node: as ``scene.load_scene`` but a ``bag`` motion (whose bag the
     node does not need) is replaced by a zero rate, so a missing bag does not stop the node."""
-    import yaml
-
+    from ..scenes.scene_yaml import SceneYAMLError, load_yaml
     from ..scenes.schema import ScenarioError, scene_from_dict
 
     path = resolve_scene(name)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = load_yaml(path.read_text())
         if isinstance(data, dict) and isinstance(data.get("motion"), dict) and data["motion"].get("type") == "bag":
             data = {**data, "motion": {"type": "constant", "omega": [0.0, 0.0, 0.0]}}
         return scene_from_dict(data, source=path.name, base_dir=path.resolve().parent, default_name=path.stem,
                                path=path)
-    except (OSError, yaml.YAMLError, ScenarioError) as e:
+    except SceneYAMLError as e:
+        raise ConfigError("scene", f"scene '{path.name}': not valid YAML: {e}") from None
+    except (OSError, UnicodeDecodeError, ScenarioError) as e:
         raise ConfigError("scene", str(e)) from None
 
 
@@ -104,15 +107,39 @@ def _is_ros_standard(name: str) -> bool:
     return name in ROS_STANDARD_PARAMETERS or name.startswith(ROS_STANDARD_PREFIXES)
 
 
+#: plain scalars rcl's YAML parser reads as doubles (strtod on the whole scalar) and YAML 1.1
+#: does not: ``1e2``, ``1.0e3``, ``-2.5E-3`` (YAML 1.2 core floats, with a point or an exponent)
+RCL_FLOAT = (r"^(?:[-+]?(?:\.[0-9]+|[0-9]+\.[0-9]*)(?:[eE][-+]?[0-9]+)?|[-+]?[0-9]+[eE][-+]?[0-9]+"
+             r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$")
+
+
+@functools.lru_cache(maxsize=None)
+def params_loader() -> type:
+    """PyYAML SafeLoader reading numbers as rcl does: a plain scalar is an int when YAML reads
+    it so, else a float when it matches :data:`RCL_FLOAT`; quoted scalars stay strings."""
+    import yaml
+
+    class ParamsLoader(yaml.SafeLoader):
+        pass
+
+    float_tag = "tag:yaml.org,2002:float"
+    ParamsLoader.yaml_implicit_resolvers = {
+        ch: [(tag, rx) for tag, rx in rs if tag != float_tag]
+        for ch, rs in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+    ParamsLoader.add_implicit_resolver(float_tag, re.compile(RCL_FLOAT), list("-+0123456789."))
+    return ParamsLoader
+
+
 def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
     """Flattened ``ros__parameters`` of a params file for one node: the ``/**`` section first,
     then the sections whose last name is ``node_name`` (``gyro_platform_node``,
-    ``/ns/gyro_platform_node``), later ones overriding — as rcl merges them."""
+    ``/ns/gyro_platform_node``), later ones overriding — as rcl merges them. Numbers are read
+    as rcl reads them (``1e2`` is a double: :func:`params_loader`)."""
     import yaml
 
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = yaml.load(path.read_text(), Loader=params_loader())   # noqa: S506 - a SafeLoader
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
         raise ConfigError("params_file", f"{path}: {' '.join(str(e).split())}") from None   # one line
     if not isinstance(doc, dict):

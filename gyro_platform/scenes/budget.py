@@ -3,18 +3,20 @@
 A run is refused when its estimate needs more than ``MAX_MEMORY_BYTES`` (8 GiB:
 ``BYTES_PER_SAMPLE`` per input sample, ``BYTES_PER_OUTPUT`` per recorded output) or more than
 ``MAX_STEPS`` (1e9 internal steps: at least ``duration / max_step`` and one per sample,
-~``SECONDS_PER_STEP`` each). Imports nothing of the package.
+~``SECONDS_PER_STEP`` each). Imports only ``physics.options`` (its rtol floor).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from ..physics.options import RTOL_MIN
 
 MAX_MEMORY_BYTES = 8 * 2 ** 30      # 8 GiB
 MAX_STEPS = 1e9                     # internal integrator steps
 BYTES_PER_SAMPLE = 88               # synthetic input: t, omega, force (float64) and attitude quaternion
 BYTES_PER_OUTPUT = 5 * 2 ** 10      # one recorded output (measured ~4.6 kB with Recorder)
 SECONDS_PER_STEP = 1.2e-6           # compiled kernel, one linear RK4 step (the README's figure)
-MIN_RTOL = 1e-14                    # ~50 float64 epsilons: a tighter rtol cannot be met
+MIN_RTOL = RTOL_MIN                 # the options' floor (~500 float64 epsilons): one check, one message
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ recorded output) or ``MAX_STEPS`` (1e9 internal steps: at least ``duration / max
 per sample, ~``SECONDS_PER_STEP`` each); the error names the key (``duration``, ``sample_rate``
 or ``max_step``) and gives the estimate (:func:`run_budget`). Parameter overrides are numbers or
 flat lists of numbers (``true``, nested lists and strings that are no number are refused);
-``rtol`` ≥ 1e-14 (below, float64 rounding cannot meet it).
+``rtol`` ≥ 1e-13 (below, float64 rounding cannot meet it).
 
 Motions (angles in degrees where the key says ``_deg``, else SI; body axes FLU, navigation
 axes ENU; see ``motions`` for the exact kinematics)::
@@ -97,14 +97,15 @@ from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
-import yaml
 
 from . import motions as mo
+from .scene_yaml import SceneYAMLError, load_yaml
 from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, RunBudget, oversize, run_budget
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..physics.params import ParameterError, PlatformParams
 from ..io.recording import ROTORS
+from ..pipeline import MAX_GRID_RATE
 
 AXIS_KEYS = ("x", "y", "z", "norm")
 #: quantity -> (selector key or None, allowed selector values, unit)
@@ -440,8 +441,8 @@ def load_scene(path) -> Scene:
     except UnicodeDecodeError:
         raise ScenarioError(f"scene '{path}': not a text file (a scene is YAML)") from None
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
+        data = load_yaml(text)                        # one-line errors; a repeated key is refused
+    except SceneYAMLError as e:
         raise ScenarioError(f"scene '{path.name}': not valid YAML: {e}") from None
     return scene_from_dict(data, source=path.name, base_dir=path.resolve().parent,
                            default_name=path.stem, path=path)
@@ -513,7 +514,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     test_duration = None
     if d.get("test_duration") is not None:
         test_duration = v.number(d["test_duration"], "test_duration", lo=0.0, hi=duration, lo_open=True)
-    output_rate = v.number(d.get("output_rate", 10.0), "output_rate", lo=0.0, lo_open=True)
+    output_rate = v.number(d.get("output_rate", 10.0), "output_rate", lo=0.0, hi=MAX_GRID_RATE, lo_open=True)
     fit_start = v.number(d.get("fit_start", 0.0), "fit_start", lo=0.0)
     if fit_start >= duration:
         v.fail("fit_start", f"must be < duration ({duration:g} s), got {fit_start:g}")

@@ -8,9 +8,10 @@ or a killed worker lose at most the runs in flight, and the same command again r
 is missing.
 
 Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
-``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them); 2 a bad
-sweep file, flag or output folder; 130 interrupted (Ctrl-C), 143 terminated (SIGTERM): the table
-holds the runs finished so far.
+``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them), or the
+local cluster could not start; 2 a bad sweep file, flag or output folder, or a ``--scheduler``
+that cannot be reached (tried before anything is written); 130 interrupted (Ctrl-C), 143
+terminated (SIGTERM): the table holds the runs finished so far.
 """
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ from .runs import execute_run, lost_record
 from .spec import SweepSpec, SweepSpecError, load_sweep
 from .store import ResultStore, StoreError, atomic_write
 from ..errors import (EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError, StopSignals,
-                      check_output_path, stop_reason)
+                      check_output_path, stop_reason, write_failure)
 
 EXIT_RUNS_FAILED = 1
 
@@ -46,12 +47,32 @@ class SweepResult:
     counts: dict[str, int] = field(default_factory=dict)
 
 
+#: s, how long ``--scheduler`` is tried before it is refused as unreachable
+SCHEDULER_TIMEOUT_S = 20.0
+
+
+class SchedulerError(ValueError):
+    """The ``--scheduler`` address is invalid or no Dask scheduler answers there."""
+
+
+def connect_scheduler(address: str):
+    """A ``distributed.Client`` of the running cluster at ``address`` (tried for
+    :data:`SCHEDULER_TIMEOUT_S` s); SchedulerError (one line) if it cannot be reached."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
+    except (OSError, ValueError) as e:   # OSError: time-out, refused; ValueError: bad address
+        why = " ".join(str(e).split())
+        raise SchedulerError(f"--scheduler {address}: no Dask scheduler reachable: {why}") from None
+
+
 def make_client(workers: int | None = None, scheduler: str | None = None):
     """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes."""
     from distributed import Client, LocalCluster
 
     if scheduler:
-        return Client(scheduler, timeout="20s")
+        return connect_scheduler(scheduler)
     n = workers or os.cpu_count() or 1
     # the worker processes inherit an ignored SIGINT: Ctrl-C (sent to the whole process group)
     # reaches only this process, which cancels the runs and shuts the cluster down in order
@@ -67,8 +88,10 @@ def make_client(workers: int | None = None, scheduler: str | None = None):
 
 
 def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler: str | None = None,
-              progress: Callable[[str], None] | None = None) -> SweepResult:
-    """Run the runs of ``spec`` not yet finished in ``out``; return every record of the folder."""
+              progress: Callable[[str], None] | None = None, client: Any = None) -> SweepResult:
+    """Run the runs of ``spec`` not yet finished in ``out``; return every record of the folder.
+    ``client``: a connected ``distributed.Client`` to use (left open for its owner); without
+    it one is made (``make_client``) and closed here."""
     from distributed import as_completed
 
     say = progress or (lambda s: None)
@@ -79,7 +102,8 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
     res = SweepResult(records=[], skipped=len(done))
     t0 = time.perf_counter()
     if tasks:
-        client = make_client(workers, scheduler)
+        own = client is None
+        client = make_client(workers, scheduler) if own else client
         futures = []
         try:
             say(f"{len(tasks)} run(s) to do, {len(done)} already done, on {len(client.scheduler_info()['workers'])} worker(s)")
@@ -100,15 +124,21 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
             for f in futures:
                 f.cancel()
         finally:
-            cluster = getattr(client, "cluster", None)
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            if own:
+                close_client(client)
     res.wall_s = time.perf_counter() - t0
     res.records = store.records()
     for r in res.records:
         res.counts[r["status"]] = res.counts.get(r["status"], 0) + 1
     return res
+
+
+def close_client(client: Any) -> None:
+    """Close a client made by ``make_client``, and its local cluster if it has one."""
+    cluster = getattr(client, "cluster", None)
+    client.close()
+    if cluster is not None:
+        cluster.close()
 
 
 def finish(spec: SweepSpec, out: Path, res: SweepResult, plots: bool = True) -> dict[str, Any]:
@@ -173,14 +203,24 @@ def run(args) -> int:
         return EXIT_USAGE
     with StopSignals("gyro-platform sweep"):      # SIGTERM: the same orderly stop as Ctrl-C
         try:
-            res = run_sweep(spec, out, workers=args.workers, scheduler=args.scheduler,
+            client = connect_scheduler(args.scheduler) if args.scheduler else None   # before any write
+        except SchedulerError as e:
+            print(f"{prog}: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        try:
+            res = run_sweep(spec, out, workers=args.workers, client=client,
                             progress=lambda s: print(s, file=sys.stderr, flush=True))
         except StoreError as e:
             print(f"{prog}: {e}", file=sys.stderr)
             return EXIT_USAGE
-        except OSError as e:  # e.g. the scheduler address cannot be reached
-            print(f"{prog}: {e}", file=sys.stderr)
-            return EXIT_USAGE
+        except OSError as e:  # the local cluster could not start (a write failure: exit 4, cli.main)
+            if write_failure(e) is not None:
+                raise
+            print(f"{prog}: the Dask cluster could not start: {' '.join(str(e).split())}", file=sys.stderr)
+            return EXIT_RUNS_FAILED
+        finally:
+            if client is not None:
+                close_client(client)
         summary = finish(spec, out, res, plots=not args.no_plots)
     print_summary(summary)
     if res.interrupted:

@@ -36,6 +36,7 @@ import numpy as np
 import yaml
 
 from ..physics.params import PlatformParams
+from ..scenes.scene_yaml import SceneYAMLError, load_yaml
 from ..scenes.schema import ScenarioError, find_scene, scene_from_dict
 from .runs import RunTask
 
@@ -264,11 +265,11 @@ def load_sweep(path) -> SweepSpec:
         raise SweepSpecError(f"{src}: give either 'vary' (Monte Carlo) or 'bags' (fleet replay)")
     try:
         scene_path = _scene_path(str(raw["scene"]), path.resolve().parent)
-        scene = yaml.safe_load(scene_path.read_text())
+        scene = load_yaml(scene_path.read_text())     # a repeated key is refused, as by load_scene
     except (ScenarioError, OSError) as e:
         raise SweepSpecError(f"{src}: scene: {e}") from None
-    except yaml.YAMLError as e:
-        raise SweepSpecError(f"{src}: scene {raw['scene']}: not valid YAML{_where(e)}") from None
+    except SceneYAMLError as e:
+        raise SweepSpecError(f"{src}: scene {raw['scene']}: not valid YAML: {e}") from None
     if not isinstance(scene, dict):
         raise SweepSpecError(f"{src}: scene {scene_path} is not a mapping")
     if "duration" in raw:

@@ -166,7 +166,7 @@ class Integrator(ABC):
         integration time of the failing step, s)."""
         if not norm < math.inf:     # a stage or the state went non-finite: no estimate to quote
             return ToleranceError(
-                f"{self.name} cannot meet the tolerance at t={t!r} s: the state or a stage is not finite "
+                f"{self.name} cannot meet the tolerance at t={t!r} s: the state or a stage is non-finite "
                 f"even with steps of {h:.3g} s (budget: max_step/{self.max_substeps}){why}; "
                 f"state kept at the interval start")
         return ToleranceError(
