@@ -258,27 +258,42 @@ class PlotSeries:
                 self._merge()
                 continue
             r = min(k - j, room)
-            pos = self.n + np.arange(r)
-            bid = pos // self.stride
-            starts = np.flatnonzero(np.r_[True, bid[1:] != bid[:-1]])
-            part = m[j:j + r]
-            lo = np.fmin.reduceat(part, starts, axis=0)
-            hi = np.fmax.reduceat(part, starts, axis=0)
-            ends = np.r_[starts[1:], r] - 1
-            b0 = int(bid[0])
-            if self.n % self.stride:                  # the first bucket holds outputs already
-                lo[0] = np.fmin(lo[0], self.lo[b0])
-                hi[0] = np.fmax(hi[0], self.hi[b0])
-                tf = np.r_[self.t_first[b0], t[j + starts[1:]]]
-            else:
-                tf = t[j + starts]
-            nb = len(starts)
-            self.lo[b0:b0 + nb], self.hi[b0:b0 + nb] = lo, hi
-            self.t_first[b0:b0 + nb], self.t_last[b0:b0 + nb] = tf, t[j + ends]
-            self.nb = b0 + nb
-            self.n += r
+            self._fill(t[j:j + r], m[j:j + r])
             j += r
         self.last = m[-1].copy()
+
+    def _fill(self, t: np.ndarray, m: np.ndarray) -> None:
+        """Rows ``m`` (r, C) at times ``t`` into the buckets from output ``self.n`` on (they fit:
+        no merge needed): the open bucket topped up, whole buckets reduced as one
+        (nb, stride, C) array, the rest opening a new bucket."""
+        r, st = len(t), self.stride
+        b = self.n // st
+        head = min(r, (st - self.n % st) % st)          # rows that complete the open bucket
+        if head:
+            self.lo[b] = np.fmin(self.lo[b], np.fmin.reduce(m[:head], axis=0))
+            self.hi[b] = np.fmax(self.hi[b], np.fmax.reduce(m[:head], axis=0))
+            self.t_last[b] = t[head - 1]
+            b += 1
+        full = (r - head) // st
+        e = head + full * st
+        if full:
+            if st == 1:
+                self.lo[b:b + full] = self.hi[b:b + full] = m[head:e]
+                self.t_first[b:b + full] = self.t_last[b:b + full] = t[head:e]
+            else:
+                g = m[head:e].reshape(full, st, -1)
+                self.lo[b:b + full] = np.fmin.reduce(g, axis=1)
+                self.hi[b:b + full] = np.fmax.reduce(g, axis=1)
+                self.t_first[b:b + full] = t[head:e:st]
+                self.t_last[b:b + full] = t[head + st - 1:e:st]
+            b += full
+        if e < r:                                      # a new bucket, open
+            self.lo[b] = np.fmin.reduce(m[e:], axis=0)
+            self.hi[b] = np.fmax.reduce(m[e:], axis=0)
+            self.t_first[b], self.t_last[b] = t[e], t[-1]
+            b += 1
+        self.nb = max(self.nb, b)
+        self.n += r
 
     def _merge(self) -> None:
         """Neighbouring buckets pairwise into one (the buckets are full: ``nb == cap``)."""
@@ -362,9 +377,14 @@ def plot_columns(block: Any) -> np.ndarray:
     norm rad, bearing torque magnitudes (``BEARING_NAMES``) N m, motor torques (3) N m and, in
     stabilised mode, the servo torque (3) and its magnitude N m (:func:`column_slices`)."""
     d = np.asarray(block.drift_angle, dtype=float)
-    parts = [block.gimbal_angles, d, np.sqrt(np.einsum("ij,ij->i", d, d))[:, None],
-             np.sqrt(np.einsum("ijk,ijk->ij", block.bearing_torques, block.bearing_torques)), block.motor_torques]
+    parts = [block.gimbal_angles, d, _norms(d)[:, None], _norms(block.bearing_torques), block.motor_torques]
     if block.stabilised:
         st = np.asarray(block.servo_torque, dtype=float)
-        parts += [st, np.sqrt(np.einsum("ij,ij->i", st, st))[:, None]]
+        parts += [st, _norms(st)[:, None]]
     return np.concatenate(parts, axis=1)
+
+
+def _norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms over the last axis (of length 3)."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    return np.sqrt(x * x + y * y + z * z)
