@@ -154,6 +154,7 @@ def test_a_storm_of_signals_while_closing_leaves_a_readable_bag(big, tmp_path):
 
 
 @pytest.mark.parametrize("where,sig", [
+    ("making the output bag", signal.SIGTERM),         # OutputBag.__init__: held, raised after it
     ("setting up the output", signal.SIGINT),          # OutputBag.add_output: before the loop
     ("writing the last chunk", signal.SIGTERM),        # _Run._written: held, raised after it
     ("closing the bag", signal.SIGINT),                # OutputBag.close: held, raised after it
@@ -166,7 +167,7 @@ def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path,
     from gyro_platform.io.bag_writer import OutputBag
     from gyro_platform.replay import loop
 
-    target = {"setting up the output": (OutputBag, "add_output"), "writing the last chunk": (loop._Run, "_written"),
+    target = {"making the output bag": (OutputBag, "__init__"), "setting up the output": (OutputBag, "add_output"), "writing the last chunk": (loop._Run, "_written"),
               "closing the bag": (OutputBag, "close"), "drawing the plot": (loop._Run, "plot")}[where]
     original = getattr(*target)
     sent = []
@@ -189,11 +190,17 @@ def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path,
     summary_path, plot_path = sidecar_paths(out)
     summary = json.loads(summary_path.read_text())
     assert summary["error"] == word and summary["interrupted_by"] == signal.Signals(sig).name
+    if where == "making the output bag":          # closed before any connection: empty, readable
+        from rosbags.rosbag2 import Reader
+
+        with Reader(out) as r:
+            assert r.message_count == 0 == summary["output"]["messages"]
+        return
     got = read_bag(out)
     assert got.get("/imu", 0) == summary["counts"]["in"] and got.get("/gimbal/joint_states", 0) == summary["counts"]["out"]
     if summary["counts"]["out"]:
         assert summary["files"]["plot"] == str(plot_path) and plot_path.stat().st_size > 10_000
-    assert (summary["counts"]["in"] == 0) == (where == "setting up the output")
+    assert (summary["counts"]["in"] == 0) == (where in ("making the output bag", "setting up the output"))
 
 
 def test_sigkill_leaves_no_crash_for_the_next_reader(big, tmp_path):

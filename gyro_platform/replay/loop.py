@@ -107,12 +107,14 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
         if cfg.options is not None:
             kwargs["options"] = cfg.options
         sim = Simulator(**kwargs)
-        out = OutputBag(out_bag, cfg.storage or bag.storage)
-        run = _Run(bag, out, sim, cfg)
+        run = _Run(bag, None, sim, cfg)     # before any file exists: a signal until here leaves none
+        out = None
         # a Ctrl-C/SIGTERM from here on stops the run in order: the bag is closed, the summary
         # and the plot of what was simulated are written, the summary's error says why
         try:
             try:
+                with deferred_signals():    # the output bag is made whole before a signal stops the run
+                    out = run.out = OutputBag(out_bag, cfg.storage or bag.storage)
                 for conn in bag.connections:
                     out.copy_connection(conn, bag.store_for(conn))
                 for topic, typ in out_topics.items():
@@ -121,8 +123,9 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             except KeyboardInterrupt as e:  # setting up the output, or held while its last chunk was written
                 run.stopped(e)
             finally:
-                with deferred_signals():   # a signal now would cut the index + metadata: held until closed
-                    out.close()       # index + metadata written: the bag is readable whatever happened
+                if out is not None:
+                    with deferred_signals():   # a signal now would cut the index + metadata: held until closed
+                        out.close()       # index + metadata written: the bag is readable whatever happened
         except KeyboardInterrupt as e:      # held while the bag was closed
             run.stopped(e)
     finally:
@@ -165,7 +168,7 @@ def json_default(o: Any) -> Any:
 class _Run:
     """State of one replay loop (kept out of ``replay`` to keep that readable)."""
 
-    def __init__(self, bag: InputBag, out: OutputBag, sim: Any, cfg: ReplayConfig):
+    def __init__(self, bag: InputBag, out: OutputBag | None, sim: Any, cfg: ReplayConfig):
         self.bag, self.out, self.sim, self.cfg = bag, out, sim, cfg
         self.types = MessageTypes.rosbags(core_typestore())
         self.gate = TimeGate(cfg.gate)
