@@ -21,6 +21,7 @@ from hypothesis import HealthCheck, assume, given, settings, strategies as st
 from gyro_platform import cli
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.errors import InputError
+from gyro_platform.pipeline import MAX_GRID_RATE
 from gyro_platform.replay.command import config_from_args
 from gyro_platform.ros.dds_names import NameError_, expand_topic_name, normalize_namespace
 from gyro_platform.scenes.schema import ScenarioError, scene_from_dict
@@ -61,8 +62,8 @@ FLOAT_TEXT = st.one_of(
 )
 #: flag -> is the value (a float or None when it is not a number) valid?
 RATE_FLAGS = {
-    "--output-rate": lambda x: x is not None and math.isfinite(x) and x >= 0,
-    "--diagnostics-rate": lambda x: x is not None and math.isfinite(x) and x > 0,
+    "--output-rate": lambda x: x is not None and math.isfinite(x) and 0 <= x <= MAX_GRID_RATE,
+    "--diagnostics-rate": lambda x: x is not None and math.isfinite(x) and 0 < x <= MAX_GRID_RATE,
     "--max-gap": lambda x: x is not None and math.isfinite(x) and x > 0,
     "--reset-on-jump-back": lambda x: x is not None and x >= 0,
     "--max-rate": lambda x: x is not None and x > 0,
