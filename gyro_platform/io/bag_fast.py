@@ -264,6 +264,38 @@ def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
     return 0, pos, n, ts, cid, beg, fin
 
 
+@njit(cache=True, nogil=True)
+def record_spans(buf, want):  # pragma: no cover - compiled
+    """One pass over the records of a decompressed chunk: (error, its offset, count, opcodes,
+    content begin and end offsets) of the records whose opcode ``op`` has ``want[op]`` (errors
+    as :func:`_walk_records`: 1 truncated header, 2 a record past the end)."""
+    end = buf.shape[0]
+    cap = end // 9 + 1
+    ops = np.empty(cap, np.int64)
+    beg = np.empty(cap, np.int64)
+    fin = np.empty(cap, np.int64)
+    n = 0
+    pos = 0
+    while pos < end:
+        if pos + 9 > end:
+            return 1, pos, n, ops, beg, fin
+        op = buf[pos]
+        size = np.uint64(0)
+        for k in range(8):
+            size |= np.uint64(buf[pos + 1 + k]) << np.uint64(8 * k)
+        body = pos + 9
+        if size > np.uint64(end - body):
+            return 2, pos, n, ops, beg, fin
+        nxt = body + np.int64(size)
+        if want[op]:
+            ops[n] = op
+            beg[n] = body
+            fin[n] = nxt
+            n += 1
+        pos = nxt
+    return 0, pos, n, ops, beg, fin
+
+
 # ---- MCAP files rosbags refuses ---------------------------------------------------------------
 #: schema encodings whose text rosbags can parse as a message definition
 _MSGDEF_FORMATS = {"ros2msg": "MSG", "ros2idl": "IDL", "omgidl": "IDL"}

@@ -242,6 +242,8 @@ class InputBag:
         elif self._reader is not None and conns:
             batches = row_batches(self._reader, conns, min(max_rows, FETCH_ROWS))
             self.chunk_source = "rosbags" if batches is None else "fast"
+        if batches is None and self._salvage is not None and self._salvage.storage == "mcap":
+            batches, self.chunk_source = self._salvage.batches({c.id for c in conns}), "salvage"
         if batches is None:
             self.chunk_source = "salvage" if self._salvage is not None else "rosbags"
             batches = _batches(self._source(conns), min(max_rows, FETCH_ROWS))

@@ -5,7 +5,10 @@ in file order up to the damage, then ``BagReadError`` names the file and where i
 
 * MCAP: the ``mcap`` package's :class:`mcap.stream_reader.StreamReader` reads the records
   front to back (it needs neither the summary nor the footer) with chunk CRCs checked; a short
-  read is turned into "truncated" here, since its stream returns short data silently.
+  read is turned into "truncated" here, since its stream returns short data silently. For the
+  replay's blocks (:meth:`Salvage.batches`) a chunk is decompressed and checked by rosbags'
+  ``decompress`` and its records walked by ``bag_fast``'s compiled pass, the rows left in the
+  chunk's buffer (the StreamReader's Python objects per message cost ~35 µs a row).
 * sqlite3: read by hand with the standard ``sqlite3`` module. rosbags (and rosbag2) open a
   ``.db3`` through its ``metadata.yaml``/schema checks and give up on a database whose header
   or pages are cut off; a read-only connection with ``writable_schema`` still reads its
@@ -17,8 +20,11 @@ import sqlite3
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
+import numpy as np
+
 from ..errors import BagReadError
 from .bag_paths import read_metadata, rosbags_api, storage_files
+from .blocks import RawRows
 
 
 class Salvage:
@@ -65,6 +71,19 @@ class Salvage:
                 conn = self._conn_key.get((i, sid))
                 if conn is not None and conn.id in conn_ids:
                     yield conn, ts, raw
+        raise BagReadError(f"{self.path}: damaged bag, salvaged up to here ({self.why})")
+
+    def batches(self, conn_ids: set[int]) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
+        """MCAP: :meth:`messages` as blocks (bag connection ids, receive times ns, raws), a chunk
+        at a time: the same rows in the same order, the same BagReadError after them."""
+        if self.storage != "mcap":
+            raise ValueError("batches() reads MCAP; sqlite3 rows come from messages()")
+        for i, f in enumerate(self.files):
+            lut = np.full(65536, -1, np.int64)       # MCAP channel id (uint16) -> bag connection id
+            for (fi, sid), c in self._conn_key.items():
+                if fi == i and c.id in conn_ids:
+                    lut[sid] = c.id
+            yield from mcap_batches(f, lut)
         raise BagReadError(f"{self.path}: damaged bag, salvaged up to here ({self.why})")
 
     def close(self) -> None:
@@ -189,27 +208,116 @@ def mcap_records(f: Path) -> Iterator[Any]:
             yield rec
 
 
-def mcap_connections(f: Path) -> list[tuple[int, Any]]:
-    """(channel id, Connection) of the schemas and channels in the readable part (scans it
-    once, one chunk in memory); damage ends the scan, keeping what was found before it."""
-    from mcap.records import Channel, Schema
+#: MCAP opcodes (https://mcap.dev/spec): the records the salvage reads
+OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 
+
+def top_records(f: Path, want: frozenset[int]) -> Iterator[tuple[int, int, bytes]]:
+    """(opcode, file offset, content) of the top-level records of an MCAP file whose opcode is
+    in ``want``, in file order, the others skipped unread; stops at DataEnd or the footer;
+    BagReadError at a bad magic or a truncated record (what :func:`mcap_records` says)."""
+    size = f.stat().st_size
+    with f.open("rb") as fh:
+        if fh.read(8) != MCAP_MAGIC:
+            raise BagReadError(f"{f}: not a readable MCAP file at offset 0: bad magic")
+        while True:
+            pos = fh.tell()
+            head = fh.read(9)
+            if not head:
+                raise BagReadError(f"{f}: file ends at offset {pos} without footer (truncated)")
+            if len(head) < 9:
+                raise BagReadError(f"{f}: truncated record at offset {pos}: {len(head)} of 9 bytes")
+            op, n = head[0], int.from_bytes(head[1:], "little")
+            if op in (OP_DATA_END, OP_FOOTER):
+                return
+            if pos + 9 + n > size:
+                raise BagReadError(f"{f}: truncated record at offset {pos + 9}: {size - pos - 9} of {n} bytes")
+            if op in want:
+                yield op, pos, fh.read(n)
+            else:
+                fh.seek(n, 1)
+
+
+def _text(b: bytes, p: int) -> tuple[str, int]:
+    """An MCAP string (uint32 length, UTF-8) at ``p``; the offset after it."""
+    n = int.from_bytes(b[p:p + 4], "little")
+    return b[p + 4:p + 4 + n].decode(), p + 4 + n
+
+
+def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
+    """The decompressed records of the Chunk record at file offset ``pos`` (content ``c``),
+    its size and CRC checked (rosbags' ``decompress``); BagReadError if they do not hold."""
+    from rosbags.rosbag2.storage_mcap import decompress
+
+    try:
+        usize, crc = int.from_bytes(c[16:24], "little"), int.from_bytes(c[24:28], "little")
+        comp, p = _text(c, 28)
+        n = int.from_bytes(c[p:p + 8], "little")
+        if p + 8 + n > len(c):
+            raise ValueError(f"records of {n} bytes run past the record's {len(c)}")
+        return np.frombuffer(decompress(c[p + 8:p + 8 + n], comp, usize, crc), np.uint8)
+    except Exception as e:      # CRC or size mismatch, an unknown compression, garbled data
+        raise BagReadError(f"{f}: corrupt record at offset {pos}: {type(e).__name__}: {e}") from None
+
+
+def _spans(f: Path, pos: int, buf: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """(opcodes, begins, ends) of a chunk's records with ``want[op]``, and the error that ended
+    the walk early ("" if none) — the records before it are kept."""
+    from .bag_fast import _WALK_ERRORS, record_spans
+
+    err, at, n, ops, beg, end = record_spans(buf, want)
+    why = f"{f}: corrupt record at offset {pos}: {_WALK_ERRORS[err]} at offset {at} of its records" if err else ""
+    return ops[:n], beg[:n], end[:n], why
+
+
+def mcap_connections(f: Path) -> list[tuple[int, Any]]:
+    """(channel id, Connection) of the schemas and channels in the readable part (top-level and
+    in chunks, in file order; the records walked by hand and in compiled code, the messages
+    skipped); damage ends the scan, keeping what was found before it."""
     rb = rosbags_api()
     fmt = rb["MsgDefFormat"]
     schemas: dict[int, tuple[str, str, str]] = {}
     res: list[tuple[int, Any]] = []
     seen: set[int] = set()
+    want = np.zeros(256, np.bool_)
+    want[[OP_SCHEMA, OP_CHANNEL]] = True
+
+    def record(op: int, c: bytes) -> None:
+        if op == OP_SCHEMA:
+            sid = int.from_bytes(c[0:2], "little")
+            name, p = _text(c, 2)
+            enc, p = _text(c, p)
+            n = int.from_bytes(c[p:p + 4], "little")
+            schemas[sid] = (name, enc, c[p + 4:p + 4 + n].decode())
+            return
+        cid, sid = int.from_bytes(c[0:2], "little"), int.from_bytes(c[2:4], "little")
+        if cid in seen:
+            return
+        topic, p = _text(c, 4)
+        menc, p = _text(c, p)
+        end, p, meta = p + 4 + int.from_bytes(c[p:p + 4], "little"), p + 4, {}
+        while p < end:
+            k, p = _text(c, p)
+            meta[k], p = _text(c, p)
+        seen.add(cid)
+        name, senc, text = schemas.get(sid, ("", "", ""))
+        mfmt = {"ros2msg": fmt.MSG, "ros2idl": fmt.IDL, "omgidl": fmt.IDL}.get(senc, fmt.NONE)
+        ext = rb["Ext"](menc, _qos(meta.get("offered_qos_profiles")))
+        res.append((cid, rb["Connection"](cid, topic, name, rb["MsgDef"](mfmt, text if senc else ""), "", 0, ext, None)))
+
     try:
-        for rec in mcap_records(f):
-            if isinstance(rec, Schema):
-                schemas[rec.id] = (rec.name, rec.encoding, rec.data.decode())
-            elif isinstance(rec, Channel) and rec.id not in seen:
-                seen.add(rec.id)
-                name, senc, text = schemas.get(rec.schema_id, ("", "", ""))
-                mfmt = {"ros2msg": fmt.MSG, "ros2idl": fmt.IDL, "omgidl": fmt.IDL}.get(senc, fmt.NONE)
-                ext = rb["Ext"](rec.message_encoding, _qos(rec.metadata.get("offered_qos_profiles")))
-                res.append((rec.id, rb["Connection"](rec.id, rec.topic, name,
-                                                     rb["MsgDef"](mfmt, text if senc else ""), "", 0, ext, None)))
+        for op, pos, c in top_records(f, frozenset((OP_SCHEMA, OP_CHANNEL, OP_CHUNK))):
+            if op != OP_CHUNK:
+                record(op, c)
+                continue
+            buf = _chunk_buffer(f, pos, c)
+            ops, beg, end, why = _spans(f, pos, buf, want)
+            raw = buf.tobytes()
+            for o, a, b in zip(ops.tolist(), beg.tolist(), end.tolist()):
+                record(o, raw[a:b])
+            if why:
+                break
     except BagReadError:
         pass                                # damage: keep what was found before it
     except UnicodeDecodeError as e:
@@ -224,3 +332,31 @@ def mcap_messages(f: Path) -> Iterator[tuple[int, int, bytes]]:
     for rec in mcap_records(f):
         if isinstance(rec, Message):
             yield rec.channel_id, rec.log_time, rec.data
+
+
+def mcap_batches(f: Path, lut: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
+    """(``lut[channel id]``, log times ns, raws) of the messages of the channels with
+    ``lut >= 0``, in file order (:func:`mcap_messages`' rows): a chunk's rows at once (its CRC
+    and size checked, its records walked by ``bag_fast._walk_records``, the payloads left in
+    the chunk's buffer), a message outside chunks alone; the top-level records walked by hand
+    (message indexes skipped unread); BagReadError at the damage, after the rows before it."""
+    from .bag_fast import _WALK_ERRORS, _walk_records
+
+    sel = lut >= 0
+    every = np.uint64(2 ** 64 - 1)
+    for op, pos, c in top_records(f, frozenset((OP_MESSAGE, OP_CHUNK))):
+        if op == OP_CHUNK:
+            raw = _chunk_buffer(f, pos, c)
+            err, at, n, ts, cid, beg, end = _walk_records(raw, np.uint64(0), every, sel)
+            if n:
+                yield lut[cid[:n]], ts[:n], RawRows(raw, beg[:n], end[:n])
+            if err:
+                raise BagReadError(f"{f}: corrupt record at offset {pos}: {_WALK_ERRORS[err]} at offset {at} "
+                                   f"of its records")
+        else:
+            if len(c) < 22:
+                raise BagReadError(f"{f}: corrupt record at offset {pos}: message record shorter than 22 bytes")
+            ch = int.from_bytes(c[0:2], "little")
+            if sel[ch]:
+                yield (np.array([lut[ch]], np.int64), np.array([int.from_bytes(c[6:14], "little")], np.int64),
+                       [c[22:]])
