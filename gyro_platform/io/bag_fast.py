@@ -223,11 +223,34 @@ def mcap_records(hdr, buf, beg, end):  # pragma: no cover - compiled
 _WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}
 
 
+@njit(cache=True, inline="always")
+def _u64(buf, p):  # pragma: no cover - compiled
+    """The little-endian uint64 at ``buf[p:p + 8]``."""
+    v = np.uint64(0)
+    for k in range(8):
+        v |= np.uint64(buf[p + k]) << np.uint64(8 * k)
+    return v
+
+
+@njit(cache=True, inline="always")
+def _record(buf, pos, end):  # pragma: no cover - compiled
+    """The MCAP record at ``pos`` of ``buf[:end]``: (error, opcode, content begin, next record);
+    error 1 a truncated record header, 2 a record that runs past ``end``."""
+    if pos + 9 > end:
+        return 1, np.int64(0), pos, pos
+    size = _u64(buf, pos + 1)
+    body = pos + 9
+    if size > np.uint64(end - body):
+        return 2, np.int64(0), pos, pos
+    return 0, np.int64(buf[pos]), body, body + np.int64(size)
+
+
 @njit(cache=True, nogil=True)
 def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
     """One pass over the records of a decompressed chunk: (error, its offset, count, log times,
     channel ids, payload begin and end offsets) of message records (op 0x05) of selected
-    channels with ``lo <= log_time <= hi``."""
+    channels with ``lo <= log_time <= hi`` (errors: :func:`_record`; 3 a message record
+    shorter than its 22-byte header)."""
     end = buf.shape[0]
     cap = end // 31 + 1
     ts = np.empty(cap, np.int64)
@@ -237,23 +260,14 @@ def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
     n = 0
     pos = 0
     while pos < end:
-        if pos + 9 > end:
-            return 1, pos, n, ts, cid, beg, fin
-        op = buf[pos]
-        size = np.uint64(0)
-        for k in range(8):
-            size |= np.uint64(buf[pos + 1 + k]) << np.uint64(8 * k)
-        body = pos + 9
-        if size > np.uint64(end - body):
-            return 2, pos, n, ts, cid, beg, fin
-        nxt = body + np.int64(size)
+        err, op, body, nxt = _record(buf, pos, end)
+        if err:
+            return err, pos, n, ts, cid, beg, fin
         if op == 0x05:
-            if size < np.uint64(22):
+            if nxt - body < 22:
                 return 3, pos, n, ts, cid, beg, fin
             ch = np.int64(buf[body]) | (np.int64(buf[body + 1]) << 8)
-            t = np.uint64(0)
-            for k in range(8):
-                t |= np.uint64(buf[body + 6 + k]) << np.uint64(8 * k)
+            t = _u64(buf, body + 6)
             if sel[ch] and lo <= t and t <= hi:
                 ts[n] = np.int64(t)
                 cid[n] = ch
@@ -267,8 +281,8 @@ def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True)
 def record_spans(buf, want):  # pragma: no cover - compiled
     """One pass over the records of a decompressed chunk: (error, its offset, count, opcodes,
-    content begin and end offsets) of the records whose opcode ``op`` has ``want[op]`` (errors
-    as :func:`_walk_records`: 1 truncated header, 2 a record past the end)."""
+    content begin and end offsets) of the records whose opcode ``op`` has ``want[op]`` (errors:
+    :func:`_record`)."""
     end = buf.shape[0]
     cap = end // 9 + 1
     ops = np.empty(cap, np.int64)
@@ -277,16 +291,9 @@ def record_spans(buf, want):  # pragma: no cover - compiled
     n = 0
     pos = 0
     while pos < end:
-        if pos + 9 > end:
-            return 1, pos, n, ops, beg, fin
-        op = buf[pos]
-        size = np.uint64(0)
-        for k in range(8):
-            size |= np.uint64(buf[pos + 1 + k]) << np.uint64(8 * k)
-        body = pos + 9
-        if size > np.uint64(end - body):
-            return 2, pos, n, ops, beg, fin
-        nxt = body + np.int64(size)
+        err, op, body, nxt = _record(buf, pos, end)
+        if err:
+            return err, pos, n, ops, beg, fin
         if want[op]:
             ops[n] = op
             beg[n] = body
