@@ -185,9 +185,9 @@ def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple
     bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
     buf = decompress(read_exact(bio, chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc)
     lo, hi = np.uint64(chunk.message_start_time), np.uint64(chunk.message_end_time)
-    err, at, n, ts, cid, beg, end = _walk_records(np.frombuffer(buf, np.uint8), lo, hi, sel)
+    err, at, n, ts, cid, beg, end = walk_records(np.frombuffer(buf, np.uint8), lo, hi, sel)
     if err:
-        raise ValueError(f"{_WALK_ERRORS[err]} at chunk offset {at} of the chunk at file offset "
+        raise ValueError(f"{WALK_ERRORS[err]} at chunk offset {at} of the chunk at file offset "
                          f"{chunk.chunk_start_offset}")
     return ts[:n], lut[cid[:n]], RawRows(np.frombuffer(buf, np.uint8), beg[:n], end[:n])
 
@@ -220,7 +220,7 @@ def mcap_records(hdr, buf, beg, end):  # pragma: no cover - compiled
     return out
 
 
-_WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}
+WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}
 
 
 @njit(cache=True, inline="always")
@@ -246,7 +246,7 @@ def _record(buf, pos, end):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
+def walk_records(buf, lo, hi, sel):  # pragma: no cover - compiled
     """One pass over the records of a decompressed chunk: (error, its offset, count, log times,
     channel ids, payload begin and end offsets) of message records (op 0x05) of selected
     channels with ``lo <= log_time <= hi`` (errors: :func:`_record`; 3 a message record

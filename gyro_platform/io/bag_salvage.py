@@ -264,10 +264,10 @@ def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
 def _spans(f: Path, pos: int, buf: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """(opcodes, begins, ends) of a chunk's records with ``want[op]``, and the error that ended
     the walk early ("" if none) — the records before it are kept."""
-    from .bag_fast import _WALK_ERRORS, record_spans
+    from .bag_fast import WALK_ERRORS, record_spans
 
     err, at, n, ops, beg, end = record_spans(buf, want)
-    why = f"{f}: corrupt record at offset {pos}: {_WALK_ERRORS[err]} at offset {at} of its records" if err else ""
+    why = f"{f}: corrupt record at offset {pos}: {WALK_ERRORS[err]} at offset {at} of its records" if err else ""
     return ops[:n], beg[:n], end[:n], why
 
 
@@ -337,21 +337,21 @@ def mcap_messages(f: Path) -> Iterator[tuple[int, int, bytes]]:
 def mcap_batches(f: Path, lut: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
     """(``lut[channel id]``, log times ns, raws) of the messages of the channels with
     ``lut >= 0``, in file order (:func:`mcap_messages`' rows): a chunk's rows at once (its CRC
-    and size checked, its records walked by ``bag_fast._walk_records``, the payloads left in
+    and size checked, its records walked by ``bag_fast.walk_records``, the payloads left in
     the chunk's buffer), a message outside chunks alone; the top-level records walked by hand
     (message indexes skipped unread); BagReadError at the damage, after the rows before it."""
-    from .bag_fast import _WALK_ERRORS, _walk_records
+    from .bag_fast import WALK_ERRORS, walk_records
 
     sel = lut >= 0
     every = np.uint64(2 ** 64 - 1)
     for op, pos, c in top_records(f, frozenset((OP_MESSAGE, OP_CHUNK))):
         if op == OP_CHUNK:
             raw = _chunk_buffer(f, pos, c)
-            err, at, n, ts, cid, beg, end = _walk_records(raw, np.uint64(0), every, sel)
+            err, at, n, ts, cid, beg, end = walk_records(raw, np.uint64(0), every, sel)
             if n:
                 yield lut[cid[:n]], ts[:n], RawRows(raw, beg[:n], end[:n])
             if err:
-                raise BagReadError(f"{f}: corrupt record at offset {pos}: {_WALK_ERRORS[err]} at offset {at} "
+                raise BagReadError(f"{f}: corrupt record at offset {pos}: {WALK_ERRORS[err]} at offset {at} "
                                    f"of its records")
         else:
             if len(c) < 22:
