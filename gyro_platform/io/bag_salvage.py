@@ -3,12 +3,15 @@
 Used by :class:`.bag_reader.InputBag` when rosbags cannot open the bag. Messages are streamed
 in file order up to the damage, then ``BagReadError`` names the file and where it broke.
 
-* MCAP: the ``mcap`` package's :class:`mcap.stream_reader.StreamReader` reads the records
-  front to back (it needs neither the summary nor the footer) with chunk CRCs checked; a short
-  read is turned into "truncated" here, since its stream returns short data silently. For the
-  replay's blocks (:meth:`Salvage.batches`) a chunk is decompressed and checked by rosbags'
-  ``decompress`` and its records walked by ``bag_fast``'s compiled pass, the rows left in the
-  chunk's buffer (the StreamReader's Python objects per message cost ~35 µs a row).
+* MCAP: the file is a stream of length-prefixed records, read front to back (neither the
+  summary nor the footer is needed). The connections (schemas and channels, top level and in
+  chunks) and the replay's blocks (:meth:`Salvage.batches`) walk the top-level records by hand
+  (message indexes skipped unread), check each chunk with rosbags' ``decompress`` (size, CRC)
+  and walk its records with ``bag_fast``'s compiled passes, the rows left in the chunk's
+  buffer. :meth:`Salvage.messages` reads row by row through the ``mcap`` package's
+  :class:`mcap.stream_reader.StreamReader` (chunk CRCs checked; a short read turned into
+  "truncated" here, since its stream returns short data silently): the reference the blocks
+  are tested against (its Python objects per record cost ~35 µs a row).
 * sqlite3: read by hand with the standard ``sqlite3`` module. rosbags (and rosbag2) open a
   ``.db3`` through its ``metadata.yaml``/schema checks and give up on a database whose header
   or pages are cut off; a read-only connection with ``writable_schema`` still reads its
