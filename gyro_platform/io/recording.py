@@ -124,7 +124,7 @@ def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (tc @ yc) / den
 
 
-def _axes_dict(v: np.ndarray) -> dict[str, float]:
+def axes_dict(v: np.ndarray) -> dict[str, float]:
     v = np.asarray(v, dtype=float)
     return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]), "norm": float(np.linalg.norm(v))}
 
@@ -314,15 +314,15 @@ class Recorder:
         if st is not None:
             s["max_abs_servo_torque"] = _max_abs_axes(st)
         d = self.drift_angle
-        s["final_drift_angle"] = _axes_dict(d[-1])
+        s["final_drift_angle"] = axes_dict(d[-1])
         s["max_abs_drift_angle"] = _max_abs_axes(d)
         rate = fit_slope(t[win], d[win])
         s["drift_fit_start"] = float(t[win][0])
-        s["drift_rate"] = _axes_dict(rate)
-        s["drift_rate_deg_per_h"] = _axes_dict(rate * RAD_S_TO_DEG_H)
+        s["drift_rate"] = axes_dict(rate)
+        s["drift_rate_deg_per_h"] = axes_dict(rate * RAD_S_TO_DEG_H)
         if "vehicle_omega" in self._extra:
             w = self.field("vehicle_omega")
-            s["mean_vehicle_rate"] = _axes_dict(w.mean(axis=0))
+            s["mean_vehicle_rate"] = axes_dict(w.mean(axis=0))
             s["max_abs_vehicle_rate"] = _max_abs_axes(w)
         notes: list[str] = []
         if "vehicle_attitude" in self._extra:
@@ -330,7 +330,7 @@ class Recorder:
             if w is not None and _steady(w[win]):
                 rel = self.platform_vs_vehicle(mounting)
                 r = fit_slope(t[win], rel[win])
-                s["platform_vs_vehicle_rate_deg_per_h"] = _axes_dict(r * RAD_S_TO_DEG_H)
+                s["platform_vs_vehicle_rate_deg_per_h"] = axes_dict(r * RAD_S_TO_DEG_H)
             else:
                 notes.append("platform_vs_vehicle_rate_deg_per_h omitted: the vehicle does not turn at a "
                              "steady rate, so a slope of the platform's attitude relative to the vehicle would "

@@ -153,13 +153,13 @@ class Stats:
         and deg/h, per platform axis and norm; absent with fewer than 2 outputs)."""
         if self.last is None:
             return {}
-        ax = lambda v: {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]),  # noqa: E731
-                        "norm": float(np.linalg.norm(v))}
-        res: dict[str, Any] = {"final_drift_angle_rad": ax(np.asarray(self.last.drift_angle, float))}
+        from ..io.recording import axes_dict
+
+        res: dict[str, Any] = {"final_drift_angle_rad": axes_dict(np.asarray(self.last.drift_angle, float))}
         slope = self._fit.slope()
         if slope is not None:
-            res["drift_rate_rad_s"] = ax(slope)
-            res["drift_rate_deg_h"] = ax(slope * 180 / math.pi * 3600)
+            res["drift_rate_rad_s"] = axes_dict(slope)
+            res["drift_rate_deg_h"] = axes_dict(slope * 180 / math.pi * 3600)
             res["fit_s"] = self._fit.span
             res["fit_outputs"] = self._fit.n
         return res
@@ -215,7 +215,7 @@ class PlotSeries:
     """What a replay's figure and its summary's ``recorder`` figures need of every output, in
     bounded memory: the outputs in buckets of ``stride`` consecutive ones (at most ``cap``
     buckets; when full, neighbouring buckets merge and the stride doubles), each bucket
-    holding the smallest and largest value of every plotted quantity (:data:`PLOT_COLUMNS`:
+    holding the smallest and largest value of every plotted quantity (:func:`plot_columns`:
     gimbal angles, drift angle, bearing torque magnitudes …), its first and last time and
     the last output's values. The figure draws each bucket as a stroke from its minimum to its
     maximum, so a peak between two thinned instants still shows (no aliasing: at
@@ -331,7 +331,7 @@ class PlotSeries:
         output: maxima of |value| (from the buckets' minima and maxima), final values, and
         the drift rate of ``drift`` = ``(fit start time s, slope (3,) rad/s)`` (the replay's
         least-squares fit over the last segment, ``Stats.drift_fit``; the plot's legend)."""
-        from ..io.recording import AXES, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
+        from ..io.recording import AXES, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS, axes_dict
 
         s: dict[str, Any] = {"n_outputs": self.n}
         if self.n == 0:
@@ -340,7 +340,7 @@ class PlotSeries:
         big = np.fmax(np.abs(lo), np.abs(hi)).max(axis=0)
         c = column_slices(bool(self.stabilised))
         last = self.last
-        axes = lambda v: {ax: float(v[i]) for i, ax in enumerate(AXES)}     # noqa: E731
+        axes = lambda v: dict(zip(AXES, v.tolist()))       # noqa: E731  (x, y, z; the norm from its column)
         s["t_start"] = float(t[0])
         s["duration"] = float(self.t_last[self.nb - 1] - t[0])
         s["max_abs_gimbal_angle"] = dict(zip(GIMBAL_NAMES, big[c["gimbal"]].tolist()))
@@ -349,14 +349,13 @@ class PlotSeries:
         s["max_abs_motor_torque"] = dict(zip(ROTORS, big[c["motor"]].tolist()))
         if self.stabilised:
             s["max_abs_servo_torque"] = {**axes(big[c["servo"]]), "norm": float(big[c["servo_norm"]])}
-        d = last[c["drift"]]
-        s["final_drift_angle"] = {**axes(d), "norm": float(np.linalg.norm(d))}
+        s["final_drift_angle"] = axes_dict(last[c["drift"]])
         s["max_abs_drift_angle"] = {**axes(big[c["drift"]]), "norm": float(big[c["drift_norm"]])}
         if drift is not None:
             start, rate = drift
             s["drift_fit_start"] = float(start - t[0])
-            s["drift_rate"] = {**axes(rate), "norm": float(np.linalg.norm(rate))}
-            s["drift_rate_deg_per_h"] = {k: v * RAD_S_TO_DEG_H for k, v in s["drift_rate"].items()}
+            s["drift_rate"] = axes_dict(rate)
+            s["drift_rate_deg_per_h"] = axes_dict(rate * RAD_S_TO_DEG_H)    # as Recorder.summary
         s["units"] = {k: SUMMARY_UNITS[k] for k in s if k in SUMMARY_UNITS}
         s["plot"] = {"buckets": self.nb, "outputs_per_bucket": self.stride}
         return s
