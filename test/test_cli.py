@@ -620,6 +620,23 @@ def test_scene_values_that_cannot_be_meant_are_refused(extra, words, tmp_path, c
     assert "duration: 1e+12 makes the run too big to start: ~1e+14 samples, 1e+13 outputs" in line
 
 
+@pytest.mark.parametrize("motion,words", [
+    ("{type: constant, omega: [1.0e200, 0, 0]}", "motion 'constant': cannot be generated"),
+    ("{type: random, seed: 1, angle_rms_deg: 1.0e300, band_hz: [0.1, 1.0e300]}", "motion 'random': its rates are not finite at"),
+    ("{type: random, seed: 1, angle_rms_deg: 1, components: 100000000000}",
+     "motion.components: must be ≤ 256, got 100000000000"),
+])
+def test_motions_beyond_floating_point_are_refused_before_anything_is_written(motion, words, tmp_path, capsys):
+    """A rate of 1e200 rad/s or an RMS of 1e300° cannot be simulated (a traceback, or a 4 TiB
+    allocation, before): exit 2 in one line, no file; in a sweep such a draw is 'refused'."""
+    p = tmp_path / "s.yaml"
+    p.write_text(f"duration: 2\nmotion: {motion}\n")
+    out = tmp_path / "out"
+    assert cli.main(["run", str(p), "--out", str(out)]) == cli.EXIT_USAGE
+    assert words in one_line_error(capsys.readouterr().err, "run")
+    assert not out.exists()
+
+
 def test_a_topic_without_messages_is_exit_3_not_0(tmp_path, capsys):
     from test_replay import T
 

@@ -205,6 +205,20 @@ def test_random_motion_reproducible_band_limited():
     assert np.sqrt(np.mean(a.euler(tt)[2] ** 2)) == pytest.approx(math.radians(4), rel=0.15)
 
 
+def test_random_motion_sums_in_blocks_of_time_are_those_of_one_block(monkeypatch):
+    """The sums are made over blocks of times (bounded memory for long scenes): block after
+    block, they are the single-block sums bit for bit, with a ragged last block."""
+    mo = m.RandomMotion(3, [0.02, 0.03, 0.05], (0.1, 3.0), components=40, accel_rms=0.2)
+    t = np.linspace(0, 30, 3001)
+    whole = (mo.omega(t), mo.specific_force(t), mo.quaternion(t))
+    monkeypatch.setattr(m.RandomMotion, "SUM_FLOATS", 3 * 40 * 7)        # 7 times per block
+    blocks = (mo.omega(t), mo.specific_force(t), mo.quaternion(t))
+    for a, b in zip(whole, blocks):
+        assert np.array_equal(a, b)
+    with pytest.raises(ValueError, match="components ≤ 256"):
+        m.RandomMotion(3, 0.01, components=257)
+
+
 def test_samples_are_rate_samples_on_the_grid():
     s = m.Sinusoidal(roll=m.Sine(math.radians(10), 0.1)).samples(2.0, 50.0)
     assert len(s) == 101

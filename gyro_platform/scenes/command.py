@@ -14,7 +14,7 @@ from ..errors import (EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, EXIT_WRITE, B
                       OutputError, ReplayError, SimulationError, check_output_path, write_failure)
 from ..io.recording import print_summary_table
 from .runner import run_scene
-from .schema import ScenarioError, load_scene
+from .schema import MotionError, ScenarioError, load_scene
 
 
 def print_results(results, file=None) -> None:
@@ -69,6 +69,9 @@ def run(args) -> int:
         _, summary, results = run_scene(scene, out_dir=out)
     except (BagPathError, ReplayError) as e:
         _error(f"scene '{scene.name}': {e}")
+        return EXIT_USAGE
+    except MotionError as e:            # a synthetic motion beyond floating point: nothing written
+        _error(str(e))
         return EXIT_USAGE
     except ScenarioError as e:          # raised by a run only when the bag gave no usable sample
         _error(str(e))

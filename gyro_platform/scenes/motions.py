@@ -449,12 +449,16 @@ class RandomMotion(EulerMotion):
     """
 
     kind = "random"
+    #: most sinusoids a scene may ask for per axis (the default 16 already looks random)
+    MAX_COMPONENTS = 256
+    #: floats in one temporary of the sums (8 MiB)
+    SUM_FLOATS = 2 ** 20
 
     def __init__(self, seed: int, angle_rms, band=(0.05, 2.0), components: int = 16,
                  accel_rms=0.0, heading: float = 0.0):
         lo, hi = float(band[0]), float(band[1])
-        if not (0 < lo < hi) or components < 1:
-            raise ValueError("random motion needs 0 < band[0] < band[1] and components ≥ 1")
+        if not (0 < lo < hi) or not 1 <= components <= self.MAX_COMPONENTS:
+            raise ValueError(f"random motion needs 0 < band[0] < band[1] and 1 ≤ components ≤ {self.MAX_COMPONENTS}")
         rng = np.random.default_rng(int(seed))
         self.seed, self.band, self.heading = int(seed), (lo, hi), heading
         ang = np.broadcast_to(np.asarray(angle_rms, dtype=float), (3,))
@@ -467,11 +471,18 @@ class RandomMotion(EulerMotion):
         self._a = np.tile((rms * math.sqrt(2.0 / n))[:, None], (1, n))  # RMS of n sines of amp a: a sqrt(n/2)
 
     def _sum(self, rows, t):
-        a = self._f[rows, :, None] * t[None, None, :] + self._p[rows, :, None]
-        amp = self._a[rows, :, None]
-        w = self._f[rows, :, None]
-        return ((amp * np.sin(a)).sum(axis=1), (amp * w * np.cos(a)).sum(axis=1),
-                (-amp * w * w * np.sin(a)).sum(axis=1))
+        """Value, first and second derivative of the sums of ``rows`` at times ``t``: three
+        (3, N) arrays, made over blocks of times so that no temporary exceeds ``SUM_FLOATS``."""
+        freq, phase, amp = self._f[rows, :, None], self._p[rows, :, None], self._a[rows, :, None]
+        t = np.asarray(t, dtype=float)
+        out = np.empty((3, freq.shape[0], t.size))
+        step = max(1, self.SUM_FLOATS // freq.size)
+        for i in range(0, t.size, step):
+            a = freq * t[None, None, i:i + step] + phase
+            out[0, :, i:i + step] = (amp * np.sin(a)).sum(axis=1)
+            out[1, :, i:i + step] = (amp * freq * np.cos(a)).sum(axis=1)
+            out[2, :, i:i + step] = (-amp * freq * freq * np.sin(a)).sum(axis=1)
+        return out[0], out[1], out[2]
 
     def euler(self, t):
         x, dx, _ = self._sum(slice(0, 3), t)

@@ -24,9 +24,9 @@ from ..io.plot_process import draw
 from ..io.recording import CsvWriter, Recorder
 from ..pipeline import (ADVANCED, OUTCOMES, ChunkPacer, Pipeline, bag_chunks, new_slots, no_sample_hint,
                         push_block)
-from .schema import Check, ScenarioError, Scene, load_scene, scene_info
+from .schema import Check, MotionError, ScenarioError, Scene, load_scene, scene_info
 
-__all__ = ["run_scene", "evaluate", "load_scene"]   # load_scene: for callers that load and run
+__all__ = ["run_scene", "evaluate", "load_scene", "synthetic_samples"]   # load_scene: for callers that load and run
 
 CHUNK = 4096                    # samples per push_block / rows per bag chunk
 
@@ -43,14 +43,39 @@ class _Feed:
         self.gate: TimeGate | None = None
 
 
-def _synthetic_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict]]:
-    """``(OutputBlock, extra)`` per chunk of a synthetic motion's samples."""
+def synthetic_samples(scene: Scene) -> tuple[np.ndarray, ...]:
+    """A synthetic motion's samples ``(t, omega, specific_force, quaternion)`` (s, rad/s, m/s²,
+    vehicle attitude x, y, z, w) at the scene's sample rate. ``MotionError`` (one line) when
+    they cannot be made or are not finite: numbers beyond floating point (a rate of 1e200 rad/s,
+    an RMS of 1e300°) are refused here, before anything is written."""
     gen = scene.motion.generator
-    t, w, f = gen.arrays(scene.duration, scene.sample_rate)
+    where = f"scene '{scene.name}': motion '{scene.motion.type}'"
+    try:
+        with np.errstate(all="ignore"):
+            t, w, f = gen.arrays(scene.duration, scene.sample_rate)
+            for name, a in (("rates", w), ("specific force", f)):
+                bad = int(np.count_nonzero(~np.isfinite(a).all(axis=-1)))
+                if bad:
+                    raise MotionError(f"{where}: its {name} are not finite at {bad} of {len(a)} samples: "
+                                      "its numbers are beyond floating point")
+            quat = gen.quaternion(t) if t.size else np.empty((0, 4))
+    except (ValueError, ArithmeticError) as e:
+        if isinstance(e, MotionError):
+            raise
+        raise MotionError(f"{where}: cannot be generated ({type(e).__name__}: {str(e).splitlines()[0]}): "
+                          "are its numbers beyond floating point?") from e
+    if not np.isfinite(quat).all():
+        raise MotionError(f"{where}: its attitude is not finite: its numbers are beyond floating point")
+    return t, w, f, quat
+
+
+def _synthetic_blocks(scene: Scene, samples: tuple[np.ndarray, ...], sim: Any,
+                      feed: _Feed) -> Iterator[tuple[Any, dict]]:
+    """``(OutputBlock, extra)`` per chunk of a synthetic motion's ``samples`` (:func:`synthetic_samples`)."""
+    t, w, f, quat = samples
     n = t.size
     if n == 0:
         return
-    quat = gen.quaternion(t)
     emit = new_slots(np.floor((t - t[0]) / (1.0 / scene.output_rate) + 1e-9).astype(np.int64), None)
     emit[-1] = True                         # always record the last instant
     pace = ChunkPacer(CHUNK)
@@ -62,10 +87,11 @@ def _synthetic_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any
         try:
             block = push_block(sim, t[a:b], w[a:b], f[a:b], idx)
         except SimulationError as e:        # the outputs before it are recorded, then it goes up
-            feed.n_in += e.n_done
-            if len(e.block):
-                yield e.block, {"vehicle_omega": w[a:b][idx[:len(e.block)]],
-                                "vehicle_attitude": quat[a:b][idx[:len(e.block)]]}
+            done = getattr(e, "block", None)    # (an InputError refuses the chunk before any sample)
+            feed.n_in += getattr(e, "n_done", 0)
+            if done is not None and len(done):
+                yield done, {"vehicle_omega": w[a:b][idx[:len(done)]],
+                             "vehicle_attitude": quat[a:b][idx[:len(done)]]}
             raise
         feed.n_in += b - a
         pace.observe(b - a, time.perf_counter() - t0)
@@ -118,13 +144,15 @@ def run_scene(scene: Scene, out_dir=None):
     """
     from ..engine.simulator import Simulator
 
+    wall0 = time.perf_counter()
+    samples = None if scene.motion.is_bag else synthetic_samples(scene)    # MotionError: nothing written
     sim = Simulator(params=scene.params, options=scene.options)
     rec = Recorder()
     feed = _Feed()
-    wall0 = time.perf_counter()
     out = None if out_dir is None else Path(out_dir)
     csv = None if out is None else CsvWriter(out / "outputs.csv")
-    blocks = (_bag_blocks if scene.motion.is_bag else _synthetic_blocks)(scene, sim, feed)
+    blocks = (_bag_blocks(scene, sim, feed) if samples is None
+              else _synthetic_blocks(scene, samples, sim, feed))
     try:
         while True:
             with deferred_signals():             # a signal stops between blocks: whole CSV rows

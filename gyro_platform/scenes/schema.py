@@ -59,7 +59,7 @@ axes ENU; see ``motions`` for the exact kinematics)::
     {type: rate_steps, steps: [{t: s, omega: [x, y, z] rad/s}, ...], rise_time: s (0),
      initial_rpy_deg: [0, 0, 0]}            # rate is zero before the first step
     {type: random, seed: int, angle_rms_deg: number or [roll, pitch, yaw],
-     band_hz: [lo, hi] ([0.05, 2]), components: int (16), accel_rms: m/s² (0), heading_deg: 0}
+     band_hz: [lo, hi] ([0.05, 2]), components: int (16, ≤ 256), accel_rms: m/s² (0), heading_deg: 0}
     {type: bag, path: str, topic: str}      # rosbag2 input via gyro_platform.pipeline;
         # a relative path is tried against the scene file's folder, then the repository root
         # (the folder above the scene with setup.py / package.xml), then the working folder
@@ -137,6 +137,11 @@ class ScenarioError(ValueError):
     """A scene file is invalid; the message names the file and the key path."""
 
 
+class MotionError(ScenarioError):
+    """A synthetic motion whose numbers cannot be generated (beyond floating point): found when
+    its samples are made, before the run writes anything (``runner.synthetic_samples``)."""
+
+
 def check_budget(source: str, duration: float, sample_rate: float | None, output_rate: float, max_step: float,
                  keys: dict[str, str] | None = None) -> None:
     """ScenarioError naming the key that makes a synthetic run too big (:func:`budget.oversize`);
@@ -185,11 +190,13 @@ class _V:
             self.fail(path, f"must be ≤ {hi:g}, got {x:g}")
         return x
 
-    def integer(self, v, path: str, lo: int | None = None) -> int:
+    def integer(self, v, path: str, lo: int | None = None, hi: int | None = None) -> int:
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
             self.fail(path, f"expected an integer, got {_tname(v)} {v!r}")
         if lo is not None and v < lo:
             self.fail(path, f"must be ≥ {lo}, got {v}")
+        if hi is not None and v > hi:
+            self.fail(path, f"must be ≤ {hi}, got {v}")
         return int(v)
 
     def string(self, v, path: str) -> str:
@@ -633,7 +640,8 @@ def _motion(v: _V, raw: Any, params: PlatformParams, base_dir: Path | None, path
             gen = mo.RandomMotion(
                 seed=v.integer(m["seed"], J("seed"), lo=0),
                 angle_rms=np.radians(v.scalar_or_vector(m["angle_rms_deg"], J("angle_rms_deg"), lo=0.0)),
-                band=tuple(band), components=v.integer(m.get("components", 16), J("components"), lo=1),
+                band=tuple(band), components=v.integer(m.get("components", 16), J("components"), lo=1,
+                                                     hi=mo.RandomMotion.MAX_COMPONENTS),
                 accel_rms=v.scalar_or_vector(m.get("accel_rms", 0.0), J("accel_rms"), lo=0.0),
                 heading=deg("heading_deg"))
         else:  # bag
@@ -713,6 +721,6 @@ def scene_info(scene: Scene) -> dict:
     }
 
 
-__all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "QUANTITIES", "load_scene", "find_scene",
+__all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "MotionError", "QUANTITIES", "load_scene", "find_scene",
            "scene_dirs", "scene_names", "scene_from_dict", "scene_info", "RunBudget", "run_budget", "check_budget",
            "MAX_MEMORY_BYTES", "MAX_STEPS"]

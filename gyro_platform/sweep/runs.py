@@ -24,7 +24,7 @@ from typing import Any
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..errors import BagReadError, ReplayError, SimulationError
 from ..scenes.runner import run_scene
-from ..scenes.schema import ScenarioError, scene_from_dict
+from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
 AXES = ("x", "y", "z")
 FINISHED = ("ok", "refused", "failed_input")  # a re-run skips these; 'failed'/'lost' run again
@@ -88,7 +88,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
             try:
                 _, summary, results = run_scene(scene)
                 rec.update(_figures(summary, results))
-            except SimulationError as e:
+            except (SimulationError, MotionError) as e:     # the drawn configuration cannot run
                 rec.update(status="refused", message=f"{type(e).__name__}: {e}")
             except (ScenarioError, BagReadError, ReplayError, OSError) as e:
                 rec.update(status="failed_input", message=f"{type(e).__name__}: {e}")
