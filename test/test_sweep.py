@@ -62,7 +62,11 @@ vary:
     ("scene: default\nruns: 2\nvary: {unbalance: {dist: gamma, k: 1}}\n", "dist"),
     ("scene: default\nruns: 2\nvary: {unbalance: {dist: uniform, low: 2, high: 1}}\n", "low"),
     ("scene: default\nruns: 0\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "runs"),
-    ("scene: default\nruns: 2\nvary: {\"bias_torque[9]\": {dist: fixed, value: 1.0e-8}}\n", "index 9"),
+    ("scene: default\nruns: 2\nvary: {\"bias_torque[9]\": {dist: fixed, value: 1.0e-8}}\n",
+     "sweep 'sweep.yaml': vary.bias_torque[9]: index 9 out of range"),
+    ("scene: default\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1}}\nruns: 3\n",
+     "not valid YAML: line 4:1: duplicate key 'runs' (first at line 2:1)"),
+    ("scene: default\nruns: 2\nvary: {unbalance: {dist: normal, mean: 0, std: 3e-8x}}\n", "std: expected a finite"),
     ("scene: default\nruns: 2\nvary: {servo_limit: {dist: fixed, value: -1.0}}\n", "servo_limit"),
     ("scene: no_such_scene\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "scene"),
     ("scene: default\nbags: [x.mcap]\n", "motion type is 'bag'"),
@@ -75,6 +79,17 @@ def test_bad_sweep_files_are_refused_naming_the_key(tmp_path, text, fragment):
         load_sweep(_write(tmp_path, text))
     assert fragment in str(e.value)
     assert "\n" not in str(e.value).strip()
+
+
+def test_numbers_in_sweep_files_are_read_as_in_scene_files(tmp_path):
+    """``3e-8`` and ``2e6`` (YAML 1.1 strings: no dot) are the numbers they say, as in scenes."""
+    spec = load_sweep(_write(tmp_path, "scene: default\nruns: 3\nduration: 2e0\nvary:\n"
+                                       "  unbalance: {dist: normal, mean: 2e-8, std: 3e-8}\n"
+                                       "  servo_kp: {dist: list, values: [2e6, 3.0e+6]}\n"))
+    u = next(v for v in spec.vary if v.key == "unbalance")
+    assert (u.dist, u.args) == ("normal", {"mean": 2e-8, "std": 3e-8})
+    assert [spec.task(i).values["servo_kp"] for i in range(3)] == [2e6, 3e6, 2e6]
+    assert spec.scene["duration"] == 2.0
 
 
 def test_sweep_scene_with_a_repeated_key_is_refused(tmp_path):

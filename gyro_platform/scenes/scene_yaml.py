@@ -3,14 +3,17 @@
 * :func:`load_yaml` — the parsed text; :class:`SceneYAMLError` (one line: ``line L:C: problem``)
   for a syntax error or a key given twice in one mapping (YAML forbids it; PyYAML would keep
   the last silently).
+* :func:`as_float` — a value read as a number: PyYAML follows YAML 1.1, which reads ``1e-7`` or
+  ``2e6`` (no dot) as strings; scene and sweep files take them as the numbers they are.
 """
 from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import yaml
 
-__all__ = ["SceneYAMLError", "UniqueKeyLoader", "load_yaml", "yaml_error_line"]
+__all__ = ["SceneYAMLError", "UniqueKeyLoader", "as_float", "load_yaml", "yaml_error_line"]
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
 
@@ -63,3 +66,18 @@ def load_yaml(text: str) -> Any:
         return yaml.load(text, Loader=UniqueKeyLoader)   # noqa: S506 - a SafeLoader
     except yaml.YAMLError as e:
         raise SceneYAMLError(yaml_error_line(e)) from None
+
+
+def as_float(v: Any) -> float | None:
+    """``v`` as a float: numbers and numeric strings (YAML 1.1 reads ``1e-7`` as a string); None
+    for anything else, booleans included (not checked for finiteness)."""
+    if isinstance(v, bool) or v is None:
+        return None
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    if isinstance(v, str):
+        try:
+            return float(v.strip())
+        except ValueError:
+            return None
+    return None

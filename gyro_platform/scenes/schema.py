@@ -99,7 +99,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from . import motions as mo
-from .scene_yaml import SceneYAMLError, load_yaml
+from .scene_yaml import SceneYAMLError, as_float, load_yaml
 from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, RunBudget, oversize, run_budget
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
@@ -179,7 +179,7 @@ class _V:
 
     def number(self, v, path: str, lo: float | None = None, hi: float | None = None,
                lo_open: bool = False) -> float:
-        x = _as_float(v)
+        x = as_float(v)
         if x is None:
             self.fail(path, f"expected a number, got {_tname(v)} {v!r}")
         if not math.isfinite(x):
@@ -239,20 +239,6 @@ def _join(path: str, key: str) -> str:
 def _tname(v) -> str:
     return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
             type(None): "nothing"}.get(type(v), type(v).__name__)
-
-
-def _as_float(v) -> float | None:
-    """Numbers and numeric strings (YAML 1.1 reads ``1e-7`` as a string); not booleans."""
-    if isinstance(v, bool) or v is None:
-        return None
-    if isinstance(v, (int, float, np.integer, np.floating)):
-        return float(v)
-    if isinstance(v, str):
-        try:
-            return float(v.strip())
-        except ValueError:
-            return None
-    return None
 
 
 # ---- typed scene --------------------------------------------------------------------------

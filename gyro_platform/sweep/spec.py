@@ -33,10 +33,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..physics.params import PlatformParams
-from ..scenes.scene_yaml import SceneYAMLError, load_yaml
+from ..scenes.scene_yaml import SceneYAMLError, as_float, load_yaml
 from ..scenes.schema import ScenarioError, find_scene, scene_from_dict
 from .runs import RunTask
 
@@ -157,9 +156,11 @@ def apply_value(scene: dict, v: Variation, value: float) -> None:
 
 
 def _number(x: Any, where: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+    """A finite number, written as scene files take them (``3e-8`` too: :func:`as_float`)."""
+    v = as_float(x)
+    if v is None or not math.isfinite(v):
         raise SweepSpecError(f"{where}: expected a finite number, got {x!r}")
-    return float(x)
+    return v
 
 
 def _variation(key: Any, raw: Any, where: str) -> Variation:
@@ -238,21 +239,15 @@ def _scene_path(name: str, base: Path) -> Path:
     return find_scene(name)
 
 
-def _where(e: yaml.YAMLError) -> str:
-    mark = getattr(e, "problem_mark", None)
-    what = getattr(e, "problem", None) or type(e).__name__
-    return f" at line {mark.line + 1}, column {mark.column + 1}: {what}" if mark else f": {what}"
-
-
 def load_sweep(path) -> SweepSpec:
     """Read and validate a sweep file; the scene is checked with the distributions' centres."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = load_yaml(path.read_text())        # a repeated key is refused, as in scene files
     except OSError as e:
         raise SweepSpecError(f"sweep '{path}': cannot read: {e.strerror or e}") from None
-    except yaml.YAMLError as e:
-        raise SweepSpecError(f"sweep '{path.name}': not valid YAML{_where(e)}") from None
+    except SceneYAMLError as e:
+        raise SweepSpecError(f"sweep '{path.name}': not valid YAML: {e}") from None
     src = f"sweep '{path.name}'"
     if not isinstance(raw, dict):
         raise SweepSpecError(f"{src}: expected a mapping with keys {', '.join(TOP_KEYS)}")
@@ -292,8 +287,11 @@ def load_sweep(path) -> SweepSpec:
         if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= 1_000_000:
             raise SweepSpecError(f"{src}: runs: expected an integer in [1, 1000000], got {runs!r}")
         trial = copy.deepcopy(scene)
-        for v in vary:
-            apply_value(trial, v, v.centre())
+        try:
+            for v in vary:
+                apply_value(trial, v, v.centre())
+        except SweepSpecError as e:
+            raise SweepSpecError(f"{src}: {e}") from None
     else:
         if not isinstance(raw["bags"], list):
             raise SweepSpecError(f"{src}: bags: expected a list of bag paths or folders")
