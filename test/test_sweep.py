@@ -175,6 +175,44 @@ def test_refused_run_does_not_stop_the_sweep_and_rerun_skips_finished(tmp_path):
         run_sweep(other, out, workers=1)
 
 
+def test_fewer_runs_count_only_their_records_and_the_summary_is_strict_json(tmp_path):
+    """The same sweep again with fewer runs: the summary, table and title cover runs 0 … runs − 1
+    (they counted every record of the folder: "5 of 2 runs"); the σ of a single ok run is null,
+    not NaN (which strict JSON parsers refuse)."""
+    text = ("scene: default\nduration: 1\nruns: {n}\n"
+            "vary: {{\"bias_torque[4]\": {{dist: list, values: [1.0e-7, 2.0e-7, 3.0e-7]}}}}\n")
+    out = tmp_path / "out"
+    three = load_sweep(_write(tmp_path, text.format(n=3), "three.yaml"))
+    finish(three, out, run_sweep(three, out, workers=1), plots=False)
+    one = load_sweep(_write(tmp_path, text.format(n=1), "one.yaml"))
+    assert one.fingerprint() == three.fingerprint()
+    res = run_sweep(one, out, workers=1)
+    assert res.executed == 0 and [r["run"] for r in res.records] == [0] and res.beyond == 2
+    summary = finish(one, out, res, plots=False)
+    assert summary["records"] == 1 and summary["status_counts"] == {"ok": 1}
+    assert len(_table(out)) == 1
+    def refuse(name):
+        raise ValueError(f"not strict JSON: {name}")
+    strict = json.loads((out / "summary.json").read_text(), parse_constant=refuse)
+    z = next(b for b in strict["drift_budget"] if b["axis"] == "z")
+    assert z["n"] == 1 and z["std_deg_per_h"] is None and z["mean_deg_per_h"] == pytest.approx(
+        res.records[0]["drift_rate_z_deg_per_h"])
+    for p in (out / "runs").glob("run_*.json"):
+        json.loads(p.read_text(), parse_constant=refuse)
+
+
+@pytest.mark.parametrize("name", ["results.csv", "results.parquet", "budget.png"])
+def test_a_folder_where_a_result_file_goes_is_refused_before_any_run(tmp_path, capsys, name):
+    from gyro_platform import cli
+
+    spec = _write(tmp_path, "scene: default\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n")
+    (tmp_path / "out" / name).mkdir(parents=True)
+    assert cli.main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "1"]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{name} is a folder" in err, err
+    assert not (tmp_path / "out" / "runs").exists()
+
+
 @pytest.mark.skipif(not BAGS.is_dir(), reason=f"real recordings absent: {BAGS}")
 def test_fleet_replay_one_run_per_bag(tmp_path):
     spec = load_sweep(_write(tmp_path, f"scene: husky_replay\nduration: 8\nbags: [{BAGS}]\n"))

@@ -15,7 +15,6 @@ terminated (SIGTERM): the table holds the runs finished so far.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import signal
@@ -29,7 +28,7 @@ from typing import Any, Callable
 from .plots import budget_stats, plot_budget
 from .runs import execute_run, lost_record
 from .spec import SweepSpec, SweepSpecError, load_sweep
-from .store import ResultStore, StoreError, atomic_write
+from .store import ResultStore, StoreError, atomic_write, json_bytes
 from ..errors import (EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError, StopSignals,
                       check_output_path, stop_reason, write_failure)
 
@@ -45,7 +44,11 @@ class SweepResult:
     stop: str | None = None         # "interrupted" (Ctrl-C) or "terminated" (SIGTERM)
     wall_s: float = 0.0
     counts: dict[str, int] = field(default_factory=dict)
+    beyond: int = 0                 # records in the folder of runs ≥ the sweep's runs (not counted)
 
+
+#: the files a sweep writes into its folder (checked before any run: none may be a folder)
+OUTPUT_FILES = ("sweep.json", "summary.json", "results.csv", "results.parquet", "budget.png")
 
 #: s, how long ``--scheduler`` is tried before it is refused as unreachable
 SCHEDULER_TIMEOUT_S = 20.0
@@ -127,7 +130,8 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
             if own:
                 close_client(client)
     res.wall_s = time.perf_counter() - t0
-    res.records = store.records()
+    res.records = store.records(spec.n_runs)
+    res.beyond = len(store.records()) - len(res.records)
     for r in res.records:
         res.counts[r["status"]] = res.counts.get(r["status"], 0) + 1
     return res
@@ -147,24 +151,28 @@ def finish(spec: SweepSpec, out: Path, res: SweepResult, plots: bool = True) -> 
     parquet, csv = store.write_table(res.records)
     summary = {"sweep": str(spec.source), "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed,
                "records": len(res.records), "status_counts": res.counts, "executed_now": res.executed,
-               "skipped_finished": res.skipped, "interrupted": res.interrupted, "wall_s": res.wall_s,
+               "skipped_finished": res.skipped, "records_beyond_runs": res.beyond,
+               "interrupted": res.interrupted, "wall_s": res.wall_s,
                "drift_budget": budget_stats(res.records), "table": [str(parquet), str(csv)]}
     if plots and any(r["status"] == "ok" for r in res.records):
         summary["plot"] = str(plot_budget(res.records, out / "budget.png",
                                           f"{spec.source.name}: {spec.kind.replace('_', ' ')}, "
                                           f"{res.counts.get('ok', 0)} of {spec.n_runs} runs ok"))
-    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=str, allow_nan=True).encode())
+    atomic_write(out / "summary.json", json_bytes(summary, indent=2))
     return summary
 
 
-def _fmt(x: float) -> str:
-    return "nan" if not math.isfinite(x) else f"{x:.4g}"
+def _fmt(x: float | None) -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{x:.4g}"
 
 
 def print_summary(summary: dict[str, Any], file=None) -> None:
     out = file or sys.stdout
     print(f"runs: {summary['records']} of {summary['runs']} recorded "
           f"({', '.join(f'{k} {v}' for k, v in sorted(summary['status_counts'].items()))})", file=out)
+    if summary.get("records_beyond_runs"):
+        print(f"  ({summary['records_beyond_runs']} record(s) of runs beyond runs: {summary['runs']} kept in "
+              "runs/, not counted)", file=out)
     print("drift rate budget over the ok runs (°/h):", file=out)
     print(f"  {'axis':<5}{'n':>6}{'mean':>12}{'σ':>12}{'|mean|+1σ':>12}{'|mean|+3σ':>12}{'q99.73 |r|':>12}", file=out)
     for r in summary["drift_budget"]:
@@ -197,7 +205,7 @@ def run(args) -> int:
         return EXIT_USAGE
     out = Path(args.out) if args.out else Path("results") / "sweeps" / Path(args.spec).stem
     try:
-        check_output_path(out, "--out", files=("sweep.json", "summary.json"))
+        check_output_path(out, "--out", files=OUTPUT_FILES)
     except OutputError as e:
         print(f"{prog}: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -43,6 +43,26 @@ def _json_default(x: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
+def _finite(x: Any) -> Any:
+    """``x`` with every non-finite float (NaN: a figure that could not be made, σ of one run)
+    replaced by None, so that the text is strict JSON (``null``), not JavaScript's ``NaN``."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if hasattr(x, "item") and not hasattr(x, "__len__"):     # numpy scalars
+        return _finite(x.item())
+    return x
+
+
+def json_bytes(obj: Any, indent: int | None = None) -> bytes:
+    """Strict JSON of ``obj`` (non-finite numbers as ``null``; other objects by ``str``)."""
+    return json.dumps(_finite(obj), indent=indent, default=lambda x: _json_default(x) if hasattr(x, "item")
+                      else str(x), allow_nan=False).encode()
+
+
 class ResultStore:
     """Run records of one sweep in ``out``; the records are the truth, the table is derived."""
 
@@ -72,17 +92,20 @@ class ResultStore:
         return self.runs_dir / f"run_{run:06d}.json"
 
     def put(self, record: dict[str, Any]) -> None:
-        atomic_write(self._path(int(record["run"])),
-                     json.dumps(record, default=_json_default, allow_nan=True).encode())
+        atomic_write(self._path(int(record["run"])), json_bytes(record))
 
-    def records(self) -> list[dict[str, Any]]:
-        """Every whole record, by run index (unreadable leftovers are ignored)."""
+    def records(self, runs: int | None = None) -> list[dict[str, Any]]:
+        """Every whole record, by run index (unreadable leftovers are ignored); with ``runs``
+        only those of runs ``0 … runs − 1`` (a sweep run again with fewer runs keeps the
+        records of the others on disk but does not count them)."""
         out = []
         for p in sorted(self.runs_dir.glob("run_*.json")):
             try:
-                out.append(json.loads(p.read_text()))
+                r = json.loads(p.read_text())
             except (OSError, json.JSONDecodeError):
                 continue
+            if runs is None or r["run"] < runs:
+                out.append(r)
         return sorted(out, key=lambda r: r["run"])
 
     def finished(self) -> set[int]:
