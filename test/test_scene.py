@@ -112,6 +112,8 @@ BAD = [
     ("duration", -1.0, None, "duration", "> 0"),
     ("duration", True, None, "duration", "expected a number"),
     ("name", "a/b", None, "name", "letters"),
+    ("name", "..", None, "name", "not dots alone"),        # results/.. is the working folder
+    ("name", ".", None, "name", "not dots alone"),
     ("name", 3, None, "name", "expected a string"),
     ("description", ["x"], None, "description", "expected a string"),
     ("mode", "floating", None, "mode", "expected one of"),

@@ -455,8 +455,9 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     v = _V(source)
     d = v.mapping(data, "", TOP_KEYS, required=("duration", "motion"))
     name = v.string(d.get("name", default_name), "name")
-    if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
-        v.fail("name", f"use letters, digits, '_', '-', '.' only (it names the output folder), got {name!r}")
+    if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name) or not name.strip("."):
+        v.fail("name", f"use letters, digits, '_', '-', '.' only, not dots alone (it names the output folder "
+                       f"results/NAME), got {name!r}")
     description = v.string(d.get("description", ""), "description")
     mode = v.choice(d.get("mode", "stabilised"), "mode", MODES)
     fidelity = v.choice(d.get("fidelity", DEFAULT_FIDELITY[mode]), "fidelity", FIDELITIES)
