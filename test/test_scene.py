@@ -131,7 +131,8 @@ BAD = [
     ("rtol", "tight", None, "rtol", "expected a number"),
     ("sample_rate", 0, None, "sample_rate", "> 0"),
     ("output_rate", 500.0, None, "output_rate", "≤ sample_rate"),
-    ("fit_start", 5.0, None, "fit_start", "< duration"),
+    ("fit_start", 5.0, None, "fit_start", "must leave the drift fits two outputs: ≤ duration − 1/output_rate (1.9 s)"),
+    ("fit_start", 1.95, None, "fit_start", "two outputs"),     # [1.95, 2] s holds one output at 10 Hz
     ("test_duration", 10.0, None, "test_duration", "≤ 2"),
     ("motion", DEL, None, "motion", "missing"),
     ("motion", "ship", None, "motion", "expected a mapping"),
@@ -317,6 +318,11 @@ def test_fit_start_window():
         rec.append(o)
     assert rec.summary(fit_start=5.0)["drift_rate"]["x"] == pytest.approx(1e-6, rel=1e-9)
     assert rec.summary()["drift_rate"]["x"] > 1e-5
+    assert "notes" not in rec.summary(fit_start=19.8)
+    # a window with one output cannot be fitted: the whole run is, and the summary says so
+    late = rec.summary(fit_start=19.85)
+    assert late["drift_fit_start"] == 0.0 and late["drift_rate"] == rec.summary()["drift_rate"]
+    assert any("fit_start 19.85 s holds 1 output(s)" in n for n in late["notes"]), late.get("notes")
 
 
 def test_fit_slope_shapes():

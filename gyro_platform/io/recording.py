@@ -300,8 +300,12 @@ class Recorder:
         q = self.gimbal_angles
         s["max_abs_gimbal_angle"] = {g: float(np.max(np.abs(q[:, i]))) for i, g in enumerate(GIMBAL_NAMES)}
         s["final_gimbal_angle"] = {g: float(q[-1, i]) for i, g in enumerate(GIMBAL_NAMES)}
+        notes: list[str] = []
         win = t >= fit_start - 1e-12
         if np.count_nonzero(win) < 2:
+            if fit_start > 0:
+                notes.append(f"the fits cover the whole run: the window from fit_start {fit_start:g} s holds "
+                             f"{np.count_nonzero(win)} output(s), a fit needs two")
             win = np.ones_like(t, dtype=bool)
         slope_q = fit_slope(t[win], q[win])
         s["gimbal_angle_slope"] = {g: float(slope_q[i]) for i, g in enumerate(GIMBAL_NAMES)}
@@ -324,7 +328,6 @@ class Recorder:
             w = self.field("vehicle_omega")
             s["mean_vehicle_rate"] = axes_dict(w.mean(axis=0))
             s["max_abs_vehicle_rate"] = _max_abs_axes(w)
-        notes: list[str] = []
         if "vehicle_attitude" in self._extra:
             w = self.field("vehicle_omega") if "vehicle_omega" in self._extra else None
             if w is not None and _steady(w[win]):

@@ -29,7 +29,7 @@ Schema (every key is checked; unknown keys are rejected; errors name the key pat
                               # the test suite runs the scene this long    (optional, ≤ duration)
     sample_rate: 100          # Hz of the input samples (default 100; not allowed with bag)
     output_rate: 10           # Hz of the recorded outputs (default 10, ≤ sample_rate)
-    fit_start: 0              # s after the start where the least-squares drift fits begin
+    fit_start: 0              # s after the start where the least-squares drift fits begin (≤ duration − 1/output_rate)
     motion: {type: ..., ...}  # the vehicle motion, see below (required)
     expect: [...]             # checks on the run's summary, see below (default none)
 
@@ -343,9 +343,10 @@ class Scene:
         :attr:`expect_duration` of the original (a shorter run leaves them not evaluable)."""
         if not (duration > 0 and math.isfinite(duration)):
             raise ScenarioError(f"scene '{self.name}': --duration must be a finite number > 0, got {duration}")
-        if self.fit_start >= duration:
+        if fit_window_too_short(self.fit_start, duration, self.output_rate):
             raise ScenarioError(f"scene '{self.name}': --duration {duration:g} s must exceed fit_start "
-                                f"({self.fit_start:g} s)")
+                                f"({self.fit_start:g} s) by one output period ({1 / self.output_rate:g} s): "
+                                "the drift fits need two outputs")
         check_budget(self.name, duration, self.sample_rate, self.output_rate, self.max_step,
                      {"duration": "--duration"})
         return replace(self, duration=float(duration), test_duration=self.expect_duration)
@@ -449,6 +450,12 @@ def repo_root(start: Path) -> Path | None:
     return None
 
 
+def fit_window_too_short(fit_start: float, duration: float, output_rate: float) -> bool:
+    """The drift fits' window [fit_start, duration] holds fewer than two outputs of the grid
+    (outputs every 1/output_rate s and at the end: it must span one output period)."""
+    return fit_start > duration - 1.0 / output_rate
+
+
 def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None,
                     default_name: str = "scene", path: Path | None = None) -> Scene:
     """Validate a parsed scene mapping (``source`` names it in error messages)."""
@@ -510,8 +517,9 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
         test_duration = v.number(d["test_duration"], "test_duration", lo=0.0, hi=duration, lo_open=True)
     output_rate = v.number(d.get("output_rate", 10.0), "output_rate", lo=0.0, hi=MAX_GRID_RATE, lo_open=True)
     fit_start = v.number(d.get("fit_start", 0.0), "fit_start", lo=0.0)
-    if fit_start >= duration:
-        v.fail("fit_start", f"must be < duration ({duration:g} s), got {fit_start:g}")
+    if fit_window_too_short(fit_start, duration, output_rate):
+        v.fail("fit_start", f"must leave the drift fits two outputs: ≤ duration − 1/output_rate "
+                            f"({duration - 1 / output_rate:g} s), got {fit_start:g}")
 
     motion = _motion(v, d["motion"], params, base_dir, path)
     if motion.is_bag:
@@ -710,4 +718,4 @@ def scene_info(scene: Scene) -> dict:
 
 __all__ = ["Scene", "MotionSpec", "Check", "ScenarioError", "MotionError", "QUANTITIES", "load_scene", "find_scene",
            "scene_dirs", "scene_names", "scene_from_dict", "scene_info", "RunBudget", "run_budget", "check_budget",
-           "MAX_MEMORY_BYTES", "MAX_STEPS"]
+           "MAX_MEMORY_BYTES", "MAX_STEPS", "fit_window_too_short"]

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..physics.params import PlatformParams
 from ..scenes.scene_yaml import SceneYAMLError, as_float, load_yaml
-from ..scenes.schema import ScenarioError, find_scene, scene_from_dict
+from ..scenes.schema import ScenarioError, find_scene, fit_window_too_short, scene_from_dict
 from .runs import RunTask
 
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
@@ -271,8 +271,10 @@ def load_sweep(path) -> SweepSpec:
         scene["duration"] = _number(raw["duration"], f"{src}: duration")
         if scene.get("test_duration") is not None and scene["test_duration"] > scene["duration"]:
             scene["test_duration"] = scene["duration"]
-        if scene.get("fit_start", 0.0) >= scene["duration"]:
-            scene["fit_start"] = 0.0
+        rate = as_float(scene.get("output_rate", 10.0))
+        if rate and rate > 0 and fit_window_too_short(as_float(scene.get("fit_start", 0.0)) or 0.0,
+                                                      scene["duration"], rate):
+            scene["fit_start"] = 0.0                   # the fits over the whole (shorter) run
     seed = raw.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise SweepSpecError(f"{src}: seed: expected an integer ≥ 0, got {seed!r}")
