@@ -101,13 +101,13 @@ def reference_outputs(sim: Simulator) -> Outputs:
             fx.servo_torque(sys_.k, q[[4, 0, 3]], qd[[4, 0, 3]], y[st.z], servo)
         mount = euler_xyz(sys_.R_PB @ (R_IB.T @ R_IP))
         mount_rates = euler_xyz_rates(mount, Om - R_IP.T @ (R_IB @ wB))
-    else:   # drift of the gyros' reference triad (spin axes of rotors 6 and 11)
+    else:   # drift of the gyros' reference triad: y = rotor 11's spin axis, x = rotor 6's normal to it
         R_P5, R_P10 = wk.R[1] @ wk.R[2], wk.R[4] @ wk.R[5]
         e6, e11 = R_P5 @ SPIN_AXES[0], R_P10 @ SPIN_AXES[2]
         w5, w10 = R_P5 @ wk.w[2], R_P10 @ wk.w[5]
-        x = e6
-        yv = e11 - (e11 @ x) * x
-        yv /= np.linalg.norm(yv)
+        yv = e11
+        x = e6 - (e6 @ yv) * yv
+        x /= np.linalg.norm(x)
         z = np.cross(x, yv)
         G_P = np.column_stack([x, yv, z])
         R_CG = R_IC.T @ R_IP @ G_P

@@ -38,7 +38,11 @@ from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXA
 #: step (s) of the central difference that gives the gimbal accelerations in precession
 PRECESSION_EPS = 1e-6
 # return codes of the kernels (per call: code, instant, detail)
-OK, RHS_FAILED, NON_FINITE = 0, 1, 2
+OK, RHS_FAILED, NON_FINITE, REFERENCE_UNDEFINED = 0, 1, 2, 3
+#: carried mode: the gyros' reference triad is refused when the spin axes of rotors 6 and 11
+#: are this close to parallel (sine of their angle; ~0.06°): its rotation about rotor 11's
+#: axis, read from rotor 6's axis, is undefined there
+MIN_SPIN_AXES_SINE = 1e-3
 # offsets in the float constants CF: rotor momenta for the outputs (true L, or 0 without
 # rotor_gyroscopic), rotor C, A, speeds, tree axes (nb, 3), inertias (nb, 3, 3), spin axes (nr, 3)
 F_L, F_C, F_A, F_SPEED, F_AXIS = 0, 3, 6, 9, 12
@@ -275,7 +279,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
                 out[C_MOUNT + i] = mount[i]
                 out[C_MRATE + i] = X[7, i]
         else:
-            _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out)
+            if not _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out):
+                return kk, REFERENCE_UNDEFINED, 0
             for i in range(3):
                 out[C_MOUNT + i] = 0.0
                 out[C_MRATE + i] = 0.0
@@ -311,10 +316,14 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
 
 @njit(cache=True, error_model="numpy")
 def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, G, X, out):
-    """Carried mode: drift (rad) and drift rate (rad/s) of the gyros' own inertial reference, the
-    triad spanned by the spin axes of rotors 6 (x) and 11 (y), relative to where it started.
-    Uses ``R``, ``w`` of the tree kinematics; T1, T2, G (3×3) and rows 8..15, 17..20 of X are work."""
-    e6, e11, w5, w10, yv, z, xd, ydv = X[8], X[9], X[10], X[11], X[12], X[13], X[14], X[15]
+    """Carried mode: drift (rad) and drift rate (rad/s) of the gyros' own inertial reference
+    relative to where it started: the triad whose y axis is the spin axis of rotor 11 (unit B:
+    its direction holds the x and z axes, as unit B's pick-offs hold them in stabilised mode) and
+    whose x axis is the spin axis of rotor 6 made normal to it (unit A: the rotation about y).
+    False (nothing written) when the two spin axes are within ``MIN_SPIN_AXES_SINE`` of
+    parallel: the rotation about y is undefined there. Uses ``R``, ``w`` of the tree kinematics;
+    T1, T2, G (3×3) and rows 8..15, 17..20 of X are work."""
+    e6, e11, w5, w10, xv, z, xd, ydv = X[8], X[9], X[10], X[11], X[12], X[13], X[14], X[15]
     d, zd, s, wig = X[17], X[18], X[19], X[20]
     _mm(R[1], R[2], T1)                 # R_P5
     _mm(R[4], R[5], T2)                 # R_P10
@@ -322,30 +331,32 @@ def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, G, X, out):
     _mv(T2, raxis[2], e11)
     _mv(T1, w[2], w5)
     _mv(T2, w[5], w10)
-    x = e6
-    p = _dot(e11, x)
+    y = e11
+    p = _dot(e6, y)
     for i in range(3):
-        yv[i] = e11[i] - p * x[i]
-    nrm = math.sqrt(yv[0] * yv[0] + yv[1] * yv[1] + yv[2] * yv[2])
+        xv[i] = e6[i] - p * y[i]
+    nrm = math.sqrt(xv[0] * xv[0] + xv[1] * xv[1] + xv[2] * xv[2])
+    if not nrm >= MIN_SPIN_AXES_SINE:
+        return False
     for i in range(3):
-        yv[i] /= nrm
-    _cross_into(x, yv, z)
+        xv[i] /= nrm
+    _cross_into(xv, y, z)
     for i in range(3):                  # G_P = R_PG: columns x, y, z
-        T2[i, 0], T2[i, 1], T2[i, 2] = x[i], yv[i], z[i]
+        T2[i, 0], T2[i, 1], T2[i, 2] = xv[i], y[i], z[i]
     _mtm(R_IC, R_IP, T1)                # R_CP
     _mm(T1, T2, G)                      # R_CG
     matrix_rotvec_into(G, d)
-    # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ḃ = ω_b × b)
+    # ω_IG ≈ ½ Σ b × ḃ (b: triad in platform axes; ẏ = ω_10 × e11 exactly, ẋ ≈ ω_5 × e6)
     _cross_into(w5, e6, xd)
     _cross_into(w10, e11, ydv)
-    _cross_into(xd, yv, zd)
-    _cross_into(x, ydv, s)
+    _cross_into(xd, y, zd)
+    _cross_into(xv, ydv, s)
     for i in range(3):
         zd[i] += s[i]
-    _cross_into(x, xd, s)
+    _cross_into(xv, xd, s)
     for i in range(3):
         wig[i] = s[i]
-    _cross_into(yv, ydv, s)
+    _cross_into(y, ydv, s)
     for i in range(3):
         wig[i] += s[i]
     _cross_into(z, zd, s)
@@ -356,6 +367,7 @@ def _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, G, X, out):
     for i in range(3):
         out[C_DRIFT + i] = d[i]
         out[C_DRATE + i] = s[i] - wig[i]
+    return True
 
 
 # ---- entries: work arrays once per call ---------------------------------------------------
@@ -525,6 +537,11 @@ class OutputKernel:
             raise NonFiniteOutputError(
                 f"output {name} is {float(out[detail])} at t = {float(t)!r} s (an input or effect drives the "
                 "model beyond floating point there): not published", name, float(t))
+        if code == REFERENCE_UNDEFINED:
+            raise SimulationError(
+                f"carried mode: the spin axes of rotors 6 and 11 are within {math.degrees(MIN_SPIN_AXES_SINE):.2g}° "
+                f"of parallel at t = {float(t)!r} s: the gyros' reference triad, whose drift the carried mode "
+                "reports, is undefined there (rotor 11 has precessed about 90° towards rotor 6)")
         # the model refused the state it was evaluated at: let it say why (same message as stepping)
         sys_ = self.system
         saved, n_rhs = sys_.seg.copy(), sys_.n_rhs

@@ -124,6 +124,33 @@ def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (tc @ yc) / den
 
 
+def unwrap_rotation_vectors(d: np.ndarray, prev: np.ndarray | None = None) -> np.ndarray:
+    """Rotation vectors ``d`` (N, 3) rad made continuous for a slope fit: each becomes the
+    equivalent ``d + 2πm·d/|d|`` (the same rotation) nearest the one before (``prev``: the
+    unwrapped vector before ``d[0]``, if any). A rotation vector's angle is at most π; a drift
+    that turns on (a carried gyro precessing, 410 °/h about z) wraps there, and a line through
+    the wrapped angles has the wrong slope. Rows with a non-finite value stay as they are; a
+    series that stays within π/2 of zero (every stabilised platform) is returned unchanged."""
+    d = np.asarray(d, dtype=float)
+    r = np.sqrt(np.einsum("ij,ij->i", d, d)) if d.size else np.zeros(0)
+    near = not (r > 0.5 * math.pi).any() and (prev is None or not np.linalg.norm(prev) > 0.5 * math.pi)
+    if near:
+        return d
+    out = d.copy()
+    last = None if prev is None else np.asarray(prev, dtype=float)
+    two_pi = 2.0 * math.pi
+    for k in range(len(d)):
+        if not math.isfinite(r[k]):
+            continue
+        if last is not None and r[k] > 0.0:
+            u = d[k] / r[k]
+            m = round(float(np.dot(last - d[k], u)) / two_pi)
+            if m:
+                out[k] = d[k] + (two_pi * m) * u
+        last = out[k]
+    return out
+
+
 def axes_dict(v: np.ndarray) -> dict[str, float]:
     v = np.asarray(v, dtype=float)
     return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]), "norm": float(np.linalg.norm(v))}
@@ -320,7 +347,7 @@ class Recorder:
         d = self.drift_angle
         s["final_drift_angle"] = axes_dict(d[-1])
         s["max_abs_drift_angle"] = _max_abs_axes(d)
-        rate = fit_slope(t[win], d[win])
+        rate = fit_slope(t[win], unwrap_rotation_vectors(d)[win])
         s["drift_fit_start"] = float(t[win][0])
         s["drift_rate"] = axes_dict(rate)
         s["drift_rate_deg_per_h"] = axes_dict(rate * RAD_S_TO_DEG_H)
@@ -331,7 +358,7 @@ class Recorder:
         if "vehicle_attitude" in self._extra:
             w = self.field("vehicle_omega") if "vehicle_omega" in self._extra else None
             if w is not None and _steady(w[win]):
-                rel = self.platform_vs_vehicle(mounting)
+                rel = unwrap_rotation_vectors(self.platform_vs_vehicle(mounting))
                 r = fit_slope(t[win], rel[win])
                 s["platform_vs_vehicle_rate_deg_per_h"] = axes_dict(r * RAD_S_TO_DEG_H)
             else:
@@ -637,4 +664,4 @@ def print_summary_table(summary: dict, file: TextIO | None = None) -> None:
         print(line.rstrip(), file=out)
 
 
-__all__ = ["Recorder", "fit_slope", "print_summary_table", "RAD_S_TO_DEG_H"]
+__all__ = ["Recorder", "fit_slope", "unwrap_rotation_vectors", "print_summary_table", "RAD_S_TO_DEG_H"]

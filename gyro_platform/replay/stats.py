@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..engine.outputs import BEARING_NAMES
+from ..io.recording import unwrap_rotation_vectors
 
 N_BEARINGS = len(BEARING_NAMES)
 PLOT_BUCKETS = 2000             # at most this many min/max buckets of outputs are kept for the plot
@@ -27,6 +28,7 @@ class Stats:
         self.n = 0
         self.last = None
         self._fit = LineFit()
+        self._drift_prev: np.ndarray | None = None   # the last unwrapped drift angle of the fit
         self._key: tuple | None = None          # block layout of _names/_idx (see _plain_columns)
         self._names: tuple[str, ...] = ()
         self._idx: np.ndarray | None = None
@@ -48,9 +50,11 @@ class Stats:
             if k not in self.hi or v > self.hi[k]:
                 self.hi[k] = v
         if new_segment or self.last is None:
-            self._fit = LineFit()
-        if np.all(np.isfinite(out.drift_angle)):
-            self._fit.add(out.t, np.asarray(out.drift_angle, float))
+            self._fit, self._drift_prev = LineFit(), None
+        d = np.asarray(out.drift_angle, float)
+        if np.all(np.isfinite(d)):
+            self._drift_prev = unwrap_rotation_vectors(d[None], self._drift_prev)[0]
+            self._fit.add(out.t, self._drift_prev)
         self.last = out
 
     def add_block(self, block: Any, new_segment: bool) -> None:
@@ -72,11 +76,13 @@ class Stats:
             names, m = self._names, block.rows[:, idx]
         self._add_matrix(names, m)
         if new_segment or self.last is None:
-            self._fit = LineFit()
+            self._fit, self._drift_prev = LineFit(), None
         d = np.asarray(block.drift_angle, dtype=float)
         ok = np.all(np.isfinite(d), axis=1)
         if ok.any():
-            self._fit.add_many(np.asarray(block.t, dtype=float)[ok], d[ok])
+            du = unwrap_rotation_vectors(d[ok], self._drift_prev)      # the fit of a drift that turns on
+            self._drift_prev = du[-1]
+            self._fit.add_many(np.asarray(block.t, dtype=float)[ok], du)
         self.last = _Last(float(block.t[-1]), d[-1].copy())
 
     def _plain_columns(self, block: Any) -> np.ndarray | None:
