@@ -231,6 +231,7 @@ DROP_HINTS = {
     "zero_stamp": "every header stamp is 0; time by receive time instead (--time-source receive or auto)",
     "unknown_frame": "the input frame has no mounting; give --mount FRAME=... or --unknown-frame identity",
     "over_rate": "every rate exceeds --max-rate; raise it if the rates are real",
+    "over_specific_force": "every specific force exceeds --max-specific-force; raise it if the accelerations are real",
     "no_rate": "the messages carry no angular rate",
     "non_finite": "every rate is NaN or infinite",
     "bad_message": "no message could be decoded",

@@ -188,11 +188,12 @@ def test_simulation_error_restarts_like_per_message(tmp_path):
 
 
 def test_failed_outputs_like_per_message(tmp_path):
-    """A finite but absurd specific force (1e200 m/s², anisoelastic on): the outputs of that
-    instant are not finite and the next interval cannot be integrated. On the first sample,
-    right after a reset and in mid-run, each such instant is counted ``output_failed`` and the
-    simulation goes on exactly as on the per-message path (the chunked path raised an
-    AttributeError here, on the first sample of a run)."""
+    """A finite but absurd specific force (1e200 m/s², anisoelastic on; let through the gate's
+    ``max_specific_force``, which drops it by default): the outputs of that instant are not
+    finite and the next interval cannot be integrated. On the first sample, right after a reset
+    and in mid-run, each such instant is counted ``output_failed`` and the simulation goes on
+    exactly as on the per-message path (the chunked path raised an AttributeError here, on the
+    first sample of a run)."""
     bad, rows, t = (1e200, 5e199, -1e200), [], T0
     for i in range(300):
         rows.append((t, imu(t, vehicle_rate((t - T0) / S), f=bad if i in (0, 150, 151, 222) else (0.0, 0.0, 9.81))))
@@ -201,7 +202,8 @@ def test_failed_outputs_like_per_message(tmp_path):
             t += 2 * S                                                    # gap: a reset at row 150
     bag = write_bag(tmp_path / "in", rows, "mcap")
     opts = ModelOptions(effects=frozenset(ModelOptions().effects) | {"anisoelastic"}, fidelity="full")
-    res = both(bag, tmp_path, output_rate=None, chunk_rows=64, options=opts)
+    res = both(bag, tmp_path, output_rate=None, chunk_rows=64, options=opts,
+               gate=GateConfig(max_specific_force=math.inf))
     sim = res["chunked"][0]["counts"]["simulator"]
     assert sim["output_failed"] == 4 and sim["restarted"] > 0 and sim["reset"] == 1, sim
     assert_same(res)

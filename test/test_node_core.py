@@ -187,6 +187,7 @@ def test_bad_input_is_counted_by_reason_and_never_raises():
         imu(BASE + 5 * MS, w=(math.nan, 0.0, 0.0)),              # non_finite
         imu(BASE + 5 * MS, acc=(0.0, math.inf, 9.81)),           # non_finite (specific force)
         imu(BASE + 5 * MS, w=(100.0, 0.0, 0.0)),                 # over_rate (> 35 rad/s)
+        imu(BASE + 5 * MS, acc=(1e20, 0.0, 9.81)),               # over_specific_force (> 2000 m/s²)
         imu(0),                                                  # zero_stamp
         imu(BASE + 2 * MS),                                      # backward_stamp (2 ms back)
         imu(BASE + 4 * MS),                                      # repeated_stamp
@@ -201,8 +202,9 @@ def test_bad_input_is_counted_by_reason_and_never_raises():
     assert core.on_message(imu(BASE + 3 * 10**9), BASE + 3 * 10**9)          # gap 3 s > max_gap: reset
     assert core.on_message(imu(BASE - 60 * 10**9), BASE + 3 * 10**9 + MS)  # looped bag: jump back, reset
     snap = core.snapshot()
-    assert snap["dropped_by_reason"] == {"non_finite": 2, "over_rate": 1, "zero_stamp": 1, "backward_stamp": 1,
-                                         "repeated_stamp": 1, "unknown_frame": 1, "no_rate": 1, "bad_message": 2}
+    assert snap["dropped_by_reason"] == {"non_finite": 2, "over_rate": 1, "over_specific_force": 1, "zero_stamp": 1,
+                                         "backward_stamp": 1, "repeated_stamp": 1, "unknown_frame": 1, "no_rate": 1,
+                                         "bad_message": 2}
     assert snap["stamp_anomalies"] == {"zero_stamp": 1, "backward_stamp": 1, "repeated_stamp": 1, "gap": 1,
                                        "jump_back": 1}
     assert snap["resets_by_reason"] == {"gap": 1, "jump_back": 1}
@@ -227,6 +229,35 @@ def test_stamp_with_nanosec_out_of_range_is_a_bad_message_not_a_time_jump(nanose
     published.update({k: bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(151, 400)})
     assert [k for k, p in published.items() if p] == [0, 100, 200, 300]       # the 10 Hz grid goes on
     assert core.snapshot()["resets"] == 0
+
+
+@pytest.mark.parametrize("force", [1e20, 1e160, 1e300])
+def test_an_absurd_specific_force_is_dropped_and_the_simulation_goes_on(force):
+    """One finite but absurd specific force in a carried run with the anisoelastic effect: it is
+    dropped (``over_specific_force``) and α4 goes on at −0.5 rad/s · t. It was accepted; the
+    integration failed and the simulator restarted from zero twice (1e20), or the exponential
+    step's scaling loop halved an infinite norm for ever and the node hung (1e160)."""
+    core = make_core(mode="carried", output_rate=0.0, effects=["defaults", "anisoelastic"])
+    last = None
+    for k in range(30):
+        out = core.on_message(imu(BASE + k * 10 * MS, w=(0.0, 0.5, 0.0), acc=(force if k == 10 else 0.0, 0.0, 9.81)),
+                              BASE + k * 10 * MS)
+        last = dict(out).get("gimbal/joint_states", last)
+    snap = core.snapshot()
+    assert snap["dropped_by_reason"] == {"over_specific_force": 1} and snap["resets"] == 0
+    assert last.position[0] == pytest.approx(-0.5 * 0.29, rel=1e-6)
+
+
+def test_the_matrix_exponential_of_a_non_finite_matrix_is_nan_not_an_endless_loop():
+    """``_expm_small`` scales by halving the norm until ≤ 1/8: an infinite norm never got there
+    (the node hung at 99 % CPU). Run in a child process so that the old behaviour fails the
+    test instead of hanging it."""
+    code = ("import numpy as np; from gyro_platform.engine.integrators.exponential import _expm_small;"
+            "W = np.eye(3); W[0, 1] = np.inf; E = _expm_small(W); print(bool(np.isnan(E).all()));"
+            "W[0, 1] = np.nan; print(not bool(np.isfinite(_expm_small(W)).all()))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=Path(__file__).resolve().parents[1])
+    assert p.stdout.split() == ["True", "True"], p.stderr
 
 
 def test_sample_without_the_needed_specific_force_is_dropped_before_it_advances_the_gate():

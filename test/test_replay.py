@@ -402,8 +402,9 @@ def test_salvaged_bag_out_of_time_order_reports_its_whole_duration(tmp_path):
 
 
 def test_no_output_at_all_is_said_in_the_summary_too(tmp_path, capsys):
-    """Samples simulated but every output failing (1e300 m/s² through the anisoelastic and
-    unbalance effects: not finite): exit 3 and the summary's warnings say why (they were empty)."""
+    """Samples simulated but every output failing (1e300 m/s² let through ``--max-specific-force inf``
+    into the anisoelastic and unbalance effects: not finite): exit 3 and the summary's warnings
+    say why (they were empty). By default the gate drops such samples (``over_specific_force``)."""
     items = []
     for i in range(50):
         msg = imu_msg(T0 + i * 10**6, (0.01, 0.0, 0.02))
@@ -413,8 +414,14 @@ def test_no_output_at_all_is_said_in_the_summary_too(tmp_path, capsys):
     scene = tmp_path / "s.yaml"
     scene.write_text("mode: stabilised\neffects: [defaults, anisoelastic, mass_unbalance]\nduration: 2\n"
                      "motion: {type: constant, omega: [0, 0, 0]}\n")
+    dropped = tmp_path / "dropped"
+    code = cli.main(["replay", str(bag), "--out", str(dropped), "--quiet", "--no-plot", "--scene", str(scene)])
+    assert code == cli.EXIT_DATA and "every specific force exceeds --max-specific-force" in capsys.readouterr().err
+    summary = json.loads(rp.sidecar_paths(dropped)[0].read_text())
+    assert summary["gate"]["dropped_by_reason"] == {"over_specific_force": 50} and summary["simulated"] == 0
     out = tmp_path / "out"
-    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", "--scene", str(scene)])
+    code = cli.main(["replay", str(bag), "--out", str(out), "--quiet", "--no-plot", "--scene", str(scene),
+                     "--max-specific-force", "inf"])
     capsys.readouterr()
     summary = json.loads(rp.sidecar_paths(out)[0].read_text())
     assert code == cli.EXIT_DATA and summary["counts"]["out"] == 0 and summary["simulated"] == 50

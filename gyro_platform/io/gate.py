@@ -24,6 +24,7 @@ Decisions and their reasons (checked in this order; every decision is counted by
 | `bad_message` | drop | undecodable or unsupported message |
 | `non_finite` | drop | NaN/Inf in rate or specific force |
 | `over_rate` | drop | ‖ω‖ > `max_rate` (rad/s; default 35 ≈ 2000 °/s, a gyro's full scale) |
+| `over_specific_force` | drop | ‖f‖ > `max_specific_force` (m/s²; default 2000 ≈ 200 g, beyond an IMU's full scale) |
 | `no_specific_force` | drop | the model needs the specific force (`require_specific_force`) and the message carries none |
 | `zero_stamp` | drop | header mode and stamp 0 |
 | `no_time` | drop | receive mode and no receive time given |
@@ -76,8 +77,8 @@ class Action(str, Enum):
     RESET = "reset"   # reset the simulator, then push the sample
 
 
-DROP_REASONS = ("no_rate", "unknown_frame", "bad_message", "non_finite", "over_rate", "no_specific_force",
-                "zero_stamp", "no_time", "repeated_stamp", "backward_stamp", "refused")
+DROP_REASONS = ("no_rate", "unknown_frame", "bad_message", "non_finite", "over_rate", "over_specific_force",
+                "no_specific_force", "zero_stamp", "no_time", "repeated_stamp", "backward_stamp", "refused")
 RESET_REASONS = ("jump_back", "gap")
 ACCEPT_REASONS = ("start", "ok")
 #: every decision reason; ``GateBlock.reason`` indexes this tuple
@@ -127,7 +128,7 @@ def plain_decision(p: tuple) -> Decision:
 @dataclass(frozen=True)
 class GateConfig:
     """Gate settings. ``max_gap`` s; ``on_gap``: ``reset`` | ``integrate``;
-    ``reset_on_jump_back`` s; ``max_rate`` rad/s; ``time_source``: ``auto`` | ``header`` |
+    ``reset_on_jump_back`` s; ``max_rate`` rad/s; ``max_specific_force`` m/s²; ``time_source``: ``auto`` | ``header`` |
     ``receive``; ``rate_smoothing``: weight of a new interval in the rate estimates;
     ``require_specific_force``: drop samples without specific force (``no_specific_force``),
     set when the model's effects need it (the simulator would refuse them);
@@ -139,6 +140,7 @@ class GateConfig:
     on_gap: str = "reset"
     reset_on_jump_back: float = 1.0
     max_rate: float = 35.0
+    max_specific_force: float = 2000.0
     time_source: str = "auto"
     rate_smoothing: float = 0.05
     require_specific_force: bool = False
@@ -153,6 +155,8 @@ class GateConfig:
             raise ValueError(f"reset_on_jump_back = {self.reset_on_jump_back} s; must be >= 0")
         if not self.max_rate > 0:
             raise ValueError(f"max_rate = {self.max_rate} rad/s; must be > 0")
+        if not self.max_specific_force > 0:
+            raise ValueError(f"max_specific_force = {self.max_specific_force} m/s²; must be > 0")
         if self.time_source not in ("auto", "header", "receive"):
             raise ValueError(f"time_source = {self.time_source!r}; allowed: auto, header, receive")
         if not 0 < self.rate_smoothing <= 1:
@@ -235,10 +239,10 @@ def _ema_kernel(e, unset, d_ns, a):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _usable_rows(w, f, has_force, reject, max_rate, require_f):  # pragma: no cover - compiled
+def _usable_rows(w, f, has_force, reject, max_rate, max_force, require_f):  # pragma: no cover - compiled
     """Rows whose values the gate can take as they are: not rejected by the decoder, rate finite
     and within ``max_rate`` (|ω| by the same float operations as the scalar gate), specific
-    force finite where present (and present if ``require_f``)."""
+    force finite and within ``max_force`` where present (and present if ``require_f``)."""
     n = w.shape[0]
     out = np.zeros(n, np.bool_)
     for k in range(n):
@@ -246,7 +250,9 @@ def _usable_rows(w, f, has_force, reject, max_rate, require_f):  # pragma: no co
         ok = reject[k] == 0 and np.isfinite(w0) and np.isfinite(w1) and np.isfinite(w2)
         ok = ok and np.sqrt(w0 * w0 + w1 * w1 + w2 * w2) <= max_rate
         if has_force[k]:
-            ok = ok and np.isfinite(f[k, 0]) and np.isfinite(f[k, 1]) and np.isfinite(f[k, 2])
+            f0, f1, f2 = f[k, 0], f[k, 1], f[k, 2]
+            ok = ok and np.isfinite(f0) and np.isfinite(f1) and np.isfinite(f2)
+            ok = ok and np.sqrt(f0 * f0 + f1 * f1 + f2 * f2) <= max_force
         elif require_f:
             ok = False
         out[k] = ok
@@ -381,8 +387,8 @@ class TimeGate:
 
     def offer_plain(self, r: Reading | Rejected, receive_ns: int | None = None) -> tuple | None:
         """:meth:`offer` for a plain reading — what :meth:`offer_block` vectorises: a
-        ``Reading`` of finite 3-vectors, ‖ω‖ ≤ ``max_rate``, a specific force if one is
-        required, its time (source locked) within (0, ``max_gap``] after the last — with the
+        ``Reading`` of finite 3-vectors, ‖ω‖ ≤ ``max_rate``, ‖f‖ ≤ ``max_specific_force``, a specific
+        force if one is required, its time (source locked) within (0, ``max_gap``] after the last — with the
         same counters, notes, rate estimates and undo, but no ``Decision`` made: returns
         ``(t, omega, specific_force, stamp_ns, source)`` (t s since the origin, the vectors as
         float 3-tuples; :func:`plain_decision` makes the decision, :attr:`last` when asked).
@@ -414,7 +420,8 @@ class TimeGate:
             if f is not None:
                 fx, fy, fz = f
                 f = (float(fx), float(fy), float(fz))
-                if not (f[0] - f[0]) + (f[1] - f[1]) + (f[2] - f[2]) == 0.0:     # NaN: x − x ≠ 0
+                # NaN and ±Inf fail this test too (and a finite force whose norm overflows)
+                if not math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) <= cfg.max_specific_force:
                     return None
             elif cfg.require_specific_force:
                 return None
@@ -501,6 +508,11 @@ class TimeGate:
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
         if rate > cfg.max_rate:
             return self._drop("over_rate", f"|omega| = {rate:.6g} rad/s > max_rate {cfg.max_rate:g} rad/s")
+        if f is not None:
+            force = math.sqrt(fx * fx + fy * fy + fz * fz)
+            if not force <= cfg.max_specific_force:         # (a finite force whose norm overflows too)
+                return self._drop("over_specific_force", f"|specific force| = {force:.6g} m/s² > "
+                                                         f"max_specific_force {cfg.max_specific_force:g} m/s²")
         if f is None and cfg.require_specific_force:
             return self._drop("no_specific_force", "the model's effects need the specific force; "
                                                    "this message carries none")
@@ -596,7 +608,7 @@ class TimeGate:
             arrived = n
 
         usable = _usable_rows(rb.omega, rb.force, rb.has_force, rb.reject, float(cfg.max_rate),
-                              bool(cfg.require_specific_force))
+                              float(cfg.max_specific_force), bool(cfg.require_specific_force))
         gap_ns = _ns_floor(cfg.max_gap)
 
         tn = plain_next = intrinsic = stops = None

@@ -67,6 +67,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f"{GateConfig.reset_on_jump_back:g}); smaller steps back are dropped")
     p.add_argument("--max-rate", type=float, default=GateConfig.max_rate, metavar="RAD_S",
                    help=f"drop samples with |omega| above this, rad/s (default {GateConfig.max_rate:g})")
+    p.add_argument("--max-specific-force", type=float, default=GateConfig.max_specific_force, metavar="M_S2",
+                   help=f"drop samples with |specific force| above this, m/s² (default "
+                        f"{GateConfig.max_specific_force:g} ≈ 200 g)")
     p.add_argument("--namespace", default="", help="namespace of the output topics (default: root)")
     p.add_argument("--no-plot", action="store_true", help="do not write OUT_BAG.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -99,7 +102,8 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
         raise ReplayError(f"--mount: {e}") from None
     try:
         gate = GateConfig(max_gap=args.max_gap, on_gap=args.on_gap, reset_on_jump_back=args.reset_on_jump_back,
-                          max_rate=args.max_rate, time_source=args.time_source)
+                          max_rate=args.max_rate, max_specific_force=args.max_specific_force,
+                          time_source=args.time_source)
     except ValueError as e:     # "max_gap = inf s; must be > 0": name the flag
         raise ReplayError(f"--{str(e).split(' ', 1)[0].replace('_', '-')}: {e}") from None
     cfg = ReplayConfig(

@@ -255,7 +255,8 @@ class NodeConfig:
         """The gate of the node: a sample without the specific force the model needs is dropped
         (``no_specific_force``) before it reaches the time base; a reset re-anchors the time
         origin (a reset is a fresh start of the core)."""
-        kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate", "time_source")}
+        kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate",
+                                              "max_specific_force", "time_source")}
         try:
             return GateConfig(**kw, require_specific_force=needs_force, rebase_on_reset=True)
         except ValueError as e:

@@ -220,6 +220,8 @@ PARAMETERS: list[ParamSpec] = [
               range=(0.0, 3600.0)),
     ParamSpec("gate.max_rate", "double", GateConfig.max_rate, "samples with a rate norm ‖ω‖ above this are dropped",
               "rad/s", range=(1e-3, 1e4)),
+    ParamSpec("gate.max_specific_force", "double", GateConfig.max_specific_force,
+              "samples with a specific force norm ‖f‖ above this are dropped", "m/s²", range=(1.0, 1e6)),
     ParamSpec("reset_on_clock_jump", "bool", True,
               "reset when the node clock jumps back (looped 'ros2 bag play --clock --loop')"),
     # -- outputs

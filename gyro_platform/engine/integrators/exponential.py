@@ -67,6 +67,8 @@ def _expm_small(W):
         for i in range(n):
             c += abs(W[i, j])
         norm = max(norm, c)
+    if not norm < math.inf:             # Inf or NaN in W: halving Inf never ends (a 1e160 m/s² input)
+        return np.full((n, n), np.nan)
     s = 0
     while norm > 0.125:
         norm *= 0.5
