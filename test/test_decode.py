@@ -50,7 +50,7 @@ def oracle(msgtype, raw, store):
         return None, False, 0, "", _v(msg.angular), None, False
     stamp = msg.header.stamp
     head = (True, stamp.sec * S + stamp.nanosec, msg.header.frame_id)
-    if stamp.nanosec >= S:
+    if stamp.nanosec >= S or stamp.sec < 0:                   # not a valid builtin_interfaces/Time
         return ("bad_message", *head, None, None, False)
     if msgtype == TWS:
         return (None, *head, _v(msg.twist.angular), None, False)
@@ -76,7 +76,7 @@ def assert_matches_oracle(msgtype, raws, store, rb: RateBlock):
             continue
         assert (bool(rb.has_header[i]), int(rb.stamp_ns[i]), rb.frame_id[i]) == (has_header, stamp, frame)
         if reason == "bad_message":
-            assert "nanosec" in rb.detail[i]
+            assert "(invalid stamp)" in rb.detail[i]
         if reason is None:
             assert np.array_equal(rb.omega[i], omega, equal_nan=True)
             assert bool(rb.has_force[i]) == (force is not None)
@@ -215,14 +215,18 @@ def test_plain_little_endian_rows_never_reach_rosbags():
 
 
 def test_invalid_nanosec_is_a_bad_message_not_a_time():
-    """Issue 17: one stamp with nanosec = 1.5e9 must not become t + 1.5 s."""
+    """Issue 17: one stamp with nanosec = 1.5e9 must not become t + 1.5 s; a negative ``sec``
+    (before 1970) is no time either (it reset the node twice and stamped an output 0)."""
     good = make(IMU, 100, 999_999_999, "imu", (0.1, 0.2, 0.3), (0, 0, 9.8), 0.0, 0.0)
     bad = make(IMU, 100, 1_500_000_000, "imu", (0.1, 0.2, 0.3), (0, 0, 9.8), -1.0, 0.0)
+    before = make(IMU, -1, 500_000_000, "imu", (0.1, 0.2, 0.3), (0, 0, 9.8), 0.0, 0.0)
     for le in (True, False):                              # vectorised and rosbags paths
-        raws = [bytes(J.serialize_cdr(x, IMU, little_endian=le)) for x in (good, bad)]
+        raws = [bytes(J.serialize_cdr(x, IMU, little_endian=le)) for x in (good, bad, before)]
         rb = decode_rates(IMU, raws)
-        assert rb.reject_reason(0) is None and rb.reject_reason(1) == "bad_message"
+        assert rb.reject_reason(0) is None and rb.reject_reason(1) == rb.reject_reason(2) == "bad_message"
         assert "1500000000" in rb.detail[1] and REJECT_REASONS[rb.reject[1] - 1] == "bad_message"
+        assert rb.detail[2] == "header.stamp.sec = -1 is negative (invalid stamp)"
+        assert int(rb.stamp_ns[2]) == -500_000_000 and bool(rb.has_header[2])
 
 
 def test_bag_definition_with_another_layout_goes_through_rosbags():

@@ -215,16 +215,20 @@ def test_bad_input_is_counted_by_reason_and_never_raises():
     assert st["gyro_platform: node"][2]["dropped_by_reason.bad_message"] == "2"
 
 
-@pytest.mark.parametrize("nanosec", [1_500_000_000, 1_000_000_000, -1])
-def test_stamp_with_nanosec_out_of_range_is_a_bad_message_not_a_time_jump(nanosec):
-    """``nanosec = 1.5e9`` is not 1.5 s later: the message is dropped (bad_message), the time
-    base and the output grid are untouched (issue 17: it lost 14 rows and sent t backwards)."""
+@pytest.mark.parametrize("sec,nanosec", [(None, 1_500_000_000), (None, 1_000_000_000), (None, -1), (-1, 500_000_000)])
+def test_stamp_with_nanosec_out_of_range_is_a_bad_message_not_a_time_jump(sec, nanosec):
+    """``nanosec = 1.5e9`` is not 1.5 s later, nor ``sec = -1`` a jump back: the message is
+    dropped (bad_message), the time base and the output grid are untouched (issue 17: it lost
+    14 rows and sent t backwards; a negative stamp reset the node twice)."""
     core = make_core(output_rate=10.0)
     published = {k: bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(150)}
     bad = imu(BASE + 150 * MS)
     bad.header.stamp.nanosec = nanosec
+    if sec is not None:
+        bad.header.stamp.sec = sec
     assert core.on_message(bad, BASE + 150 * MS) == []
-    assert core.gate.last.reason == "bad_message" and "nanosec" in core.gate.last.detail
+    assert core.gate.last.reason == "bad_message"
+    assert ("sec = -1 is negative" if sec else "nanosec") in core.gate.last.detail
     assert core.gate.last_stamp_ns == BASE + 149 * MS
     published.update({k: bool(core.on_message(imu(BASE + k * MS), BASE + k * MS)) for k in range(151, 400)})
     assert [k for k, p in published.items() if p] == [0, 100, 200, 300]       # the 10 Hz grid goes on

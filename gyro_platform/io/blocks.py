@@ -92,10 +92,15 @@ def concat_rows(parts: list) -> "list | RawRows":
     return [r for p in parts for r in (p.tolist() if isinstance(p, RawRows) else p)]
 
 
-def bad_stamp_detail(nanosec: int) -> str:
+def bad_stamp_detail(sec: int, nanosec: int) -> str | None:
     """Detail of a message rejected ``bad_message`` because its header stamp is not a valid
-    ``builtin_interfaces/Time`` (``nanosec`` must be below 1e9; issue 17)."""
-    return f"header.stamp.nanosec = {nanosec} is not below 1e9 (invalid stamp)"
+    ``builtin_interfaces/Time``: ``nanosec`` must be in [0, 1e9) (issue 17: not a later time)
+    and ``sec`` not negative (before 1970: not a time a ROS clock gives); None when valid."""
+    if not 0 <= nanosec < 1_000_000_000:
+        return f"header.stamp.nanosec = {nanosec} is not in [0, 1e9) (invalid stamp)"
+    if sec < 0:
+        return f"header.stamp.sec = {sec} is negative (invalid stamp)"
+    return None
 
 
 @dataclass(slots=True)

@@ -102,8 +102,8 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
             rb.frame_id = frame.tolist()
         for i in np.flatnonzero(ok & no_rate).tolist():
             rb.set_reject(i, "no_rate", NO_RATE_DETAIL)
-        for i in np.flatnonzero(ok & (nsec >= 1_000_000_000)).tolist():
-            _reject_bad_stamp(rb, i, int(nsec[i]))
+        for i in np.flatnonzero(ok & ((nsec >= 1_000_000_000) | (rb.stamp_ns < 0))).tolist():
+            _reject_bad_stamp(rb, i, int(rb.stamp_ns[i] - nsec[i]) // 1_000_000_000, int(nsec[i]))
     return ~ok
 
 
@@ -217,11 +217,11 @@ def _decode_rows(buf, beg, lens, kind, stamp_ns, has_header, omega, force, has_f
     return ok, code, first[:nfirst], nsec, no_rate
 
 
-def _reject_bad_stamp(rb: RateBlock, i: int, nanosec: int) -> None:
+def _reject_bad_stamp(rb: RateBlock, i: int, sec: int, nanosec: int) -> None:
     rb.omega[i] = 0.0
     rb.force[i] = 0.0
     rb.has_force[i] = False
-    rb.set_reject(i, "bad_message", bad_stamp_detail(nanosec))
+    rb.set_reject(i, "bad_message", bad_stamp_detail(sec, nanosec))
 
 
 def _decode_one(msgtype: str, raw: Raw, store: Any, rb: RateBlock, i: int) -> None:
@@ -244,9 +244,9 @@ def _decode_one(msgtype: str, raw: Raw, store: Any, rb: RateBlock, i: int) -> No
         except (AttributeError, TypeError, ValueError):
             pass
         else:
-            if nsec >= 1_000_000_000:       # an invalid stamp, not a later time
+            if bad_stamp_detail(sec, nsec) is not None:      # an invalid stamp, not another time
                 rb.has_header[i], rb.stamp_ns[i], rb.frame_id[i] = True, sec * 1_000_000_000 + nsec, frame
-                _reject_bad_stamp(rb, i, nsec)
+                _reject_bad_stamp(rb, i, sec, nsec)
                 return
     r = reading_from_msg(msg, _SENSOR_FRAME)
     if header is not None and r.stamp_ns is not None:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, 
 
 import numpy as np
 
+from .blocks import bad_stamp_detail
 from ..engine.outputs import (BEARING_FRAMES, BEARING_NAMES, C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MOTOR,
                               C_MOUNT, C_MRATE, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, GIMBAL_NAMES, MOUNT_NAMES,
                               Outputs)
@@ -154,11 +155,13 @@ def jazzy_typestore():
 # ---- time ---------------------------------------------------------------------------------
 def stamp_ns(stamp: Any) -> int:
     """``builtin_interfaces/Time`` → integer ns. ValueError when ``nanosec`` is outside
-    [0, 1e9) (an invalid stamp, not a later time)."""
-    nsec = int(stamp.nanosec)
-    if not 0 <= nsec < 1_000_000_000:
-        raise ValueError(f"invalid stamp: nanosec = {nsec} outside [0, 1e9)")
-    return int(stamp.sec) * 1_000_000_000 + nsec
+    [0, 1e9) (an invalid stamp, not a later time) or ``sec`` is negative
+    (``blocks.bad_stamp_detail``)."""
+    sec, nsec = int(stamp.sec), int(stamp.nanosec)
+    bad = bad_stamp_detail(sec, nsec)
+    if bad is not None:
+        raise ValueError(bad)
+    return sec * 1_000_000_000 + nsec
 
 
 def header(types: MessageTypes, t_ns: int, frame_id: str = "") -> Any:
@@ -380,7 +383,7 @@ def reading_from_msg(msg: Any, mounting: Mounting | None = None) -> Reading | Re
 
     Imu: ``angular_velocity_covariance[0] == -1`` (sensor_msgs: "not reported") → rejected
     ``no_rate``; ``linear_acceleration_covariance[0] == -1`` → ``specific_force`` None. A
-    stamp with ``nanosec`` outside [0, 1e9) → rejected ``bad_message``. Values are passed
+    stamp with ``nanosec`` outside [0, 1e9) or a negative ``sec`` → rejected ``bad_message``. Values are passed
     through as they are (NaN/Inf and range are the gate's job). Pure Python floats: no numpy
     call per message.
     """
