@@ -571,6 +571,9 @@ def test_namespaces_that_are_valid_pass():
     (["--namespace", "a" * 230], "--namespace: too long"),
     (["--output-rate=--"], "argument --output-rate: expected one float value"),
     (["--mount", "imu=a,b,c"], "--mount: mounting"),
+    (["--mount", "base_link=0,0,1"], "base_link is the vehicle frame itself"),
+    (["--mount", "imu=0,0,1", "--mount", "imu=0,0,2"], "frame 'imu' is mounted twice"),
+    (["--max-specific-force", "0"], "--max-specific-force: max_specific_force = 0.0"),
 ])
 def test_more_bad_replay_values_are_exit_2_naming_the_flag(args, words, tmp_path, capsys):
     bag = small_bag(tmp_path / "b")

@@ -474,6 +474,17 @@ def test_effect_needing_specific_force_is_refused_on_a_twist_input():
     ({"effects": [["servo"]]}, "effects"),
     ({"fidelity": "precession", "physics": {"rotor_C": [0.0, 2.0e-5, 2.0e-5]}}, "fidelity"),  # L6 = 0: det G_R = 0
     ({"fidelity": "precession", "physics": {"rotor_speed": [2500.0, 2500.0, 0.0]}}, "fidelity"),
+    # a traceback before: names rcl refuses, the node's own topics as input
+    ({"imu_topic": "bad topic"}, "imu_topic"),
+    ({"imu_topic": ""}, "imu_topic"),
+    ({"imu_topic": "drift/angle"}, "imu_topic"),
+    ({"input_type": "twist", "twist_topic": "gimbal/joint_states"}, "twist_topic"),
+    ({"imu_topic": "/tf"}, "imu_topic"),
+    # accepted before, then every sample dropped: a Twist has no header stamp
+    ({"input_type": "twist", "gate": {"time_source": "header"}}, "gate.time_source"),
+    # accepted before: base_link re-mounted (every reading rotated), a frame mounted twice (last won)
+    ({"sensor_mountings": ["base_link=0.0,0.0,1.5707963267948966"]}, "sensor_mountings"),
+    ({"sensor_mountings": ["imu_link=0.0,0.0,1.0", "imu_link=0.0,0.0,2.0"]}, "sensor_mountings"),
 ])
 def test_config_errors_name_the_parameter(params, named):
     with pytest.raises(ConfigError) as e:

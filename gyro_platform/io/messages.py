@@ -271,6 +271,22 @@ class Mounting:
             raise ValueError(f"mounting {spec!r}: values must be numbers") from None
         return frame.strip(), as_rotation(nums)
 
+    @staticmethod
+    def parse_specs(specs: Iterable[str], vehicle_frame: str = VEHICLE_FRAME) -> dict[str, Rotation]:
+        """Every :meth:`parse_spec` of ``specs`` → frame → Rotation. ValueError for a frame given
+        twice (which one was meant?) and for the vehicle frame itself, which is the identity by
+        definition (a mounting for it would rotate every base_link reading and every Twist)."""
+        frames: dict[str, Rotation] = {}
+        for spec in specs:
+            frame, rot = Mounting.parse_spec(spec)
+            if frame == vehicle_frame:
+                raise ValueError(f"mounting {spec!r}: {vehicle_frame} is the vehicle frame itself (the identity); "
+                                 "mount the sensor's own frame_id")
+            if frame in frames:
+                raise ValueError(f"mounting {spec!r}: frame {frame!r} is mounted twice")
+            frames[frame] = rot
+        return frames
+
 
 def _group(frames: list[str]) -> dict[str, np.ndarray]:
     """frame id → indices of its rows (one group without a Python loop when all rows agree)."""

@@ -97,7 +97,7 @@ def print_results(summary: dict[str, Any], out_bag: Any, file: Any = None) -> No
 def config_from_args(args: argparse.Namespace) -> ReplayConfig:
     """ReplayConfig from parsed arguments (loads the scene if given)."""
     try:
-        frames = dict(Mounting.parse_spec(s) for s in args.mount)
+        frames = Mounting.parse_specs(args.mount)
     except ValueError as e:
         raise ReplayError(f"--mount: {e}") from None
     try:

@@ -20,9 +20,10 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..io.gate import GateConfig
-from ..io.messages import Mounting
+from ..io.messages import Mounting, output_topics
 from ..physics.options import DEFAULT_EFFECTS, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
 from ..physics.params import ParameterError, PlatformParams
+from .dds_names import NameError_, expand_topic_name
 from .parameters import INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS, ConfigError
 
 #: parameters every rclpy node (or a library it uses) declares itself; accepted and ignored here
@@ -207,6 +208,7 @@ class NodeConfig:
     @staticmethod
     def _build(values: dict[str, Any], scene: Any) -> "NodeConfig":
         cfg = NodeConfig(dict(values), scene)
+        cfg._check_input()
         cfg._built.update(mounting=cfg._mounting(), params=cfg._platform_params())
         cfg._built["options"] = opts = cfg._model_options()
         cfg._built["gate"] = cfg._gate_config(bool(opts.effects & NEEDS_SPECIFIC_FORCE))
@@ -226,6 +228,22 @@ class NodeConfig:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
 
     # ---- derived objects ------------------------------------------------------------
+    def _check_input(self) -> None:
+        """The input topic is a name rcl accepts and none of the node's own topics (a
+        subscription on ``drift/angle`` would take the node's outputs as its input, with another
+        type); a Twist, which has no header, cannot be timed by header stamps."""
+        param = "imu_topic" if self["input_type"] == "imu" else "twist_topic"
+        try:
+            name = expand_topic_name(self[param], NODE_NAME)
+        except NameError_ as e:
+            raise ConfigError(param, str(e)) from None
+        own = {*output_topics(""), "/tf", "/tf_static", "/robot_description"}
+        if name in own:
+            raise ConfigError(param, f"{name} is one of the node's own output topics; choose another input topic")
+        if self["input_type"] == "twist" and self["gate.time_source"] == "header":
+            raise ConfigError("gate.time_source", "'header' cannot time input_type 'twist' (geometry_msgs/Twist has "
+                                                  "no header); use auto or receive, or input_type twist_stamped")
+
     @property
     def input_type_name(self) -> str:
         """ROS type of the input (``sensor_msgs/msg/Imu`` …)."""
@@ -265,7 +283,7 @@ class NodeConfig:
 
     def _mounting(self) -> Mounting:
         try:
-            frames = dict(Mounting.parse_spec(s) for s in self["sensor_mountings"])
+            frames = Mounting.parse_specs(self["sensor_mountings"], self["vehicle_frame"])
             return Mounting(frames, vehicle_frame=self["vehicle_frame"], unknown_frame=self["unknown_frame"])
         except ValueError as e:
             raise ConfigError("sensor_mountings", str(e)) from None
