@@ -31,6 +31,9 @@ __all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
 
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
+#: what a subcommand does differently with the codes above
+EPILOG_NOTES = {"node": "\n\nnode: Ctrl-C or SIGTERM is how a node is stopped (ros2 launch, systemd): exit 0 after a "
+                        "last /diagnostics, not 130/143"}
 
 SUBCOMMANDS = {
     "run": ("gyro_platform.scenes.command", "run a scene (file or name): summary table, CSV/JSON, plot"),
@@ -53,7 +56,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="{" + ",".join(SUBCOMMANDS) + "}")
     for name, (module, help_) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_, epilog=EPILOG,
+        p = sub.add_parser(name, help=help_, description=help_, epilog=EPILOG + EPILOG_NOTES.get(name, ""),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_module=module)
         if command is not None and name != command:
@@ -101,6 +104,15 @@ PLOTTING = ("run", "replay")
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``gyro-platform …``: the exit status (see :data:`EXIT_CODES`)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:               # Ctrl-C while the command is still being imported and set up
+        print("gyro-platform: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _main(argv: list[str] | None) -> int:
     words = sys.argv[1:] if argv is None else argv
     if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
         from .io import plot_process

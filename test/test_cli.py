@@ -623,6 +623,22 @@ def test_scene_values_that_cannot_be_meant_are_refused(extra, words, tmp_path, c
     assert "duration: 1e+12 makes the run too big to start: ~1e+14 samples, 1e+13 outputs" in line
 
 
+def test_ctrl_c_while_a_command_is_set_up_is_one_line_and_130(monkeypatch, capsys):
+    """A Ctrl-C in the first ~0.5 s (imports, parser) printed a KeyboardInterrupt traceback."""
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["run", "default"]) == cli.EXIT_INTERRUPTED == 130
+    assert capsys.readouterr().err == "gyro-platform: interrupted\n"
+
+
+def test_node_help_says_a_signal_stops_it_with_exit_0(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["node", "--help"])
+    out = capsys.readouterr().out
+    assert "node: Ctrl-C or SIGTERM is how a node is stopped (ros2 launch, systemd): exit 0" in " ".join(out.split())
+
+
 @pytest.mark.parametrize("motion,words", [
     ("{type: constant, omega: [1.0e200, 0, 0]}", "motion 'constant': cannot be generated"),
     ("{type: random, seed: 1, angle_rms_deg: 1.0e300, band_hz: [0.1, 1.0e300]}", "motion 'random': its rates are not finite at"),

@@ -871,6 +871,34 @@ def test_bad_parameter_value_names_the_parameter(tmp_path):
     assert r.returncode == 2 and "parameter 'output_rate'" in r.stderr and "10.0" in r.stderr, r.stderr
 
 
+@pytest.mark.parametrize("text,message", [
+    ("imu_topic: bad topic", "parameter 'imu_topic': invalid topic name"),
+    ("imu_topic: drift/angle", "parameter 'imu_topic': /drift/angle is one of the node's own output topics"),
+])
+def test_an_input_topic_the_node_cannot_subscribe_is_one_line_exit_2(tmp_path, text, message):
+    """It was a NameError_ / TypeError traceback and exit 1 from inside the DDS adapter."""
+    pfile = tmp_path / "p.yaml"
+    pfile.write_text(f"/**:\n  ros__parameters:\n    {text}\n")
+    env = dict(os.environ, CYCLONEDDS_URI=LOOPBACK_XML.as_uri(), ROS_DOMAIN_ID=str(next_domain()),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    r = subprocess.run([sys.executable, "-m", "gyro_platform.cli", "node", "--transport", "dds", "--duration", "1",
+                        "--params-file", str(pfile)], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=READY_TIMEOUT)
+    assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_use_sim_time_on_dds_is_said_to_be_ignored(tmp_path):
+    pfile = tmp_path / "p.yaml"
+    pfile.write_text("/**:\n  ros__parameters:\n    use_sim_time: true\n")
+    env = dict(os.environ, CYCLONEDDS_URI=LOOPBACK_XML.as_uri(), ROS_DOMAIN_ID=str(next_domain()),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    r = subprocess.run([sys.executable, "-m", "gyro_platform.cli", "node", "--transport", "dds", "--duration", "0.5",
+                        "--params-file", str(pfile)], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=READY_TIMEOUT)
+    assert r.returncode == 0, r.stderr
+    assert "warning: use_sim_time is ignored on the DDS transport" in r.stderr
+
+
 # =========================================================================================
 # node_main: transport choice and the rclpy path (with a stand-in for gyro_platform.ros.node)
 # =========================================================================================

@@ -492,6 +492,15 @@ def test_config_errors_name_the_parameter(params, named):
     assert e.value.parameter == named and f"'{named}'" in str(e.value)
 
 
+def test_a_range_refusal_shows_bounds_that_exclude_the_value():
+    """1.5708 rad was refused as outside [-1.5708, 1.5708]: the bounds are shown exactly."""
+    with pytest.raises(ConfigError) as e:
+        NodeConfig.from_ros_params({"physics": {"latitude": 1.5708}})
+    assert "1.5708 rad is outside the allowed range [-1.5707963267948966, 1.5707963267948966]" in str(e.value)
+    with pytest.raises(ConfigError, match=r"20000 Hz is outside the allowed range \[0, 10000\]"):
+        NodeConfig.from_ros_params({"output_rate": 20000.0})
+
+
 def test_unknown_key_suggests_the_closest_name_and_ros_keys_are_accepted():
     with pytest.raises(ConfigError, match="did you mean 'output_rate'"):
         NodeConfig.from_ros_params({"output_rat": 5.0})

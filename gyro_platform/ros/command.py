@@ -164,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
+    from .config import load_params_file
     from .core import NodeCore
     from .parameters import ConfigError
     from ..io.messages import MessageTypes
@@ -184,6 +185,9 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
         log(hint)
     try:
         config = build_config(args, name)
+        if args.params_file and load_params_file(args.params_file, name).get("use_sim_time") is True:
+            log("warning: use_sim_time is ignored on the DDS transport (no /clock subscription): the node clock is "
+                "the wall clock; outputs still carry the input's header stamps")
         validate_node_name(name)
         namespace = normalize_namespace(args.namespace)
         domain = domain_id_from_env(args.domain_id)

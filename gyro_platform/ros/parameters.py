@@ -83,8 +83,8 @@ class ParamSpec:
         if t == "double":
             x = self._double(v, "a double")
             if self.range and not (self.range[0] <= x <= self.range[1]):
-                self._fail(f"{_num(x)}{' ' + self.unit if self.unit else ''} is outside the allowed range "
-                           f"[{_num(self.range[0])}, {_num(self.range[1])}]")
+                self._fail(f"{_exact(x)}{' ' + self.unit if self.unit else ''} is outside the allowed range "
+                           f"[{_exact(self.range[0])}, {_exact(self.range[1])}]")
             return x
         if t == "string":
             if not isinstance(v, str):
@@ -127,6 +127,13 @@ class ParamSpec:
 
 def _num(x: float) -> str:
     return f"{x:g}"
+
+
+def _exact(x: float) -> str:
+    """``x`` short where that is exact, else in full (a refusal of 1.5708 must not show a
+    bound of 1.5708: it is π/2 = 1.5707963267948966)."""
+    short = f"{x:g}"
+    return short if float(short) == x else repr(float(x))
 
 
 #: PlatformParams field -> (unit, description); physics.<field> parameters
