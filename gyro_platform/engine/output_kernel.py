@@ -541,7 +541,7 @@ class OutputKernel:
             raise SimulationError(
                 f"carried mode: the spin axes of rotors 6 and 11 are within {math.degrees(MIN_SPIN_AXES_SINE):.2g}° "
                 f"of parallel at t = {float(t)!r} s: the gyros' reference triad, whose drift the carried mode "
-                "reports, is undefined there (rotor 11 has precessed about 90° towards rotor 6)")
+                "reports, is undefined there (one has precessed about 90° towards the other)")
         # the model refused the state it was evaluated at: let it say why (same message as stepping)
         sys_ = self.system
         saved, n_rhs = sys_.seg.copy(), sys_.n_rhs

@@ -37,12 +37,6 @@ def atomic_write(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def _json_default(x: Any) -> Any:
-    if hasattr(x, "item"):
-        return x.item()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
-
-
 def _finite(x: Any) -> Any:
     """``x`` with every non-finite float (NaN: a figure that could not be made, σ of one run)
     replaced by None, so that the text is strict JSON (``null``), not JavaScript's ``NaN``."""
@@ -52,15 +46,15 @@ def _finite(x: Any) -> Any:
         return {k: _finite(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_finite(v) for v in x]
-    if hasattr(x, "item") and not hasattr(x, "__len__"):     # numpy scalars
-        return _finite(x.item())
+    if hasattr(x, "tolist"):                # numpy scalars and arrays
+        return _finite(x.tolist())
     return x
 
 
 def json_bytes(obj: Any, indent: int | None = None) -> bytes:
-    """Strict JSON of ``obj`` (non-finite numbers as ``null``; other objects by ``str``)."""
-    return json.dumps(_finite(obj), indent=indent, default=lambda x: _json_default(x) if hasattr(x, "item")
-                      else str(x), allow_nan=False).encode()
+    """Strict JSON of ``obj`` (non-finite numbers as ``null``, numpy values as Python ones,
+    other objects — paths — by ``str``)."""
+    return json.dumps(_finite(obj), indent=indent, default=str, allow_nan=False).encode()
 
 
 class ResultStore:
