@@ -251,8 +251,8 @@ def _usable_rows(w, f, has_force, reject, max_rate, max_force, require_f):  # pr
         ok = ok and np.sqrt(w0 * w0 + w1 * w1 + w2 * w2) <= max_rate
         if has_force[k]:
             f0, f1, f2 = f[k, 0], f[k, 1], f[k, 2]
-            ok = ok and np.isfinite(f0) and np.isfinite(f1) and np.isfinite(f2)
-            ok = ok and np.sqrt(f0 * f0 + f1 * f1 + f2 * f2) <= max_force
+            fin = np.isfinite(f0) and np.isfinite(f1) and np.isfinite(f2)
+            ok = ok and fin and np.sqrt(f0 * f0 + f1 * f1 + f2 * f2) <= max_force
         elif require_f:
             ok = False
         out[k] = ok
@@ -508,11 +508,9 @@ class TimeGate:
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
         if rate > cfg.max_rate:
             return self._drop("over_rate", f"|omega| = {rate:.6g} rad/s > max_rate {cfg.max_rate:g} rad/s")
-        if f is not None:
-            force = math.sqrt(fx * fx + fy * fy + fz * fz)
-            if not force <= cfg.max_specific_force:         # (a finite force whose norm overflows too)
-                return self._drop("over_specific_force", f"|specific force| = {force:.6g} m/s² > "
-                                                         f"max_specific_force {cfg.max_specific_force:g} m/s²")
+        if f is not None and not (force := math.sqrt(fx * fx + fy * fy + fz * fz)) <= cfg.max_specific_force:
+            return self._drop("over_specific_force", f"|specific force| = {force:.6g} m/s² > "     # (or overflows)
+                                                     f"max_specific_force {cfg.max_specific_force:g} m/s²")
         if f is None and cfg.require_specific_force:
             return self._drop("no_specific_force", "the model's effects need the specific force; "
                                                    "this message carries none")
