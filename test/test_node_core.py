@@ -645,7 +645,7 @@ def test_params_file_reads_exponent_numbers_as_doubles_as_rcl_does(tmp_path):
     f.write_text("/**:\n  ros__parameters:\n    output_rate: 1.0e3\n    gate:\n      max_gap: 1e2\n"
                  "    physics:\n      latitude: -2.5E-3\n      bias_torque: [1e-4, 0.0, 0.0, 0.0, 0.0]\n"
                  "      servo_kp: 1500.0\n")
-    cfg = build_config(argparse.Namespace(params_file=str(f), scene=""), P.NODE_NAME)
+    cfg, _ = build_config(argparse.Namespace(params_file=str(f), scene=""), P.NODE_NAME)
     assert cfg["output_rate"] == 1000.0 and cfg.gate.max_gap == 100.0
     assert cfg["physics.latitude"] == -2.5e-3 and cfg["physics.bias_torque"][0] == 1e-4
     f.write_text("/**:\n  ros__parameters:\n    output_rate: '1e3'\n")

@@ -111,14 +111,15 @@ def freeze_startup_objects() -> None:
 # =========================================================================================
 # parameters
 # =========================================================================================
-def build_config(args: argparse.Namespace, node_name: str) -> Any:
-    """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value)."""
+def build_config(args: argparse.Namespace, node_name: str) -> tuple[Any, dict[str, Any]]:
+    """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value), and the
+    parameters it was built from (ROS's own, such as ``use_sim_time``, among them)."""
     from .config import NodeConfig, load_params_file
 
     params = load_params_file(args.params_file, node_name) if args.params_file else {}
     if args.scene:
         params["scene"] = args.scene
-    return NodeConfig.from_ros_params(params)
+    return NodeConfig.from_ros_params(params), params
 
 
 # =========================================================================================
@@ -164,7 +165,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
-    from .config import load_params_file
     from .core import NodeCore
     from .parameters import ConfigError
     from ..io.messages import MessageTypes
@@ -184,8 +184,8 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
         os.environ["CYCLONEDDS_URI"] = uri
         log(hint)
     try:
-        config = build_config(args, name)
-        if args.params_file and load_params_file(args.params_file, name).get("use_sim_time") is True:
+        config, params = build_config(args, name)
+        if params.get("use_sim_time") is True:
             log("warning: use_sim_time is ignored on the DDS transport (no /clock subscription): the node clock is "
                 "the wall clock; outputs still carry the input's header stamps")
         validate_node_name(name)

@@ -130,8 +130,9 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
             if own:
                 close_client(client)
     res.wall_s = time.perf_counter() - t0
-    res.records = store.records(spec.n_runs)
-    res.beyond = len(store.records()) - len(res.records)
+    every = store.records()
+    res.records = [r for r in every if r["run"] < spec.n_runs]     # a smaller runs: counts only its own
+    res.beyond = len(every) - len(res.records)
     for r in res.records:
         res.counts[r["status"]] = res.counts.get(r["status"], 0) + 1
     return res

@@ -88,18 +88,14 @@ class ResultStore:
     def put(self, record: dict[str, Any]) -> None:
         atomic_write(self._path(int(record["run"])), json_bytes(record))
 
-    def records(self, runs: int | None = None) -> list[dict[str, Any]]:
-        """Every whole record, by run index (unreadable leftovers are ignored); with ``runs``
-        only those of runs ``0 … runs − 1`` (a sweep run again with fewer runs keeps the
-        records of the others on disk but does not count them)."""
+    def records(self) -> list[dict[str, Any]]:
+        """Every whole record, by run index (unreadable leftovers are ignored)."""
         out = []
         for p in sorted(self.runs_dir.glob("run_*.json")):
             try:
-                r = json.loads(p.read_text())
+                out.append(json.loads(p.read_text()))
             except (OSError, json.JSONDecodeError):
                 continue
-            if runs is None or r["run"] < runs:
-                out.append(r)
         return sorted(out, key=lambda r: r["run"])
 
     def finished(self) -> set[int]:
