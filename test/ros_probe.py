@@ -1,0 +1,119 @@
+"""A probe node for the ROS tests: publishes rate inputs, records topics and TF, prints JSON.
+
+Run in ROS's python (rclpy) by :meth:`rosenv.RosEnv.probe`, as a separate process beside the
+node under test: ``python3 ros_probe.py SPEC_JSON``. SPEC (all keys optional)::
+
+    {"wait_subscriber": "/imu",              # wait (≤ discovery s) until the node subscribes
+     "discovery": 20.0,
+     "publish": {"topic": "/imu", "type": "imu" | "twist" | "twist_stamped", "rate": 100.0,
+                 "count": 200, "w": [wx, wy, wz], "f": [fx, fy, fz], "frame_id": "base_link",
+                 "stamp": "now" | "zero" | <t0 in s>},
+     "collect": {"/gimbal/joint_states": "sensor_msgs/msg/JointState", ...},
+     "latched": {"/robot_description": "std_msgs/msg/String"},   # transient local readers
+     "settle": 1.0,                          # s to keep collecting after the last input
+     "until": {"/diagnostics": 2},           # or collect until these counts (≤ timeout)
+     "timeout": 30.0,
+     "tf": [["platform", "gyro_frame4"], ...]}   # looked up in a tf2_ros.Buffer at the end
+
+The report (last stdout line): ``{"published": n, "topics": {topic: [message dicts]},
+"tf": {"target|source": {"stamp": s, "rotation": [x, y, z, w], "translation": [...]}
+| {"error": "..."}}}``.
+"""
+import importlib
+import json
+import sys
+import time
+
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rosidl_runtime_py.convert import message_to_ordereddict
+import tf2_ros
+
+COLLECT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+INPUT_TYPES = {'imu': 'sensor_msgs/msg/Imu', 'twist': 'geometry_msgs/msg/Twist',
+               'twist_stamped': 'geometry_msgs/msg/TwistStamped'}
+
+
+def msg_type(name):
+    """The message class of 'pkg/msg/Name'."""
+    pkg, _, cls = name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.msg'), cls)
+
+
+def make_input(kind, t_ns, w, f, frame_id):
+    """One rate sample of kind imu / twist / twist_stamped stamped t_ns."""
+    m = msg_type(INPUT_TYPES[kind])()
+    ang = m.angular_velocity if kind == 'imu' else (m.twist.angular if kind == 'twist_stamped' else m.angular)
+    ang.x, ang.y, ang.z = (float(v) for v in w)
+    if kind == 'imu':
+        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = (float(v) for v in f)
+    if kind != 'twist':
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t_ns), 10**9)
+        m.header.frame_id = frame_id
+    return m
+
+
+def main(spec):
+    """Run the probe of ``spec``; the report as a dict."""
+    rclpy.init()
+    node = rclpy.create_node('ros_probe')
+    got = {}
+    for table, qos in ((spec.get('collect', {}), COLLECT), (spec.get('latched', {}), LATCHED)):
+        for topic, typ in table.items():
+            got[topic] = []
+            node.create_subscription(msg_type(typ), topic, got[topic].append, qos)
+    buffer = tf2_ros.Buffer()
+    tf2_ros.TransformListener(buffer, node)
+
+    def spin_for(seconds, done=lambda: False):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and not done():
+            rclpy.spin_once(node, timeout_sec=0.005)
+
+    discovery = float(spec.get('discovery', 20.0))
+    if spec.get('wait_subscriber'):
+        spin_for(discovery, lambda: node.count_subscribers(spec['wait_subscriber']) > 0)
+        if node.count_subscribers(spec['wait_subscriber']) == 0:
+            raise SystemExit(f'no subscriber on {spec["wait_subscriber"]} after {discovery} s')
+    spin_for(float(spec.get('pre', 0.5)))       # let the node's publishers match our readers
+    published = 0
+    pub_spec = spec.get('publish')
+    if pub_spec:
+        kind = pub_spec.get('type', 'imu')
+        pub = node.create_publisher(msg_type(INPUT_TYPES[kind]), pub_spec['topic'], qos_profile_sensor_data)
+        spin_for(1.0, lambda: pub.get_subscription_count() > 0)
+        period = 1.0 / float(pub_spec.get('rate', 100.0))
+        stamp = pub_spec.get('stamp', 'now')
+        t0 = node.get_clock().now().nanoseconds if stamp == 'now' else (0 if stamp == 'zero' else int(float(stamp) * 1e9))
+        start = time.monotonic()
+        for k in range(int(pub_spec.get('count', 100))):
+            t_ns = 0 if stamp == 'zero' else t0 + int(round(k * period * 1e9))
+            pub.publish(make_input(kind, t_ns, pub_spec.get('w', (0.0, 0.0, 0.0)),
+                                   pub_spec.get('f', (0.0, 0.0, 9.81)), pub_spec.get('frame_id', 'base_link')))
+            published += 1
+            spin_for(max(0.0, start + (k + 1) * period - time.monotonic()))
+    until = spec.get('until', {})
+    spin_for(float(spec.get('timeout', 30.0)) if until else float(spec.get('settle', 1.0)),
+             lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
+    report = {'published': published,
+              'topics': {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms] for t, ms in got.items()},
+              'tf': {}}
+    for target, source in spec.get('tf', []):
+        key = f'{target}|{source}'
+        try:
+            tr = buffer.lookup_transform(target, source, rclpy.time.Time())
+        except tf2_ros.TransformException as e:
+            report['tf'][key] = {'error': str(e)}
+            continue
+        r, t = tr.transform.rotation, tr.transform.translation
+        report['tf'][key] = {'stamp': tr.header.stamp.sec + tr.header.stamp.nanosec * 1e-9,
+                             'rotation': [r.x, r.y, r.z, r.w], 'translation': [t.x, t.y, t.z]}
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return report
+
+
+if __name__ == '__main__':
+    print(json.dumps(main(json.loads(sys.argv[1]))))
