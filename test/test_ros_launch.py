@@ -13,13 +13,12 @@ traceback.
 """
 import math
 import signal
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 import rosenv
+from tfcheck import assert_tf_matches_joint_states, moving_joints, stamp, tf_pairs
 
 BEARINGS = ('support', 'gimbal4', 'gimbal5', 'gimbal7', 'gimbal9', 'gimbal10', 'rotor6', 'rotor8', 'rotor11')
 #: documented output topics (README, topic table) → (type, frame_id)
@@ -43,24 +42,6 @@ def numbers(d):
     if isinstance(d, list):
         return [x for v in d for x in numbers(v)]
     return [float(d)] if isinstance(d, (int, float)) and not isinstance(d, bool) else []
-
-
-def stamp(m):
-    return m['header']['stamp']['sec'] + m['header']['stamp']['nanosec'] * 1e-9
-
-
-def moving_joints(urdf: str):
-    """(name, parent, child, origin Rotation, axis) of every non-fixed joint, in document order."""
-    out = []
-    for j in ET.fromstring(urdf).iter('joint'):
-        if j.get('type') == 'fixed':
-            continue
-        o = j.find('origin')
-        rpy = [float(x) for x in (o.get('rpy', '0 0 0') if o is not None else '0 0 0').split()]
-        axis = np.array([float(x) for x in j.find('axis').get('xyz').split()])
-        out.append((j.get('name'), j.find('parent').get('link'), j.find('child').get('link'),
-                    Rotation.from_euler('xyz', rpy), axis))
-    return out
 
 
 def launch_and_probe(ws, domain, args: str, spec: dict, ready='ready:'):
@@ -94,8 +75,7 @@ def default_launch(ros_ws, tmp_path_factory):
         # first launch: learn the URDF's joints, then look every moving one up in TF
         urdf_report, _, _ = launch_and_probe(ros_ws, domain, 'output_rate:=50.0', spec_for(count=20))
         urdf = urdf_report['topics']['/robot_description'][0]['data']
-        tf = [(parent, child) for _, parent, child, _, _ in moving_joints(urdf)]
-        report, code, out = launch_and_probe(ros_ws, domain, 'output_rate:=50.0', spec_for(tf=tf))
+        report, code, out = launch_and_probe(ros_ws, domain, 'output_rate:=50.0', spec_for(tf=tf_pairs(urdf)))
     return report, code, out, urdf
 
 
@@ -118,17 +98,7 @@ def test_every_output_topic_is_finite_with_its_frame_and_the_input_stamps(defaul
 
 def test_tf_of_every_moving_joint_equals_the_joint_state(default_launch):
     report, _, _, urdf = default_launch
-    by_stamp = {round(stamp(m), 9): dict(zip(m['name'], m['position']))
-                for m in report['topics']['/gimbal/joint_states']}
-    joints = moving_joints(urdf)
-    assert joints
-    for name, parent, child, origin, axis in joints:
-        tf = report['tf'][f'{parent}|{child}']
-        assert 'error' not in tf, tf
-        q = by_stamp[round(tf['stamp'], 9)][name]      # the JointState of the TF's stamp
-        expected = origin * Rotation.from_rotvec(q * axis)
-        got = Rotation.from_quat(tf['rotation'])
-        assert (got.inv() * expected).magnitude() < 1e-6, f'{name}: TF ≠ origin · rot(axis, {q})'
+    assert_tf_matches_joint_states(report, urdf, '/gimbal/joint_states')
 
 
 def test_robot_description_joints_are_the_joint_state_names(default_launch):
