@@ -33,7 +33,7 @@ setup(
     extras_require={
         "dds": ["cyclonedds>=11.0.1"],
         # gyro-platform sweep: Dask scheduling, Parquet tables
-        "sweep": ["dask>=2024.1", "distributed>=2024.1", "pyarrow>=14"],
+        "sweep": ["dask>=2024.1", "distributed>=2024.1", "pyarrow>=14,<26"],  # 26 needs numpy 2 (ROS Jazzy: 1.26)
         # gyro-platform bench peer: the same carried platform in MuJoCo (bench/peer_mujoco.py)
         "bench": ["mujoco>=3.1"],
         # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests

@@ -49,11 +49,19 @@ def domain():
 
 
 # ---- test_node_ros.py in ROS's python ------------------------------------------------------
+@pytest.hookimpl(tryfirst=True)
 def pytest_pycollect_makemodule(module_path: Path, parent):
-    """An rclpy module is collected as :class:`RclpyModule` where it cannot run in-process."""
+    """Every test module is collected here, as pytest does: an rclpy module as
+    :class:`RclpyModule` where it cannot run in-process, the others as ``pytest.Module``.
+
+    Taking the hook first keeps launch_testing's plugin (loaded by ROS's pytest, ``colcon
+    test``) from importing each module outside pytest's collector, where one module-level skip
+    (``pytest.importorskip``) skipped the whole session ("no tests collected", exit 5); this suite
+    has no launch_testing module (the launch tests run ``ros2 launch`` from outside).
+    """
     if module_path.name in IN_ROS_PYTHON and not rclpy_in_process() and rosenv.find()[0] is not None:
         return RclpyModule.from_parent(parent, path=module_path)
-    return None
+    return pytest.Module.from_parent(parent, path=module_path)
 
 
 class RclpyModule(pytest.File):

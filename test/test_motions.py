@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from scipy.integrate import solve_ivp, trapezoid
 from scipy.spatial.transform import Rotation
 
 from gyro_platform.scenes import motions as m
@@ -150,7 +150,7 @@ def test_coning_rectified_rate_and_periodic_attitude():
         assert c.rectified_rate == pytest.approx(rect)
         assert np.allclose(w[:, axis], rect, rtol=1e-14)
         # mean over a period: only the rectified term survives (trapezoid is exact for sines)
-        mean = np.trapezoid(w, t, axis=0) / T
+        mean = trapezoid(w, t, axis=0) / T     # scipy's: numpy 1.26 (ROS Jazzy) has no np.trapezoid
         others = [i for i in range(3) if i != axis]
         assert mean[axis] == pytest.approx(rect, rel=1e-12)
         assert np.allclose(mean[others], 0.0, atol=1e-12)

@@ -54,3 +54,20 @@ def test_the_node_of_a_plain_install_starts_and_publishes(plain_ws, domain, caps
         print(f'\n  plain colcon install: ros2 run -> ready: {ready_s:.1f} s (fresh kernel cache)')
     assert report['topics']['/drift/angle']
     assert code == 0 and 'Traceback' not in proc.output
+
+
+def test_gyro_platform_node_on_the_ros_transport_takes_its_options(ros_ws, domain):
+    """``gyro-platform node --transport auto`` in ROS's environment runs the rclpy node, with
+    --namespace, --node-name and --scene passed as ROS arguments; --duration stops it (exit 0)."""
+    proc = ros_ws.start('python3 -m gyro_platform node --namespace veh --node-name gp --scene coning '
+                        '--duration 60', domain=domain, cwd=ros_ws.root)
+    try:
+        assert proc.wait_for('ready:', rosenv.READY_TIMEOUT), proc.output[-3000:]
+        assert 'transport: ros (auto: rclpy found)' in proc.output
+        nodes = ros_ws.run('ros2 node list --no-daemon --spin-time 3', domain=domain, check=True).stdout.split()
+        scene = ros_ws.run('ros2 param get --no-daemon --spin-time 3 /veh/gp scene', domain=domain).stdout
+    finally:
+        code = proc.stop(signal.SIGINT)
+    assert '/veh/gp' in nodes
+    assert 'String value is: coning' in scene
+    assert code == 0 and 'Traceback' not in proc.output
