@@ -16,7 +16,7 @@ import pytest
 
 import rosenv
 
-IN_ROS_PYTHON = ('test_node_ros.py',)
+IN_ROS_PYTHON = ("test_node_ros.py",)
 
 
 def rclpy_in_process() -> bool:
@@ -29,7 +29,7 @@ def rclpy_in_process() -> bool:
     return True
 
 
-@pytest.fixture(scope='session')
+@pytest.fixture(scope="session")
 def ros():
     env, why = rosenv.find()
     if env is None:
@@ -37,9 +37,9 @@ def ros():
     return env
 
 
-@pytest.fixture(scope='session')
+@pytest.fixture(scope="session")
 def ros_ws(ros, tmp_path_factory):
-    return rosenv.Workspace.build(ros, tmp_path_factory.mktemp('ws_symlink'), symlink_install=True)
+    return rosenv.Workspace.build(ros, tmp_path_factory.mktemp("ws_symlink"), symlink_install=True)
 
 
 @pytest.fixture
@@ -70,24 +70,24 @@ class RclpyModule(pytest.File):
     def collect(self):
         tree = ast.parse(self.path.read_text())
         for node in tree.body:
-            if isinstance(node, ast.FunctionDef) and node.name.startswith('test'):
+            if isinstance(node, ast.FunctionDef) and node.name.startswith("test"):
                 yield RclpyItem.from_parent(self, name=node.name)
 
     def outcomes(self) -> dict:
-        if not hasattr(self, '_outcomes'):
+        if not hasattr(self, "_outcomes"):
             ros, _ = rosenv.find()
-            xml = self.config._tmp_path_factory.mktemp('rclpy') / 'junit.xml'
+            xml = self.config._tmp_path_factory.mktemp("rclpy") / "junit.xml"
             with rosenv.domain_lock() as domain:
-                p = ros.run([ros.python, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', str(self.path),
-                             f'--junitxml={xml}', '-o', 'junit_family=xunit1'],
+                p = ros.run([ros.python, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(self.path),
+                             f"--junitxml={xml}", "-o", "junit_family=xunit1"],
                             domain=domain, cwd=rosenv.REPO, timeout=1800,
-                            env={'PYTHONPATH': f'{rosenv.REPO}:' + ros.environ.get('PYTHONPATH', '')})
-            self._outcomes = {'_log': p.stdout[-6000:] + p.stderr[-3000:]}
+                            env={"PYTHONPATH": f"{rosenv.REPO}:" + ros.environ.get("PYTHONPATH", "")})
+            self._outcomes = {"_log": p.stdout[-6000:] + p.stderr[-3000:]}
             if xml.is_file():
-                for case in ET.parse(xml).getroot().iter('testcase'):
-                    bad = [c for c in case if c.tag in ('failure', 'error', 'skipped')]
-                    self._outcomes[case.get('name')] = (bad[0].tag, (bad[0].get('message') or '') + '\n' +
-                                                       (bad[0].text or '')) if bad else ('passed', '')
+                for case in ET.parse(xml).getroot().iter("testcase"):
+                    bad = [c for c in case if c.tag in ("failure", "error", "skipped")]
+                    self._outcomes[case.get("name")] = (bad[0].tag, (bad[0].get("message") or "") + "\n" +
+                                                       (bad[0].text or "")) if bad else ("passed", "")
         return self._outcomes
 
 
@@ -99,13 +99,18 @@ class RclpyItem(pytest.Item):
         if self.name not in outcomes:
             raise AssertionError(f'{self.name} did not run in ROS python:\n{outcomes["_log"]}')
         kind, text = outcomes[self.name]
-        if kind == 'skipped':
-            pytest.skip(text.strip().splitlines()[0] if text.strip() else 'skipped in ROS python')
-        if kind != 'passed':
-            raise AssertionError(f'{kind} in ROS python:\n{text}')
+        if kind == "skipped":
+            pytest.skip(text.strip().splitlines()[0] if text.strip() else "skipped in ROS python")
+        if kind != "passed":
+            raise AssertionError(f"{kind} in ROS python:\n{text}")
 
     def repr_failure(self, excinfo):
         return str(excinfo.value)
 
     def reportinfo(self):
-        return self.path, None, f'{self.name} (in ROS python)'
+        return self.path, None, f"{self.name} (in ROS python)"
+
+
+def pytest_configure(config):
+    for mark in ("linter", "flake8", "pep257", "copyright", "xmllint"):
+        config.addinivalue_line("markers", f"{mark}: an ament linter test (ROS 2 package convention)")

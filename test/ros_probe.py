@@ -32,24 +32,24 @@ import tf2_ros
 COLLECT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-INPUT_TYPES = {'imu': 'sensor_msgs/msg/Imu', 'twist': 'geometry_msgs/msg/Twist',
-               'twist_stamped': 'geometry_msgs/msg/TwistStamped'}
+INPUT_TYPES = {"imu": "sensor_msgs/msg/Imu", "twist": "geometry_msgs/msg/Twist",
+               "twist_stamped": "geometry_msgs/msg/TwistStamped"}
 
 
 def msg_type(name):
     """The message class of 'pkg/msg/Name'."""
-    pkg, _, cls = name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.msg'), cls)
+    pkg, _, cls = name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), cls)
 
 
 def make_input(kind, t_ns, w, f, frame_id):
     """One rate sample of kind imu / twist / twist_stamped stamped t_ns."""
     m = msg_type(INPUT_TYPES[kind])()
-    ang = m.angular_velocity if kind == 'imu' else (m.twist.angular if kind == 'twist_stamped' else m.angular)
+    ang = m.angular_velocity if kind == "imu" else (m.twist.angular if kind == "twist_stamped" else m.angular)
     ang.x, ang.y, ang.z = (float(v) for v in w)
-    if kind == 'imu':
+    if kind == "imu":
         m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = (float(v) for v in f)
-    if kind != 'twist':
+    if kind != "twist":
         m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t_ns), 10**9)
         m.header.frame_id = frame_id
     return m
@@ -58,9 +58,9 @@ def make_input(kind, t_ns, w, f, frame_id):
 def main(spec):
     """Run the probe of ``spec``; the report as a dict."""
     rclpy.init()
-    node = rclpy.create_node('ros_probe')
+    node = rclpy.create_node("ros_probe")
     got = {}
-    for table, qos in ((spec.get('collect', {}), COLLECT), (spec.get('latched', {}), LATCHED)):
+    for table, qos in ((spec.get("collect", {}), COLLECT), (spec.get("latched", {}), LATCHED)):
         for topic, typ in table.items():
             got[topic] = []
             node.create_subscription(msg_type(typ), topic, got[topic].append, qos)
@@ -72,48 +72,48 @@ def main(spec):
         while time.monotonic() < end and not done():
             rclpy.spin_once(node, timeout_sec=0.005)
 
-    discovery = float(spec.get('discovery', 20.0))
-    if spec.get('wait_subscriber'):
-        spin_for(discovery, lambda: node.count_subscribers(spec['wait_subscriber']) > 0)
-        if node.count_subscribers(spec['wait_subscriber']) == 0:
+    discovery = float(spec.get("discovery", 20.0))
+    if spec.get("wait_subscriber"):
+        spin_for(discovery, lambda: node.count_subscribers(spec["wait_subscriber"]) > 0)
+        if node.count_subscribers(spec["wait_subscriber"]) == 0:
             raise SystemExit(f'no subscriber on {spec["wait_subscriber"]} after {discovery} s')
-    spin_for(float(spec.get('pre', 0.5)))       # let the node's publishers match our readers
+    spin_for(float(spec.get("pre", 0.5)))       # let the node's publishers match our readers
     published = 0
-    pub_spec = spec.get('publish')
+    pub_spec = spec.get("publish")
     if pub_spec:
-        kind = pub_spec.get('type', 'imu')
-        pub = node.create_publisher(msg_type(INPUT_TYPES[kind]), pub_spec['topic'], qos_profile_sensor_data)
+        kind = pub_spec.get("type", "imu")
+        pub = node.create_publisher(msg_type(INPUT_TYPES[kind]), pub_spec["topic"], qos_profile_sensor_data)
         spin_for(1.0, lambda: pub.get_subscription_count() > 0)
-        period = 1.0 / float(pub_spec.get('rate', 100.0))
-        stamp = pub_spec.get('stamp', 'now')
-        t0 = node.get_clock().now().nanoseconds if stamp == 'now' else (0 if stamp == 'zero' else int(float(stamp) * 1e9))
+        period = 1.0 / float(pub_spec.get("rate", 100.0))
+        stamp = pub_spec.get("stamp", "now")
+        t0 = node.get_clock().now().nanoseconds if stamp == "now" else (0 if stamp == "zero" else int(float(stamp) * 1e9))
         start = time.monotonic()
-        for k in range(int(pub_spec.get('count', 100))):
-            t_ns = 0 if stamp == 'zero' else t0 + int(round(k * period * 1e9))
-            pub.publish(make_input(kind, t_ns, pub_spec.get('w', (0.0, 0.0, 0.0)),
-                                   pub_spec.get('f', (0.0, 0.0, 9.81)), pub_spec.get('frame_id', 'base_link')))
+        for k in range(int(pub_spec.get("count", 100))):
+            t_ns = 0 if stamp == "zero" else t0 + int(round(k * period * 1e9))
+            pub.publish(make_input(kind, t_ns, pub_spec.get("w", (0.0, 0.0, 0.0)),
+                                   pub_spec.get("f", (0.0, 0.0, 9.81)), pub_spec.get("frame_id", "base_link")))
             published += 1
             spin_for(max(0.0, start + (k + 1) * period - time.monotonic()))
-    until = spec.get('until', {})
-    spin_for(float(spec.get('timeout', 30.0)) if until else float(spec.get('settle', 1.0)),
+    until = spec.get("until", {})
+    spin_for(float(spec.get("timeout", 30.0)) if until else float(spec.get("settle", 1.0)),
              lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
-    report = {'published': published,
-              'topics': {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms] for t, ms in got.items()},
-              'tf': {}}
-    for target, source in spec.get('tf', []):
-        key = f'{target}|{source}'
+    report = {"published": published,
+              "topics": {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms] for t, ms in got.items()},
+              "tf": {}}
+    for target, source in spec.get("tf", []):
+        key = f"{target}|{source}"
         try:
             tr = buffer.lookup_transform(target, source, rclpy.time.Time())
         except tf2_ros.TransformException as e:
-            report['tf'][key] = {'error': str(e)}
+            report["tf"][key] = {"error": str(e)}
             continue
         r, t = tr.transform.rotation, tr.transform.translation
-        report['tf'][key] = {'stamp': tr.header.stamp.sec + tr.header.stamp.nanosec * 1e-9,
-                             'rotation': [r.x, r.y, r.z, r.w], 'translation': [t.x, t.y, t.z]}
+        report["tf"][key] = {"stamp": tr.header.stamp.sec + tr.header.stamp.nanosec * 1e-9,
+                             "rotation": [r.x, r.y, r.z, r.w], "translation": [t.x, t.y, t.z]}
     node.destroy_node()
     rclpy.try_shutdown()
     return report
 
 
-if __name__ == '__main__':
+if __name__ == "__main__":
     print(json.dumps(main(json.loads(sys.argv[1]))))

@@ -30,13 +30,15 @@ from pathlib import Path
 from typing import Iterator, Mapping, Sequence
 
 REPO = Path(__file__).resolve().parents[1]
-PROBE = REPO / 'test' / 'ros_probe.py'
-LOOPBACK_XML = REPO / 'config' / 'cyclonedds_loopback.xml'
+PROBE = REPO / "test" / "ros_probe.py"
+LOOPBACK_XML = REPO / "config" / "cyclonedds_loopback.xml"
 #: a fresh install compiles the numba kernels before 'ready:' (issue 31 sets the target)
 READY_TIMEOUT = 400.0
-SETUP_VAR = 'GYRO_PLATFORM_ROS_SETUP'
-HOW = ('ROS 2 Jazzy not found: source /opt/ros/jazzy/setup.bash (or set '
-       f'{SETUP_VAR}=/path/to/setup.bash) to run the ROS tests')
+SETUP_VAR = "GYRO_PLATFORM_ROS_SETUP"
+#: what the ament linters check (as ``ros2 pkg create``'s tests do over the package)
+LINT_PATHS = [str(REPO / p) for p in ("gyro_platform", "launch", "test", "setup.py")]
+HOW = ("ROS 2 Jazzy not found: source /opt/ros/jazzy/setup.bash (or set "
+       f"{SETUP_VAR}=/path/to/setup.bash) to run the ROS tests")
 
 
 def _candidates() -> list[tuple[str, Path | None]]:
@@ -44,10 +46,10 @@ def _candidates() -> list[tuple[str, Path | None]]:
     out: list[tuple[str, Path | None]] = []
     if os.environ.get(SETUP_VAR):
         out.append((SETUP_VAR, Path(os.environ[SETUP_VAR])))
-    if os.environ.get('ROS_DISTRO') == 'jazzy' and shutil.which('ros2'):
-        out.append(('sourced environment', None))
-    prefix = Path(os.environ.get('ROS2_PREFIX', Path.home() / 'ros2-jazzy-ws'))
-    for f in (Path('/opt/ros/jazzy/setup.bash'), prefix / 'env.sh'):
+    if os.environ.get("ROS_DISTRO") == "jazzy" and shutil.which("ros2"):
+        out.append(("sourced environment", None))
+    prefix = Path(os.environ.get("ROS2_PREFIX", Path.home() / "ros2-jazzy-ws"))
+    for f in (Path("/opt/ros/jazzy/setup.bash"), prefix / "env.sh"):
         if f.is_file():
             out.append((str(f), f))
     return out
@@ -56,14 +58,14 @@ def _candidates() -> list[tuple[str, Path | None]]:
 def _base_environ() -> dict[str, str]:
     """os.environ without this interpreter's venv (its numpy may not be ROS's)."""
     env = dict(os.environ)
-    venv = os.environ.get('VIRTUAL_ENV') or (sys.prefix if sys.prefix != sys.base_prefix else '')
+    venv = os.environ.get("VIRTUAL_ENV") or (sys.prefix if sys.prefix != sys.base_prefix else "")
     if venv:
-        env.pop('VIRTUAL_ENV', None)
-        bin_dir = str(Path(venv) / 'bin')
-        env['PATH'] = os.pathsep.join(p for p in env.get('PATH', '').split(os.pathsep) if p != bin_dir)
+        env.pop("VIRTUAL_ENV", None)
+        bin_dir = str(Path(venv) / "bin")
+        env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if p != bin_dir)
     bin_dir = str(Path(sys.executable).parent)
     if sys.prefix != sys.base_prefix:
-        env['PATH'] = os.pathsep.join(p for p in env['PATH'].split(os.pathsep) if p != bin_dir)
+        env["PATH"] = os.pathsep.join(p for p in env["PATH"].split(os.pathsep) if p != bin_dir)
     return env
 
 
@@ -78,12 +80,12 @@ class RosEnv:
     def env(self, domain: int | None = None, **extra: str) -> dict[str, str]:
         """This environment, on ``domain`` (ROS_DOMAIN_ID) and loopback-only DDS."""
         env = dict(self.environ)
-        env.setdefault('RMW_IMPLEMENTATION', 'rmw_cyclonedds_cpp')
-        env['CYCLONEDDS_URI'] = LOOPBACK_XML.as_uri()
-        env['PYTHONUNBUFFERED'] = '1'
-        env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+        env.setdefault("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
+        env["CYCLONEDDS_URI"] = LOOPBACK_XML.as_uri()
+        env["PYTHONUNBUFFERED"] = "1"
+        env["RCUTILS_COLORIZED_OUTPUT"] = "0"
         if domain is not None:
-            env['ROS_DOMAIN_ID'] = str(domain)
+            env["ROS_DOMAIN_ID"] = str(domain)
         env.update(extra)
         return env
 
@@ -91,17 +93,17 @@ class RosEnv:
             cwd: Path | str | None = None, check: bool = False, env: Mapping[str, str] | None = None,
             ) -> subprocess.CompletedProcess:
         """Run ``cmd`` (argv, or a bash line) to its end; stdout and stderr captured as text."""
-        argv = ['bash', '-c', cmd] if isinstance(cmd, str) else list(cmd)
+        argv = ["bash", "-c", cmd] if isinstance(cmd, str) else list(cmd)
         p = subprocess.run(argv, env={**self.env(domain), **(env or {})}, cwd=cwd, capture_output=True,
                            text=True, timeout=timeout)
         if check and p.returncode != 0:
-            raise AssertionError(f'{cmd!r} exited {p.returncode}:\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}')
+            raise AssertionError(f"{cmd!r} exited {p.returncode}:\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}")
         return p
 
     def start(self, cmd: str | Sequence[str], *, domain: int | None = None, cwd: Path | str | None = None,
-              env: Mapping[str, str] | None = None) -> 'Proc':
+              env: Mapping[str, str] | None = None) -> "Proc":
         """Start ``cmd`` in its own process group; output collected by a thread."""
-        argv = ['bash', '-c', f'exec {cmd}'] if isinstance(cmd, str) else list(cmd)
+        argv = ["bash", "-c", f"exec {cmd}"] if isinstance(cmd, str) else list(cmd)
         p = subprocess.Popen(argv, env={**self.env(domain), **(env or {})}, cwd=cwd, stdout=subprocess.PIPE,
                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
         return Proc(p)
@@ -110,7 +112,7 @@ class RosEnv:
         """Run test/ros_probe.py (rclpy, in ROS's python) with ``spec``; its JSON report."""
         p = self.run([self.python, str(PROBE), json.dumps(spec)], domain=domain, timeout=timeout)
         if p.returncode != 0:
-            raise AssertionError(f'ros_probe exited {p.returncode}:\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}')
+            raise AssertionError(f"ros_probe exited {p.returncode}:\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}")
         return json.loads(p.stdout.strip().splitlines()[-1])
 
 
@@ -131,7 +133,7 @@ class Proc:
 
     @property
     def output(self) -> str:
-        return ''.join(self.lines)
+        return "".join(self.lines)
 
     def wait_for(self, text: str, timeout: float) -> bool:
         """True once ``text`` appears in the output; False at timeout or when the process ends."""
@@ -170,21 +172,21 @@ def find() -> tuple[RosEnv | None, str]:
         if setup is None:
             environ = dict(os.environ)
         else:
-            p = subprocess.run(['bash', '-c', 'source "$0" >/dev/null 2>&1; env -0', str(setup)],
+            p = subprocess.run(["bash", "-c", 'source "$0" >/dev/null 2>&1; env -0', str(setup)],
                                env=_base_environ(), capture_output=True, timeout=60)
             if p.returncode != 0:
-                tried.append(f'{where}: sourcing failed')
+                tried.append(f"{where}: sourcing failed")
                 continue
-            environ = dict(kv.split('=', 1) for kv in p.stdout.decode().split('\0') if '=' in kv)
-        python = shutil.which('python3', path=environ.get('PATH')) or 'python3'
-        check = subprocess.run([python, '-c', 'import rclpy, sensor_msgs.msg, launch_ros, tf2_ros'],
+            environ = dict(kv.split("=", 1) for kv in p.stdout.decode().split("\0") if "=" in kv)
+        python = shutil.which("python3", path=environ.get("PATH")) or "python3"
+        check = subprocess.run([python, "-c", "import rclpy, sensor_msgs.msg, launch_ros, tf2_ros"],
                                env=environ, capture_output=True, text=True, timeout=60)
-        if check.returncode != 0 or not shutil.which('ros2', path=environ.get('PATH')):
-            last = (check.stderr.strip().splitlines() or ['ros2 not on PATH'])[-1]
-            tried.append(f'{where}: {last}')
+        if check.returncode != 0 or not shutil.which("ros2", path=environ.get("PATH")):
+            last = (check.stderr.strip().splitlines() or ["ros2 not on PATH"])[-1]
+            tried.append(f"{where}: {last}")
             continue
-        return RosEnv(where, environ, python), ''
-    return None, HOW + (f' (tried: {"; ".join(tried)})' if tried else '')
+        return RosEnv(where, environ, python), ""
+    return None, HOW + (f' (tried: {"; ".join(tried)})' if tried else "")
 
 
 @dataclass
@@ -194,38 +196,38 @@ class Workspace:
     root: Path
     ros: RosEnv
     symlink_install: bool
-    build_log: str = ''
+    build_log: str = ""
 
     @classmethod
-    def build(cls, ros: RosEnv, root: Path, *, symlink_install: bool) -> 'Workspace':
-        (root / 'src').mkdir(parents=True, exist_ok=True)
-        link = root / 'src' / 'gyro_platform'
+    def build(cls, ros: RosEnv, root: Path, *, symlink_install: bool) -> "Workspace":
+        (root / "src").mkdir(parents=True, exist_ok=True)
+        link = root / "src" / "gyro_platform"
         if not link.exists():
             link.symlink_to(REPO, target_is_directory=True)
-        flags = ' --symlink-install' if symlink_install else ''
-        p = ros.run(f'colcon build --packages-select gyro_platform{flags} --event-handlers console_direct+',
+        flags = " --symlink-install" if symlink_install else ""
+        p = ros.run(f"colcon build --packages-select gyro_platform{flags} --event-handlers console_direct+",
                     cwd=root, timeout=600)
         ws = cls(root, ros, symlink_install, p.stdout + p.stderr)
         if p.returncode != 0:
-            raise AssertionError(f'colcon build{flags} exited {p.returncode}:\n{ws.build_log[-4000:]}')
+            raise AssertionError(f"colcon build{flags} exited {p.returncode}:\n{ws.build_log[-4000:]}")
         return ws
 
     @property
     def share(self) -> Path:
-        return self.root / 'install' / 'gyro_platform' / 'share' / 'gyro_platform'
+        return self.root / "install" / "gyro_platform" / "share" / "gyro_platform"
 
     def sourced(self, cmd: str) -> str:
         """``cmd`` with this workspace's overlay sourced."""
-        return f'source {self.root}/install/setup.bash && {cmd}'
+        return f"source {self.root}/install/setup.bash && {cmd}"
 
     def run(self, cmd: str, **kw) -> subprocess.CompletedProcess:
         return self.ros.run(self.sourced(cmd), **kw)
 
     def start(self, cmd: str, **kw) -> Proc:
-        return self.ros.start(['bash', '-c', self.sourced(f'exec {cmd}')], **kw)
+        return self.ros.start(["bash", "-c", self.sourced(f"exec {cmd}")], **kw)
 
 
-_LOCK_DIR = Path(tempfile.gettempdir()) / 'gyro_platform_ros_domains'
+_LOCK_DIR = Path(tempfile.gettempdir()) / "gyro_platform_ros_domains"
 
 
 @contextlib.contextmanager
@@ -235,7 +237,7 @@ def domain_lock(first: int = 102, last: int = 200) -> Iterator[int]:
     start = os.getpid() % (last - first + 1)
     for k in range(last - first + 1):
         d = first + (start + k) % (last - first + 1)
-        f = open(_LOCK_DIR / f'{d}.lock', 'w')
+        f = open(_LOCK_DIR / f"{d}.lock", "w")
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -246,4 +248,4 @@ def domain_lock(first: int = 102, last: int = 200) -> Iterator[int]:
         finally:
             f.close()
         return
-    raise RuntimeError(f'no free ROS_DOMAIN_ID in [{first}, {last}]')
+    raise RuntimeError(f"no free ROS_DOMAIN_ID in [{first}, {last}]")

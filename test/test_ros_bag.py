@@ -26,31 +26,31 @@ SECONDS = 3.0
 def write_input_bag(path):
     ts = get_typestore(Stores.ROS2_JAZZY)
     Imu, Header, Time, Vec3, Quat = (ts.types[n] for n in (
-        'sensor_msgs/msg/Imu', 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time',
-        'geometry_msgs/msg/Vector3', 'geometry_msgs/msg/Quaternion'))
+        "sensor_msgs/msg/Imu", "std_msgs/msg/Header", "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"))
     cov = np.zeros(9)
     with Writer(path, version=8) as w:
-        conn = w.add_connection('/imu', Imu.__msgtype__, typestore=ts)
+        conn = w.add_connection("/imu", Imu.__msgtype__, typestore=ts)
         for k in range(int(RATE * SECONDS)):
-            m = Imu(header=Header(stamp=Time(sec=0, nanosec=0), frame_id='base_link'),
+            m = Imu(header=Header(stamp=Time(sec=0, nanosec=0), frame_id="base_link"),
                     orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=cov,
                     angular_velocity=Vec3(x=0.02, y=0.0, z=0.1), angular_velocity_covariance=cov,
                     linear_acceleration=Vec3(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=cov)
             w.write(conn, T0_NS + int(k * 1e9 / RATE), ts.serialize_cdr(m, Imu.__msgtype__))
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def replayed(ros_ws, tmp_path_factory):
-    tmp = tmp_path_factory.mktemp('bags')
-    write_input_bag(tmp / 'input')
+    tmp = tmp_path_factory.mktemp("bags")
+    write_input_bag(tmp / "input")
     with rosenv.domain_lock() as domain:
-        launch = ros_ws.start('ros2 launch gyro_platform platform.launch.py use_sim_time:=true output_rate:=20.0',
+        launch = ros_ws.start("ros2 launch gyro_platform platform.launch.py use_sim_time:=true output_rate:=20.0",
                               domain=domain)
         try:
-            assert launch.wait_for('ready:', rosenv.READY_TIMEOUT), launch.output[-3000:]
+            assert launch.wait_for("ready:", rosenv.READY_TIMEOUT), launch.output[-3000:]
             rec = ros_ws.start(f'ros2 bag record -o {tmp / "out"} /drift/angle /gimbal/joint_states', domain=domain)
             try:
-                assert rec.wait_for('Recording', 60), rec.output[-3000:]
+                assert rec.wait_for("Recording", 60), rec.output[-3000:]
                 assert rec.wait_for('Subscribed to topic \'/drift/angle\'', 30), rec.output[-3000:]
                 play = ros_ws.run(f'ros2 bag play --clock 200 {tmp / "input"}', domain=domain, timeout=120)
                 assert play.returncode == 0, play.stdout + play.stderr
@@ -59,7 +59,7 @@ def replayed(ros_ws, tmp_path_factory):
                 rec_code = rec.stop(signal.SIGINT)
         finally:
             launch_code = launch.stop(signal.SIGINT)
-    return tmp / 'out', rec_code, launch_code, launch.output
+    return tmp / "out", rec_code, launch_code, launch.output
 
 
 def test_outputs_are_stamped_in_bag_time_and_the_recording_reads_back(replayed):
@@ -70,10 +70,10 @@ def test_outputs_are_stamped_in_bag_time_and_the_recording_reads_back(replayed):
         for conn, _, raw in reader.messages():
             m = reader.deserialize(raw, conn.msgtype)
             stamps[conn.topic].append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9)
-    assert set(stamps) == {'/drift/angle', '/gimbal/joint_states'}
+    assert set(stamps) == {"/drift/angle", "/gimbal/joint_states"}
     for topic, t in stamps.items():
         t = np.array(t)
-        assert len(t) >= 0.7 * 20 * SECONDS, f'{topic}: {len(t)} outputs for {SECONDS} s at 20 Hz'
-        assert 1000.0 <= t.min() and t.max() <= 1000.0 + SECONDS + 0.5, f'{topic}: not bag time: {t[:3]}'
+        assert len(t) >= 0.7 * 20 * SECONDS, f"{topic}: {len(t)} outputs for {SECONDS} s at 20 Hz"
+        assert 1000.0 <= t.min() and t.max() <= 1000.0 + SECONDS + 0.5, f"{topic}: not bag time: {t[:3]}"
         assert np.all(np.diff(t) > 0)
         assert np.median(np.diff(t)) == pytest.approx(0.05, abs=1e-4)   # the 20 Hz grid

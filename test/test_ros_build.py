@@ -14,60 +14,60 @@ import pytest
 import rosenv
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def plain_ws(ros, tmp_path_factory):
-    return rosenv.Workspace.build(ros, tmp_path_factory.mktemp('ws_plain'), symlink_install=False)
+    return rosenv.Workspace.build(ros, tmp_path_factory.mktemp("ws_plain"), symlink_install=False)
 
 
-@pytest.mark.parametrize('which', ['plain', 'symlink'])
+@pytest.mark.parametrize("which", ["plain", "symlink"])
 def test_colcon_build_installs_the_package_into_the_ament_index(which, plain_ws, ros_ws):
-    ws = plain_ws if which == 'plain' else ros_ws
-    prefix = ws.run('ros2 pkg prefix gyro_platform', check=True).stdout.strip()
-    assert prefix == str(ws.root / 'install' / 'gyro_platform')
-    exes = ws.run('ros2 pkg executables gyro_platform', check=True).stdout.split()
-    assert 'platform_node' in exes
-    for f in ('launch/platform.launch.py', 'config/platform.yaml', 'config/scenes/default.yaml',
-              'config/scenes/husky_replay.yaml', 'package.xml'):
+    ws = plain_ws if which == "plain" else ros_ws
+    prefix = ws.run("ros2 pkg prefix gyro_platform", check=True).stdout.strip()
+    assert prefix == str(ws.root / "install" / "gyro_platform")
+    exes = ws.run("ros2 pkg executables gyro_platform", check=True).stdout.split()
+    assert "platform_node" in exes
+    for f in ("launch/platform.launch.py", "config/platform.yaml", "config/scenes/default.yaml",
+              "config/scenes/husky_replay.yaml", "package.xml"):
         assert (ws.share / f).is_file(), f
     module = ws.run("python3 -c 'import gyro_platform, os; print(os.path.realpath(gyro_platform.__file__))'",
                     check=True, cwd=ws.root).stdout.strip()
-    if which == 'symlink':
-        assert module == str(rosenv.REPO / 'gyro_platform' / '__init__.py')    # edits need no rebuild
+    if which == "symlink":
+        assert module == str(rosenv.REPO / "gyro_platform" / "__init__.py")    # edits need no rebuild
     else:
-        assert module.startswith(str(ws.root / 'install'))
+        assert module.startswith(str(ws.root / "install"))
 
 
 def test_the_node_of_a_plain_install_starts_and_publishes(plain_ws, domain, capsys):
     """A copy of the sources: its own kernel cache, compiled on this first start."""
-    params = plain_ws.share / 'config' / 'platform.yaml'
+    params = plain_ws.share / "config" / "platform.yaml"
     t0 = time.monotonic()
-    proc = plain_ws.start(f'ros2 run gyro_platform platform_node --ros-args --params-file {params}', domain=domain)
+    proc = plain_ws.start(f"ros2 run gyro_platform platform_node --ros-args --params-file {params}", domain=domain)
     try:
-        assert proc.wait_for('ready:', rosenv.READY_TIMEOUT), proc.output[-3000:]
+        assert proc.wait_for("ready:", rosenv.READY_TIMEOUT), proc.output[-3000:]
         ready_s = time.monotonic() - t0
-        report = plain_ws.ros.probe({'wait_subscriber': '/imu', 'publish': {'topic': '/imu', 'count': 50},
-                                     'collect': {'/drift/angle': 'geometry_msgs/msg/Vector3Stamped'}},
+        report = plain_ws.ros.probe({"wait_subscriber": "/imu", "publish": {"topic": "/imu", "count": 50},
+                                     "collect": {"/drift/angle": "geometry_msgs/msg/Vector3Stamped"}},
                                     domain=domain)
     finally:
         code = proc.stop(signal.SIGINT)
     with capsys.disabled():
-        print(f'\n  plain colcon install: ros2 run -> ready: {ready_s:.1f} s (fresh kernel cache)')
-    assert report['topics']['/drift/angle']
-    assert code == 0 and 'Traceback' not in proc.output
+        print(f"\n  plain colcon install: ros2 run -> ready: {ready_s:.1f} s (fresh kernel cache)")
+    assert report["topics"]["/drift/angle"]
+    assert code == 0 and "Traceback" not in proc.output
 
 
 def test_gyro_platform_node_on_the_ros_transport_takes_its_options(ros_ws, domain):
     """``gyro-platform node --transport auto`` in ROS's environment runs the rclpy node, with
     --namespace, --node-name and --scene passed as ROS arguments; --duration stops it (exit 0)."""
-    proc = ros_ws.start('python3 -m gyro_platform node --namespace veh --node-name gp --scene coning '
-                        '--duration 60', domain=domain, cwd=ros_ws.root)
+    proc = ros_ws.start("python3 -m gyro_platform node --namespace veh --node-name gp --scene coning "
+                        "--duration 60", domain=domain, cwd=ros_ws.root)
     try:
-        assert proc.wait_for('ready:', rosenv.READY_TIMEOUT), proc.output[-3000:]
-        assert 'transport: ros (auto: rclpy found)' in proc.output
-        nodes = ros_ws.run('ros2 node list --no-daemon --spin-time 3', domain=domain, check=True).stdout.split()
-        scene = ros_ws.run('ros2 param get --no-daemon --spin-time 3 /veh/gp scene', domain=domain).stdout
+        assert proc.wait_for("ready:", rosenv.READY_TIMEOUT), proc.output[-3000:]
+        assert "transport: ros (auto: rclpy found)" in proc.output
+        nodes = ros_ws.run("ros2 node list --no-daemon --spin-time 3", domain=domain, check=True).stdout.split()
+        scene = ros_ws.run("ros2 param get --no-daemon --spin-time 3 /veh/gp scene", domain=domain).stdout
     finally:
         code = proc.stop(signal.SIGINT)
-    assert '/veh/gp' in nodes
-    assert 'String value is: coning' in scene
-    assert code == 0 and 'Traceback' not in proc.output
+    assert "/veh/gp" in nodes
+    assert "String value is: coning" in scene
+    assert code == 0 and "Traceback" not in proc.output

@@ -19,33 +19,33 @@ import rosenv
 from tfcheck import assert_tf_matches_joint_states, tf_pairs
 from rosenv import Proc
 
-pytest.importorskip('cyclonedds', reason="the DDS transport needs the 'cyclonedds' package (pip install .[dds])")
+pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedds' package (pip install .[dds])")
 
-GYRO = Path(sys.executable).with_name('gyro-platform')
+GYRO = Path(sys.executable).with_name("gyro-platform")
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def dds_session(ros):
     with rosenv.domain_lock() as domain:
         env = dict(os.environ, ROS_DOMAIN_ID=str(domain), CYCLONEDDS_URI=rosenv.LOOPBACK_XML.as_uri(),
-                   PYTHONUNBUFFERED='1')
-        cmd = [str(GYRO), 'node', '--transport', 'dds', '--params-file', str(rosenv.REPO / 'config' / 'platform.yaml')]
+                   PYTHONUNBUFFERED="1")
+        cmd = [str(GYRO), "node", "--transport", "dds", "--params-file", str(rosenv.REPO / "config" / "platform.yaml")]
         proc = Proc(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      start_new_session=True))
         try:
-            assert proc.wait_for('ready:', rosenv.READY_TIMEOUT), proc.output[-3000:]
-            first = ros.probe({'latched': {'/robot_description': 'std_msgs/msg/String'}, 'settle': 3.0}, domain=domain)
-            urdf = first['topics']['/robot_description'][0]['data']
-            fixed = [(j.find('parent').get('link'), j.find('child').get('link'))
-                     for j in ET.fromstring(urdf).iter('joint') if j.get('type') == 'fixed']
+            assert proc.wait_for("ready:", rosenv.READY_TIMEOUT), proc.output[-3000:]
+            first = ros.probe({"latched": {"/robot_description": "std_msgs/msg/String"}, "settle": 3.0}, domain=domain)
+            urdf = first["topics"]["/robot_description"][0]["data"]
+            fixed = [(j.find("parent").get("link"), j.find("child").get("link"))
+                     for j in ET.fromstring(urdf).iter("joint") if j.get("type") == "fixed"]
             report = ros.probe({
-                'wait_subscriber': '/imu',
-                'publish': {'topic': '/imu', 'count': 200, 'rate': 100.0, 'w': [0.03, 0.01, 0.08]},
-                'collect': {'/gimbal/joint_states': 'sensor_msgs/msg/JointState',
-                            '/drift/rate': 'geometry_msgs/msg/Vector3Stamped',
-                            '/bearing/rotor11/torque': 'geometry_msgs/msg/WrenchStamped',
-                            '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'},
-                'settle': 2.0, 'tf': [list(p) for p in tf_pairs(urdf) + fixed]}, domain=domain)
+                "wait_subscriber": "/imu",
+                "publish": {"topic": "/imu", "count": 200, "rate": 100.0, "w": [0.03, 0.01, 0.08]},
+                "collect": {"/gimbal/joint_states": "sensor_msgs/msg/JointState",
+                            "/drift/rate": "geometry_msgs/msg/Vector3Stamped",
+                            "/bearing/rotor11/torque": "geometry_msgs/msg/WrenchStamped",
+                            "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"},
+                "settle": 2.0, "tf": [list(p) for p in tf_pairs(urdf) + fixed]}, domain=domain)
         finally:
             code = proc.stop(signal.SIGINT)
     return report, urdf, fixed, code, proc.output
@@ -53,20 +53,20 @@ def dds_session(ros):
 
 def test_rclpy_reads_the_outputs_of_the_dds_node(dds_session):
     report, _, _, code, log = dds_session
-    js = report['topics']['/gimbal/joint_states']
+    js = report["topics"]["/gimbal/joint_states"]
     assert len(js) >= 10, log[-2000:]
-    assert all(math.isfinite(x) for m in js for x in m['position'] + m['velocity'] + m['effort'])
-    assert report['topics']['/drift/rate'] and report['topics']['/bearing/rotor11/torque']
-    assert all(m['header']['frame_id'] == 'gyro_housing10' for m in report['topics']['/bearing/rotor11/torque'])
-    names = {s['name'] for a in report['topics']['/diagnostics'] for s in a['status']}
-    assert 'gyro_platform: transport' in names and 'gyro_platform: node' in names
-    assert code == 0 and 'Traceback' not in log
+    assert all(math.isfinite(x) for m in js for x in m["position"] + m["velocity"] + m["effort"])
+    assert report["topics"]["/drift/rate"] and report["topics"]["/bearing/rotor11/torque"]
+    assert all(m["header"]["frame_id"] == "gyro_housing10" for m in report["topics"]["/bearing/rotor11/torque"])
+    names = {s["name"] for a in report["topics"]["/diagnostics"] for s in a["status"]}
+    assert "gyro_platform: transport" in names and "gyro_platform: node" in names
+    assert code == 0 and "Traceback" not in log
 
 
 def test_tf_and_robot_description_of_the_dds_node_in_a_tf2_buffer(dds_session):
     report, urdf, fixed, _, _ = dds_session
-    assert_tf_matches_joint_states(report, urdf, '/gimbal/joint_states')
+    assert_tf_matches_joint_states(report, urdf, "/gimbal/joint_states")
     for parent, child in fixed:                          # /tf_static (transient local)
-        tf = report['tf'][f'{parent}|{child}']
-        assert 'error' not in tf, tf
-        assert abs(math.hypot(*tf['rotation']) - 1.0) < 1e-9
+        tf = report["tf"][f"{parent}|{child}"]
+        assert "error" not in tf, tf
+        assert abs(math.hypot(*tf["rotation"]) - 1.0) < 1e-9

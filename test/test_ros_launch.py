@@ -20,19 +20,19 @@ import pytest
 import rosenv
 from tfcheck import assert_tf_matches_joint_states, moving_joints, stamp, tf_pairs
 
-BEARINGS = ('support', 'gimbal4', 'gimbal5', 'gimbal7', 'gimbal9', 'gimbal10', 'rotor6', 'rotor8', 'rotor11')
+BEARINGS = ("support", "gimbal4", "gimbal5", "gimbal7", "gimbal9", "gimbal10", "rotor6", "rotor8", "rotor11")
 #: documented output topics (README, topic table) → (type, frame_id)
 OUTPUTS = {
-    'gimbal/joint_states': ('sensor_msgs/msg/JointState', ''),
-    'drift/angle': ('geometry_msgs/msg/Vector3Stamped', 'platform'),
-    'drift/rate': ('geometry_msgs/msg/Vector3Stamped', 'platform'),
-    'platform/attitude': ('geometry_msgs/msg/QuaternionStamped', 'platform_reference'),
-    'platform/servo_torque': ('geometry_msgs/msg/Vector3Stamped', 'platform'),
-    **{f'bearing/{b}/torque': ('geometry_msgs/msg/WrenchStamped', f) for b, f in zip(BEARINGS, (
-        'platform', 'gyro_frame4', 'gyro_housing5', 'gyro_housing7', 'gyro_frame9', 'gyro_housing10',
-        'gyro_housing5', 'gyro_housing7', 'gyro_housing10'))},
+    "gimbal/joint_states": ("sensor_msgs/msg/JointState", ""),
+    "drift/angle": ("geometry_msgs/msg/Vector3Stamped", "platform"),
+    "drift/rate": ("geometry_msgs/msg/Vector3Stamped", "platform"),
+    "platform/attitude": ("geometry_msgs/msg/QuaternionStamped", "platform_reference"),
+    "platform/servo_torque": ("geometry_msgs/msg/Vector3Stamped", "platform"),
+    **{f"bearing/{b}/torque": ("geometry_msgs/msg/WrenchStamped", f) for b, f in zip(BEARINGS, (
+        "platform", "gyro_frame4", "gyro_housing5", "gyro_housing7", "gyro_frame9", "gyro_housing10",
+        "gyro_housing5", "gyro_housing7", "gyro_housing10"))},
 }
-LAUNCH = 'ros2 launch gyro_platform platform.launch.py'
+LAUNCH = "ros2 launch gyro_platform platform.launch.py"
 
 
 def numbers(d):
@@ -44,131 +44,131 @@ def numbers(d):
     return [float(d)] if isinstance(d, (int, float)) and not isinstance(d, bool) else []
 
 
-def launch_and_probe(ws, domain, args: str, spec: dict, ready='ready:'):
+def launch_and_probe(ws, domain, args: str, spec: dict, ready="ready:"):
     """Launch with ``args``, wait for the node's ready line, run the probe; (report, launch
     exit code, launch output)."""
-    proc = ws.start(f'{LAUNCH} {args}', domain=domain)
+    proc = ws.start(f"{LAUNCH} {args}", domain=domain)
     try:
-        assert proc.wait_for(ready, rosenv.READY_TIMEOUT), f'no {ready!r} line:\n{proc.output[-4000:]}'
+        assert proc.wait_for(ready, rosenv.READY_TIMEOUT), f"no {ready!r} line:\n{proc.output[-4000:]}"
         report = ws.ros.probe(spec, domain=domain)
     finally:
         code = proc.stop(signal.SIGINT)
     return report, code, proc.output
 
 
-def spec_for(ns='', kind='imu', topic='/imu', count=150, rate=100.0, tf=(), frame_id='base_link',
+def spec_for(ns="", kind="imu", topic="/imu", count=150, rate=100.0, tf=(), frame_id="base_link",
              w=(0.05, -0.02, 0.1)):
-    prefix = f'/{ns}' if ns else ''
-    collect = {f'{prefix}/{t}': typ for t, (typ, _) in OUTPUTS.items()}
-    collect[f'{prefix}/gimbal/joint_states'] = 'sensor_msgs/msg/JointState'
-    collect['/diagnostics'] = 'diagnostic_msgs/msg/DiagnosticArray'
-    return {'wait_subscriber': topic, 'publish': {'topic': topic, 'type': kind, 'rate': rate, 'count': count,
-                                                  'w': list(w), 'frame_id': frame_id},
-            'collect': collect, 'latched': {f'{prefix}/robot_description': 'std_msgs/msg/String'},
-            'settle': 1.5, 'tf': [list(p) for p in tf]}
+    prefix = f"/{ns}" if ns else ""
+    collect = {f"{prefix}/{t}": typ for t, (typ, _) in OUTPUTS.items()}
+    collect[f"{prefix}/gimbal/joint_states"] = "sensor_msgs/msg/JointState"
+    collect["/diagnostics"] = "diagnostic_msgs/msg/DiagnosticArray"
+    return {"wait_subscriber": topic, "publish": {"topic": topic, "type": kind, "rate": rate, "count": count,
+                                                  "w": list(w), "frame_id": frame_id},
+            "collect": collect, "latched": {f"{prefix}/robot_description": "std_msgs/msg/String"},
+            "settle": 1.5, "tf": [list(p) for p in tf]}
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def default_launch(ros_ws, tmp_path_factory):
     """The launch file with output_rate:=50.0 and 150 Imu at 100 Hz; TF of every moving joint."""
     with rosenv.domain_lock() as domain:
         # first launch: learn the URDF's joints, then look every moving one up in TF
-        urdf_report, _, _ = launch_and_probe(ros_ws, domain, 'output_rate:=50.0', spec_for(count=20))
-        urdf = urdf_report['topics']['/robot_description'][0]['data']
-        report, code, out = launch_and_probe(ros_ws, domain, 'output_rate:=50.0', spec_for(tf=tf_pairs(urdf)))
+        urdf_report, _, _ = launch_and_probe(ros_ws, domain, "output_rate:=50.0", spec_for(count=20))
+        urdf = urdf_report["topics"]["/robot_description"][0]["data"]
+        report, code, out = launch_and_probe(ros_ws, domain, "output_rate:=50.0", spec_for(tf=tf_pairs(urdf)))
     return report, code, out, urdf
 
 
 def test_every_output_topic_is_finite_with_its_frame_and_the_input_stamps(default_launch):
     report, _, _, _ = default_launch
     for topic, (_, frame) in OUTPUTS.items():
-        msgs = report['topics'][f'/{topic}']
-        assert len(msgs) >= 40, f'/{topic}: {len(msgs)} messages for 1.5 s of input at output_rate 50'
-        assert all(m['header']['frame_id'] == frame for m in msgs), topic
+        msgs = report["topics"][f"/{topic}"]
+        assert len(msgs) >= 40, f"/{topic}: {len(msgs)} messages for 1.5 s of input at output_rate 50"
+        assert all(m["header"]["frame_id"] == frame for m in msgs), topic
         assert all(math.isfinite(x) for m in msgs for x in numbers(m)), topic
         t = [stamp(m) for m in msgs]
-        assert all(b > a for a, b in zip(t, t[1:])), f'{topic}: stamps not increasing'
-    js = report['topics']['/gimbal/joint_states']
+        assert all(b > a for a, b in zip(t, t[1:])), f"{topic}: stamps not increasing"
+    js = report["topics"]["/gimbal/joint_states"]
     t = np.array([stamp(m) for m in js])
     # the 50 Hz output grid on the sample time (the input stamps are wall-clock 'now')
     assert np.median(np.diff(t)) == pytest.approx(0.02, abs=1e-6)
-    att = report['topics']['/platform/attitude']
-    assert all(abs(math.hypot(*m['quaternion'].values()) - 1.0) < 1e-9 for m in att)
+    att = report["topics"]["/platform/attitude"]
+    assert all(abs(math.hypot(*m["quaternion"].values()) - 1.0) < 1e-9 for m in att)
 
 
 def test_tf_of_every_moving_joint_equals_the_joint_state(default_launch):
     report, _, _, urdf = default_launch
-    assert_tf_matches_joint_states(report, urdf, '/gimbal/joint_states')
+    assert_tf_matches_joint_states(report, urdf, "/gimbal/joint_states")
 
 
 def test_robot_description_joints_are_the_joint_state_names(default_launch):
     report, _, _, urdf = default_launch
-    names = report['topics']['/gimbal/joint_states'][0]['name']
+    names = report["topics"]["/gimbal/joint_states"][0]["name"]
     joints = [j[0] for j in moving_joints(urdf)]
     assert sorted(joints) == sorted(names) and len(set(names)) == len(names)
-    assert set(names) >= {'alpha4', 'beta5', 'beta7', 'alpha9', 'beta10', 'rotor6', 'rotor8', 'rotor11'}
+    assert set(names) >= {"alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"}
 
 
 def test_ctrl_c_of_ros2_launch_exits_0_without_a_traceback(default_launch):
     _, code, out, _ = default_launch
     assert code == 0, out[-3000:]
-    assert 'Traceback' not in out, out[-3000:]
+    assert "Traceback" not in out, out[-3000:]
 
 
 def test_diagnostics_report_the_taken_inputs(default_launch):
     report, _, _, _ = default_launch
-    names = {s['name'] for a in report['topics']['/diagnostics'] for s in a['status']}
-    assert {'gyro_platform: input', 'gyro_platform: node', 'gyro_platform: platform'} <= names
+    names = {s["name"] for a in report["topics"]["/diagnostics"] for s in a["status"]}
+    assert {"gyro_platform: input", "gyro_platform: node", "gyro_platform: platform"} <= names
 
 
 def test_namespace_twist_stamped_and_output_rate_arguments(ros_ws, domain):
     """namespace:=robot1 puts every topic under /robot1 and prefixes every frame 'robot1/';
     input_type:=twist_stamped on input_topic:=/vehicle/twist drives it; output_rate:=20.0."""
-    spec = spec_for(ns='robot1', kind='twist_stamped', topic='/vehicle/twist', count=150,
-                    tf=[('robot1/base_link', 'robot1/platform')])
+    spec = spec_for(ns="robot1", kind="twist_stamped", topic="/vehicle/twist", count=150,
+                    tf=[("robot1/base_link", "robot1/platform")])
     report, code, out = launch_and_probe(
-        ros_ws, domain, 'namespace:=robot1 input_type:=twist_stamped input_topic:=/vehicle/twist '
-                        'output_rate:=20.0', spec)
+        ros_ws, domain, "namespace:=robot1 input_type:=twist_stamped input_topic:=/vehicle/twist "
+                        "output_rate:=20.0", spec)
     assert code == 0
     for topic, (_, frame) in OUTPUTS.items():
-        msgs = report['topics'][f'/robot1/{topic}']
-        assert msgs, f'/robot1/{topic}: nothing'
-        assert all(m['header']['frame_id'] == (f'robot1/{frame}' if frame else '') for m in msgs), topic
-    t = np.array([stamp(m) for m in report['topics']['/robot1/drift/angle']])
+        msgs = report["topics"][f"/robot1/{topic}"]
+        assert msgs, f"/robot1/{topic}: nothing"
+        assert all(m["header"]["frame_id"] == (f"robot1/{frame}" if frame else "") for m in msgs), topic
+    t = np.array([stamp(m) for m in report["topics"]["/robot1/drift/angle"]])
     assert np.median(np.diff(t)) == pytest.approx(0.05, abs=1e-6)
     assert 15 <= len(t) <= 40          # 1.5 s of input at 20 Hz
-    assert 'error' not in report['tf']['robot1/base_link|robot1/platform']
-    assert report['topics']['/robot1/robot_description']
+    assert "error" not in report["tf"]["robot1/base_link|robot1/platform"]
+    assert report["topics"]["/robot1/robot_description"]
 
 
 def test_twist_input_frame_prefix_and_no_robot_state_publisher(ros_ws, domain):
     """input_type:=twist (no stamps: receive time), frame_prefix:=sim/, robot_state_publisher:=false:
     outputs come with 'sim/' frames and nothing publishes /robot_description."""
-    spec = spec_for(kind='twist', topic='/twist', count=100)
+    spec = spec_for(kind="twist", topic="/twist", count=100)
     report, code, out = launch_and_probe(
-        ros_ws, domain, 'input_type:=twist frame_prefix:=sim/ robot_state_publisher:=false', spec)
+        ros_ws, domain, "input_type:=twist frame_prefix:=sim/ robot_state_publisher:=false", spec)
     assert code == 0
-    att = report['topics']['/platform/attitude']
-    assert att and all(m['header']['frame_id'] == 'sim/platform_reference' for m in att)
-    assert report['topics']['/robot_description'] == []
-    assert 'robot_state_publisher' not in out
+    att = report["topics"]["/platform/attitude"]
+    assert att and all(m["header"]["frame_id"] == "sim/platform_reference" for m in att)
+    assert report["topics"]["/robot_description"] == []
+    assert "robot_state_publisher" not in out
 
 
 def test_scene_argument_sets_the_model(ros_ws, domain):
     """scene:=earth_rest (carried mode at rest on the rotating Earth): no servo torque topic is
     needed and the gimbal angles move only by the Earth rate — different from the default."""
     spec = spec_for(count=100, w=(0.0, 0.0, 0.0))
-    report, code, out = launch_and_probe(ros_ws, domain, 'scene:=earth_rest output_rate:=50.0', spec)
+    report, code, out = launch_and_probe(ros_ws, domain, "scene:=earth_rest output_rate:=50.0", spec)
     assert code == 0
-    assert 'earth_rest' in out
-    js = report['topics']['/gimbal/joint_states']
-    assert js and all(math.isfinite(x) for m in js for x in m['position'])
+    assert "earth_rest" in out
+    js = report["topics"]["/gimbal/joint_states"]
+    assert js and all(math.isfinite(x) for m in js for x in m["position"])
 
 
 def test_a_bad_launch_argument_is_one_line_not_a_traceback(ros_ws, domain):
-    proc = ros_ws.start(f'{LAUNCH} output_rate:=-5.0', domain=domain)
+    proc = ros_ws.start(f"{LAUNCH} output_rate:=-5.0", domain=domain)
     proc.popen.wait(120)
     out = proc.output
     proc.stop()
-    assert 'not started' in out and 'output_rate' in out
-    assert 'Traceback' not in out
+    assert "not started" in out and "output_rate" in out
+    assert "Traceback" not in out

@@ -8,37 +8,37 @@ from scipy.spatial.transform import Rotation
 
 def stamp(m):
     """Header stamp of a message dict, s."""
-    return m['header']['stamp']['sec'] + m['header']['stamp']['nanosec'] * 1e-9
+    return m["header"]["stamp"]["sec"] + m["header"]["stamp"]["nanosec"] * 1e-9
 
 
 def moving_joints(urdf: str):
     """(name, parent, child, origin Rotation, axis) of every non-fixed joint, in document order."""
     out = []
-    for j in ET.fromstring(urdf).iter('joint'):
-        if j.get('type') == 'fixed':
+    for j in ET.fromstring(urdf).iter("joint"):
+        if j.get("type") == "fixed":
             continue
-        o = j.find('origin')
-        rpy = [float(x) for x in (o.get('rpy', '0 0 0') if o is not None else '0 0 0').split()]
-        axis = np.array([float(x) for x in j.find('axis').get('xyz').split()])
-        out.append((j.get('name'), j.find('parent').get('link'), j.find('child').get('link'),
-                    Rotation.from_euler('xyz', rpy), axis))
+        o = j.find("origin")
+        rpy = [float(x) for x in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+        axis = np.array([float(x) for x in j.find("axis").get("xyz").split()])
+        out.append((j.get("name"), j.find("parent").get("link"), j.find("child").get("link"),
+                    Rotation.from_euler("xyz", rpy), axis))
     return out
 
 
-def tf_pairs(urdf: str, prefix: str = ''):
+def tf_pairs(urdf: str, prefix: str = ""):
     """(parent, child) frame pairs of the moving joints, with the TF frame prefix."""
     return [(prefix + p, prefix + c) for _, p, c, _, _ in moving_joints(urdf)]
 
 
-def assert_tf_matches_joint_states(report, urdf: str, joint_states: str, prefix: str = ''):
+def assert_tf_matches_joint_states(report, urdf: str, joint_states: str, prefix: str = ""):
     """Every moving joint's TF (probe report) = origin · rot(axis, q) of the JointState of its stamp."""
-    by_stamp = {round(stamp(m), 9): dict(zip(m['name'], m['position'])) for m in report['topics'][joint_states]}
+    by_stamp = {round(stamp(m), 9): dict(zip(m["name"], m["position"])) for m in report["topics"][joint_states]}
     joints = moving_joints(urdf)
     assert joints
     for name, parent, child, origin, axis in joints:
-        tf = report['tf'][f'{prefix}{parent}|{prefix}{child}']
-        assert 'error' not in tf, tf
-        q = by_stamp[round(tf['stamp'], 9)][name]
+        tf = report["tf"][f"{prefix}{parent}|{prefix}{child}"]
+        assert "error" not in tf, tf
+        q = by_stamp[round(tf["stamp"], 9)][name]
         expected = origin * Rotation.from_rotvec(q * axis)
-        got = Rotation.from_quat(tf['rotation'])
-        assert (got.inv() * expected).magnitude() < 1e-6, f'{name}: TF differs from origin * rot(axis, {q})'
+        got = Rotation.from_quat(tf["rotation"])
+        assert (got.inv() * expected).magnitude() < 1e-6, f"{name}: TF differs from origin * rot(axis, {q})"
