@@ -350,6 +350,22 @@ def test_the_checker_finds_wrong_names(tmp_path):
         assert found and any(why in f for f in found), (text, found)
 
 
+def test_readme_is_a_ros_2_package_readme():
+    """What it is, quick start (the two blocks .ci/run extracts), ROS 2 within the first 60
+    lines, topics and parameters, the tools, links into docs/ — in that order, ~250 lines."""
+    lines = (REPO / "README.md").read_text().split("\n")
+    heads = [(n, line) for n, line in enumerate(lines, 1) if line.startswith("## ")]
+    order = ["## Quick start", "## ROS 2", "## Topics and parameters", "## Replay", "## Documentation"]
+    at = [next((n for n, h in heads if h.startswith(o)), None) for o in order]
+    assert None not in at and at == sorted(at), list(zip(order, at))
+    assert at[1] <= 60, f"the ROS 2 section starts at line {at[1]}"
+    assert len(lines) <= 300, f"README.md has {len(lines)} lines"
+    for marker in ("<!-- ci:setup -->", "<!-- ci:test -->"):
+        assert lines.count(marker) == 1, marker
+        i = lines.index(marker)
+        assert at[0] < i + 1 < at[1] and lines[i + 1] == "```bash", marker    # in the quick start, bash
+
+
 def test_shared_paths_exist():
     """``../shared/…`` paths (the spec, the recordings, the ROS 2 install script) exist beside
     the repository, on the machines that have them."""
