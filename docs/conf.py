@@ -63,9 +63,9 @@ html_title = "gyro_platform"
 # problem still fails the build (-W).
 import re as _re
 
-_LITERAL_SPAN = _re.compile(r"(``.+?``|`[^`]+`_?_?)")
+_LITERAL_SPAN = _re.compile(r"(``.+?``|`[^`]+`_?_?)", _re.S)    # may run over a line break
 _PLAIN_BAR = _re.compile(r"(?<!\\)\|")
-_PLAIN_REF_END = _re.compile(r"(?<=[\w\]])_(?=[\]\W]|$)")
+_PLAIN_REF_END = _re.compile(r"(?<=[\w\]])_(?=[\]\W]|$)", _re.M)
 
 
 def _escape_plain(text: str) -> str:
@@ -79,23 +79,35 @@ def _indent(line: str) -> int:
     return len(line) - len(line.lstrip())
 
 
-def escape_plain_docstring(app, what, name, obj, options, lines):
-    literal_indent = None          # indent of the paragraph that opened a literal block (::)
-    opener = None
+def _literal_lines(lines: list[str]) -> set[int]:
+    """Lines of literal blocks (after ``::``), directives and doctests: left as written."""
+    out, block = set(), None         # block: indent of the line that opened a literal block
     for i, line in enumerate(lines):
-        if literal_indent is not None:
-            if not line.strip() or _indent(line) > literal_indent:
-                continue
-            literal_indent = None
         stripped = line.strip()
-        if stripped.startswith((".. ", ">>>")):      # directives and doctests as written
-            opener = _indent(line) if stripped.endswith("::") or stripped.startswith(".. ") else None
-            if opener is not None:
-                literal_indent = opener
+        if block is not None and (not stripped or _indent(line) > block):
+            out.add(i)
             continue
-        lines[i] = _escape_plain(line)
-        if stripped.endswith("::"):
-            literal_indent = _indent(line)
+        block = None
+        if stripped.startswith((".. ", ">>>")):
+            out.add(i)
+            block = _indent(line)
+        elif stripped.endswith("::"):
+            block = _indent(line)
+    return out
+
+
+def escape_plain_docstring(app, what, name, obj, options, lines):
+    keep = _literal_lines(lines)
+    i = 0
+    while i < len(lines):            # each run of prose lines as one text: spans cross lines
+        if i in keep:
+            i += 1
+            continue
+        j = i
+        while j < len(lines) and j not in keep:
+            j += 1
+        lines[i:j] = _escape_plain("\n".join(lines[i:j])).split("\n")
+        i = j
 
 
 def setup(app):
