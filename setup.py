@@ -38,6 +38,8 @@ setup(
         "bench": ["mujoco>=3.1"],
         # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests
         "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6"],
+        # the documentation site: sphinx-build -W -b html docs docs/_build/html
+        "docs": ["sphinx>=7", "myst-parser>=2"],
     },
     zip_safe=True,
     maintainer="gyro_platform developers",
