@@ -37,7 +37,8 @@ setup(
         # gyro-platform bench peer: the same carried platform in MuJoCo (bench/peer_mujoco.py)
         "bench": ["mujoco>=3.1"],
         # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests
-        "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6"],
+        "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6",
+                 "sphinx>=7", "myst-parser>=2"],   # test_docs builds the docs with sphinx-build -W
         # the documentation site: sphinx-build -W -b html docs docs/_build/html
         "docs": ["sphinx>=7", "myst-parser>=2"],
     },

@@ -318,8 +318,13 @@ def _column_regex(pattern: str) -> re.Pattern:
     return re.compile("^" + rx + "$")
 
 
+def documentation() -> str:
+    """README.md and the docs/ pages, the text a user reads."""
+    return "\n".join(p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))])
+
+
 def test_every_csv_column_has_a_unit_and_is_documented_once(tmp_path, capsys):
-    readme = (REPO / "README.md").read_text()
+    readme = documentation()
     for scene in ("default", "coning"):      # stabilised and carried: every column kind
         out = tmp_path / scene
         cli.main(["run", scene, "--out", str(out), "--duration", "0.5"])
@@ -367,8 +372,8 @@ def test_help_texts_list_exit_codes_and_no_rst_markup(capsys):
             assert re.search(r"^    node\s", text, re.M) and re.search(r"^    replay\s", text, re.M)
 
 
-def test_readme_documents_the_exit_codes():
-    readme = (REPO / "README.md").read_text()
+def test_the_docs_document_the_exit_codes():
+    readme = documentation()
     for code in cli.EXIT_CODES:
         assert re.search(rf"^\| `{code}` \|", readme, re.M), code
 

@@ -51,8 +51,6 @@ INSTALLED = "install/gyro_platform/share/gyro_platform/"
 #: and the like are outputs and are not checked)
 BARE_EXTENSIONS = (".py", ".txt", ".xml", ".cfg", ".toml", ".rviz", ".sh")
 BARE_DIRS = ("", "gyro_platform", "test", "launch", "config")
-#: files the docs name that another change of issue 32 adds; reported by test_pending_files
-PENDING = {"requirements-ros.txt": "the pip-only dependencies of the ROS build (issue 32's ROS tests add it)"}
 
 TOKEN = re.compile(r"[^\s\"'`()\[\],;|]+")
 CODE_SPAN = re.compile(r"``(.+?)``|`([^`]+)`", re.S)
@@ -227,8 +225,6 @@ def check_path(token: str, page_dir: Path, link: bool) -> str | None:
             return None                                       # physics/system (a module)
         return "no such file"
     if "/" not in token and token.endswith(BARE_EXTENSIONS):
-        if token in PENDING:
-            return None                                       # test_pending_files
         return None if any((REPO / d / token).is_file() for d in BARE_DIRS) else "no such file"
     return None
 
@@ -379,13 +375,6 @@ def test_shared_paths_exist():
     missing = [f"{p.relative_to(REPO)}:{n}: {t}" for p, n, t in sorted(tokens)
                if not (REPO / t.rstrip(".:")).exists()]
     assert not missing, "\n".join(missing)
-
-
-@pytest.mark.parametrize("name", sorted(PENDING))
-def test_pending_files(name):
-    """Files the docs name that another part of issue 32 adds: expected to fail until it lands."""
-    if not (REPO / name).is_file():
-        pytest.xfail(f"{name} is not in the repository yet: {PENDING[name]}")
 
 
 def test_sphinx_builds_the_docs_without_warnings(tmp_path):

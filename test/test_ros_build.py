@@ -6,7 +6,10 @@ file and scenes installed under ``share/``, and the node of a *plain* install (a
 sources, fresh kernel cache) starting: the time from ``ros2 run`` to its ``ready:`` line is
 printed (issue 31 sets its target; speed is the bench's, not asserted here).
 """
+import re
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -71,3 +74,19 @@ def test_gyro_platform_node_on_the_ros_transport_takes_its_options(ros_ws, domai
     assert "/veh/gp" in nodes
     assert "String value is: coning" in scene
     assert code == 0 and "Traceback" not in proc.output
+
+
+def test_colcon_test_collects_the_whole_suite(ros_ws):
+    """``colcon test`` (ROS's python, numpy 1.26, ROS's pytest plugins) collects exactly the
+    tests this interpreter collects: no module skipped for its environment, no session lost."""
+    here = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", "test"],
+                          cwd=rosenv.REPO, capture_output=True, text=True, timeout=600)
+    there = ros_ws.run("colcon test --packages-select gyro_platform --event-handlers console_direct+ "
+                       "--pytest-args --collect-only -q -p no:cacheprovider", cwd=ros_ws.root, timeout=900)
+    count = re.compile(r"(\d+) tests? collected")
+    n_here = count.findall(here.stdout)
+    n_there = count.findall(there.stdout + there.stderr)
+    assert n_here and n_there, (here.stdout[-2000:], there.stdout[-4000:], there.stderr[-2000:])
+    assert int(n_there[-1]) == int(n_here[-1]), (
+        f"colcon test collects {n_there[-1]}, this venv {n_here[-1]}: install the pip-only dependencies "
+        "into ROS's python as the README's ROS 2 section says\n" + there.stdout[-3000:])
