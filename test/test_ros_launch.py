@@ -33,6 +33,10 @@ OUTPUTS = {
         "gyro_housing5", "gyro_housing7", "gyro_housing10"))},
 }
 LAUNCH = "ros2 launch gyro_platform platform.launch.py"
+#: the gimbal axes of the model (spec PHYSICS.md; docs/ros.md): unit A α4 about +y, β5 about +z,
+#: β7 about −z; unit B α9 about +z, β10 about +x (in the parent frames at zero angles)
+GIMBAL_AXES = {"alpha4": (0.0, 1.0, 0.0), "beta5": (0.0, 0.0, 1.0), "beta7": (0.0, 0.0, -1.0),
+               "alpha9": (0.0, 0.0, 1.0), "beta10": (1.0, 0.0, 0.0)}
 
 
 def numbers(d):
@@ -107,6 +111,9 @@ def test_robot_description_joints_are_the_joint_state_names(default_launch):
     joints = [j[0] for j in moving_joints(urdf)]
     assert sorted(joints) == sorted(names) and len(set(names)) == len(names)
     assert set(names) >= {"alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"}
+    axes = {name: tuple(axis) for name, _, _, _, axis in moving_joints(urdf)}
+    for name, axis in GIMBAL_AXES.items():
+        assert axes[name] == axis, f"{name}: axis {axes[name]}, the model's is {axis}"
 
 
 def test_ctrl_c_of_ros2_launch_exits_0_without_a_traceback(default_launch):
