@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """gyro-platform command line: run a scene, replay a bag, benchmark, run the ROS 2 node, sweep.
 
 Each subcommand lives in the module that owns it; that module provides
@@ -24,8 +38,8 @@ import os
 import sys
 
 from . import __version__
-from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
-                     EXIT_USAGE, EXIT_WRITE, StopSignals, stop_exit_code, stop_reason, write_failure)
+from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
+                     EXIT_WRITE, stop_exit_code, stop_reason, StopSignals, write_failure)
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
@@ -38,8 +52,11 @@ EPILOG_NOTES = {"node": "\n\nnode: Ctrl-C or SIGTERM is how a node is stopped (r
 SUBCOMMANDS = {
     "run": ("gyro_platform.scenes.command", "run a scene (file or name): summary table, CSV/JSON, plot"),
     "replay": ("gyro_platform.replay.command", "replay a rosbag2 bag through the simulator into an output bag"),
-    "bench": ("gyro_platform.bench.command", "benchmarks: consumer figures beside the kernel, MuJoCo peer, accuracy versus time, hard cases, "
-                                          "hot path, effects cost"),
+    "bench": (
+        "gyro_platform.bench.command",
+        "benchmarks: consumer figures beside the kernel, MuJoCo peer, accuracy versus time, hard cases, "
+        "hot path, effects cost",
+    ),
     "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
     "sweep": ("gyro_platform.sweep.command", "Monte Carlo drift budgets and fleet replays on Dask"),
 }

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Exceptions, exit codes and stop signals shared by every room (the leaf: imports only the
 standard library).
 
@@ -8,15 +22,15 @@ command. :class:`StopSignals` turns SIGINT and SIGTERM into one orderly stop
 (``KeyboardInterrupt`` / :class:`Terminated`) and :func:`deferred_signals` holds them off while
 a file is being closed; :func:`check_output_path` refuses unwritable outputs before a run.
 """
+from contextlib import contextmanager
 import errno
 import os
+from pathlib import Path
 import signal
 import sqlite3
 import sys
 import tempfile
 import threading
-from contextlib import contextmanager
-from pathlib import Path
 
 
 class SimulationError(ValueError):

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Input messages → time gate → simulator → output instants: the one pipeline that the replay,
 the scene runs and the node core share.
 
@@ -18,26 +32,24 @@ Times: ns (int) on the input's time base; rates in Hz.
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass, field, fields, replace
+import math
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
 from .engine.inputs import RateSample
+# ---- the chunked path's pieces, from their rooms (one place to see them)
+from .engine.outputs import OutputBlock  # noqa: F401
 from .errors import InputError, SimulationError
 from .io import messages as msgs
 from .io.bag_reader import InputBag
-from .io.gate import NS, Action, Decision, TimeGate, plain_decision
-from .io.messages import Mounting, Rejected
-
-# ---- the chunked path's pieces, from their rooms (one place to see them)
-from .engine.outputs import OutputBlock  # noqa: F401
 from .io.bag_writer import OutputBag
 from .io.blocks import take_rows
 from .io.decode import decode_rates
-from .io.gate import ALL_REASONS, DROP, RESET, reading_of
+from .io.gate import Action, ALL_REASONS, Decision, DROP, NS, plain_decision, reading_of, RESET, TimeGate
+from .io.messages import Mounting, Rejected
 
 offer_block = TimeGate.offer_block
 rotate_block = Mounting.rotate_block
@@ -93,8 +105,9 @@ def prefetched(items: Iterator[Any], work: Callable[[Any], Any]) -> Iterator[tup
 
 
 def push_block(sim: Any, t: Any, omega: Any, force: Any, out_idx: Any) -> Any:
-    """``sim.push_block(t, omega, force, out_idx)`` (see ``Simulator.push_block``)."""
+    """Push one block into the simulator: ``Simulator.push_block`` with these arguments."""
     return sim.push_block(t, omega, force, out_idx)
+
 
 #: outcomes of :func:`apply_decision` after which the simulator holds a new instant
 ADVANCED = ("pushed", "reset", "restarted")
@@ -204,7 +217,6 @@ def restart_at(sim: Any, sample: RateSample) -> str:
     return "restarted"
 
 
-
 #: Hz: the highest output (and diagnostics) grid rate. Above it the slot numbers of a long run
 #: would leave int64 (1e20 Hz: slot ~1e20 after a second); any rate above the input's gives an
 #: output after every sample, which rate 0 asks for directly
@@ -245,7 +257,6 @@ def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int) -> str:
     reason, count = max(dropped_by_reason.items(), key=lambda kv: kv[1])
     hint = DROP_HINTS.get(reason, "see dropped_by_reason in the summary")
     return f"none of the {n_in} input messages was accepted ({count} dropped as {reason}): {hint}"
-
 
 
 # ---- the chunked path: blocks of rows through gate, simulator and output grid ------------------
@@ -343,7 +354,7 @@ class Step:
 
     @property
     def decision(self) -> Decision:
-        """The gate's decision (made from the plain tuple on the first call)."""
+        """Return the gate's decision, made from the plain tuple on the first call."""
         if self._decision is None:
             self._decision = plain_decision(self._plain)
         return self._decision
@@ -441,8 +452,8 @@ class Pipeline:
         for msg, receive_ns in stream:
             yield self.feed(msg, receive_ns)
 
-
     # ---- the chunked path ------------------------------------------------------------------
+
     def decode(self, bag: InputBag, chunk: Any) -> Iterator[tuple[np.ndarray, Any]]:
         """The input rows of a RowChunk (``bag``'s input topic), decoded and rotated into base_link:
         ``(rows into the chunk, RateBlock)`` per run of rows of one connection."""
@@ -459,13 +470,11 @@ class Pipeline:
             rb = decode_rates(conn.msgtype, raws, bag.store_for(conn))
             yield part, rotate_block(self.mounting, rb)
 
-
     def run_chunk(self, bag: InputBag, chunk: Any) -> Iterator[tuple[np.ndarray, Any, BlockResult]]:
         """A RowChunk's input rows through gate and simulator: ``(rows into the chunk, RateBlock,
         BlockResult)`` per :meth:`decode` part (the receive times are the chunk's record times)."""
         for rows, rb in self.decode(bag, chunk):
             yield rows, rb, self.run_block(rb, chunk.ts[rows])
-
 
     def run_block(self, rb: Any, receive_ns: np.ndarray, snap_rows: Any = ()) -> BlockResult:
         """N decoded rows (a rotated RateBlock) received at ``receive_ns`` (int64 ns): one
@@ -560,7 +569,6 @@ class Pipeline:
         emit = new_slots(s, last)
         return emit, np.maximum.accumulate(np.concatenate([[_NO_SLOT if last is None else last], s]))[1:]
 
-
     def _run(self, rows: np.ndarray, rb: Any, res: BlockResult) -> None:
         """One run of accepted rows (only ``rows[0]`` may be a RESET) through ``push_block``;
         a failing sample goes the per-message way (:func:`apply_decision`: reset, push again)."""
@@ -625,7 +633,6 @@ class Pipeline:
                 self.new_segment = False
             k = nxt
 
-
     def _scalar(self, rows: np.ndarray, rb: Any, res: BlockResult) -> None:
         """Rows one by one as the per-message path does (apply_decision, due, outputs())."""
         gb = res.gate
@@ -651,7 +658,6 @@ class Pipeline:
                     continue
                 res.outputs.append(RunOutputs(np.array([i]), OutputBlock.stack([o]), self.new_segment))
                 self.new_segment = False
-
 
     def _count(self, res: BlockResult) -> None:
         """Add a block's outcomes to ``outcomes`` (new keys in the order the per-message path

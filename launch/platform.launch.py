@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Launch the gyro platform node and robot_state_publisher.
 
     ros2 launch gyro_platform platform.launch.py [params_file:=FILE] [scene:=NAME|FILE]
@@ -14,11 +28,11 @@ the input type is used). ``frame_prefix`` defaults to ``<namespace>/`` when a na
 ``/robot_description``, ``/tf`` and ``/tf_static``. Replaying a bag: ``ros2 bag play BAG --clock``
 with ``use_sim_time:=true``. What is started is computed by ``gyro_platform.ros.launch_setup.plan``.
 """
+from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from ament_index_python.packages import get_package_share_directory
 
 from gyro_platform.ros.launch_setup import ARGUMENTS, plan
 

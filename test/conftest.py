@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Fixtures of the ROS tests: ROS 2 Jazzy found from outside, a colcon workspace, a domain.
 
 ``ros`` is the ROS 2 environment (:func:`rosenv.find`; the tests that need it skip with the
@@ -9,8 +23,8 @@ venv, numpy 2) but ROS 2 is found, its tests run in ROS's python, once per sessi
 reports its own outcome here (:class:`RclpyModule`).
 """
 import ast
-import xml.etree.ElementTree as ET
 from pathlib import Path
+import xml.etree.ElementTree as ET
 
 import pytest
 
@@ -87,7 +101,7 @@ class RclpyModule(pytest.File):
                 for case in ET.parse(xml).getroot().iter("testcase"):
                     bad = [c for c in case if c.tag in ("failure", "error", "skipped")]
                     self._outcomes[case.get("name")] = (bad[0].tag, (bad[0].get("message") or "") + "\n" +
-                                                       (bad[0].text or "")) if bad else ("passed", "")
+                                                        (bad[0].text or "")) if bad else ("passed", "")
         return self._outcomes
 
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """A probe node for the ROS tests: publishes rate inputs, records topics and TF, prints JSON.
 
 Run in ROS's python (rclpy) by :meth:`rosenv.RosEnv.probe`, as a separate process beside the
@@ -25,7 +39,7 @@ import sys
 import time
 
 import rclpy
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rosidl_runtime_py.convert import message_to_ordereddict
 import tf2_ros
 
@@ -86,7 +100,10 @@ def main(spec):
         spin_for(1.0, lambda: pub.get_subscription_count() > 0)
         period = 1.0 / float(pub_spec.get("rate", 100.0))
         stamp = pub_spec.get("stamp", "now")
-        t0 = node.get_clock().now().nanoseconds if stamp == "now" else (0 if stamp == "zero" else int(float(stamp) * 1e9))
+        if stamp == "now":
+            t0 = node.get_clock().now().nanoseconds
+        else:
+            t0 = 0 if stamp == "zero" else int(float(stamp) * 1e9)
         start = time.monotonic()
         for k in range(int(pub_spec.get("count", 100))):
             t_ns = 0 if stamp == "zero" else t0 + int(round(k * period * 1e9))

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """ROS 2 Jazzy from outside, for the tests: find it, run commands in it, build this package.
 
 Holds :class:`RosEnv` (the environment of a sourced ROS 2 setup file; ``run`` and ``start`` in
@@ -14,10 +28,12 @@ environment when it is sourced (``ROS_DISTRO=jazzy``); ``/opt/ros/jazzy/setup.ba
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass, field
 import fcntl
 import functools
 import json
 import os
+from pathlib import Path
 import shutil
 import signal
 import subprocess
@@ -25,8 +41,6 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterator, Mapping, Sequence
 
 REPO = Path(__file__).resolve().parents[1]

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Accuracy on request (issue 11): every method held to rtol/atol ends within 1e-5 rad of a
 tight reference or refuses with SimulationError and a finite state; batch and per-sample
 paths agree and fail alike; auto keeps the nutation energy. No timings are asserted."""
@@ -6,10 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from gyro_platform import (INTEGRATORS, NAV1, InputError, ModelOptions, PlatformParams, RateSample,
-                           SimulationError, Simulator)
+from gyro_platform import (InputError, INTEGRATORS, ModelOptions, NAV1, PlatformParams, RateSample, SimulationError,
+                           Simulator)
+from gyro_platform.engine.hardcases import angle_error, ASK, CASES, run_case, run_reference, verdict
 from gyro_platform.errors import ToleranceError
-from gyro_platform.engine.hardcases import ASK, CASES, angle_error, run_case, run_reference, verdict
 
 #: methods that run in Python per step (no compiled batch path): a shorter window in the tests
 SLOW = {"implicit_midpoint", "exprb", "radau"}

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """InputBag.chunks: the rows of InputBag.messages (rosbags' Reader, or the salvage reader) in
 blocks — same rows, same order, same errors — on the shared recordings, on generated sqlite3
 and MCAP bags (several topics, equal and out-of-order timestamps, overlapping and compressed
@@ -7,15 +21,15 @@ skipped with a count), and two types on one topic are not merged into the input.
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
+import shutil
 
 import numpy as np
 import pytest
-import yaml
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
+import yaml
 
 from gyro_platform import cli
 from gyro_platform.errors import BagReadError
@@ -48,7 +62,8 @@ def imu(ns, w=(0.01, 0.02, 0.03), frame="imu_link"):
 def twist_stamped(ns, w=(0.1, 0.2, 0.3)):
     v3 = T["geometry_msgs/msg/Vector3"]
     return T[TWS](header=T["std_msgs/msg/Header"](stamp=stamp(ns), frame_id="base_link"),
-                  twist=T["geometry_msgs/msg/Twist"](linear=v3(x=0.0, y=0.0, z=0.0), angular=v3(x=w[0], y=w[1], z=w[2])))
+                  twist=T["geometry_msgs/msg/Twist"](linear=v3(x=0.0, y=0.0, z=0.0),
+                                                     angular=v3(x=w[0], y=w[1], z=w[2])))
 
 
 def cdr(msg, msgtype):
@@ -91,7 +106,8 @@ def write_mcap(path, rows, profile="ros2", chunk_size=4096, compression="zstd", 
     """MCAP file written with the mcap package (small chunks: many, overlapping in time when
     rows are out of order). ``extra_channels``: (topic, message encoding, schema name, schema
     encoding, [(time, bytes)]) of non-CDR channels."""
-    from mcap.writer import CompressionType, IndexType, Writer as McapWriter
+    from mcap.writer import CompressionType, IndexType
+    from mcap.writer import Writer as McapWriter
 
     comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}[compression]
     with open(path, "wb") as f:
@@ -298,7 +314,8 @@ def test_mcap_with_json_and_protobuf_channels_is_read_not_damaged(tmp_path, prof
     imu_rows = [("/imu", IMU, T0 + i * 10_000_000, cdr(imu(T0 + i * 10_000_000), IMU)) for i in range(300)]
     extra = [("/pose_json", "json", "Pose", "jsonschema",
               [(T0 + i * 50_000_000 + 1, json.dumps({"x": i}).encode()) for i in range(60)]),
-             ("/log_pb", "protobuf", "foxglove.Log", "protobuf", [(T0 + i * 100_000_000 + 2, b"\x08\x01") for i in range(30)])]
+             ("/log_pb", "protobuf", "foxglove.Log", "protobuf",
+              [(T0 + i * 100_000_000 + 2, b"\x08\x01") for i in range(30)])]
     f = write_mcap(tmp_path / "foreign.mcap", imu_rows, profile=profile, extra_channels=extra)
     with InputBag(f) as b:
         assert not b.salvaged and b.damage is None and b.foreign
@@ -377,8 +394,8 @@ def test_chunk_pacer_aims_at_its_wall_time_per_chunk():
 def test_prefetched_gives_every_item_in_order_then_the_error_and_stops_its_thread():
     """Items and their work come in order from the reader thread; an error of the source is
     raised after the items before it; closing early stops the thread (no thread left)."""
-    import threading
     from contextlib import closing
+    import threading
 
     from gyro_platform.pipeline import prefetched
 

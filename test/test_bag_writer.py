@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """OutputBag: the batched writer makes the files rosbags' Writer makes (sqlite3 tables and
 metadata field by field, MCAP byte for byte), and keeps them readable through faults: SIGKILL
 and SIGTERM lose at most the last commit chunk, a second Ctrl-C during close() still leaves
@@ -6,6 +20,7 @@ OutputError; unwritable output paths are refused before a run."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import shutil
 import signal
 import sqlite3
@@ -14,19 +29,17 @@ import subprocess
 import sys
 import textwrap
 import time
-from pathlib import Path
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
 import yaml
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
-from gyro_platform.errors import OutputError
+from gyro_platform.errors import check_output_path, deferred_signals, OutputError
 from gyro_platform.io import bag_storage as bs
 from gyro_platform.io import messages as m
-from gyro_platform.io.bag_writer import OutputBag, default_qos
-from gyro_platform.errors import check_output_path, deferred_signals
+from gyro_platform.io.bag_writer import default_qos, OutputBag
 from gyro_platform.io.blocks import RowChunk
 from gyro_platform.io.encode import encode_outputs
 
@@ -108,7 +121,7 @@ def make_plan(n_out: int):
 
 
 def _stack(outs):
-    from test_encode import stack   # the test helper building an OutputBlock from Outputs
+    from test_encode import stack  # the test helper building an OutputBlock from Outputs
 
     return stack(outs)
 
@@ -161,7 +174,7 @@ def mcap_parts(f: Path) -> dict:
     data = f.read_bytes()
     with f.open("rb") as fh:
         reader = make_reader(fh)
-        meta = [m_ for m_ in reader.iter_metadata()]
+        meta = list(reader.iter_metadata())
         summary = reader.get_summary()
     (idx,) = summary.metadata_indexes
     assert isinstance(meta[0], Metadata) and meta[0].name == "rosbag2"
@@ -178,7 +191,8 @@ def test_same_files_as_rosbags_writer(tmp_path, storage, by_chunk, monkeypatch):
     ref_dir, fast_dir = tmp_path / "ref" / "bag", tmp_path / "fast" / "bag"   # same names: same metadata
     write_reference(ref_dir, storage, plan)
     bag = write_fast(fast_dir, storage, groups, enc, stamps, by_chunk)
-    assert yaml.safe_load((fast_dir / "metadata.yaml").read_text()) == yaml.safe_load((ref_dir / "metadata.yaml").read_text())
+    fast_meta = yaml.safe_load((fast_dir / "metadata.yaml").read_text())
+    assert fast_meta == yaml.safe_load((ref_dir / "metadata.yaml").read_text())
     name = "bag." + ("db3" if storage == "sqlite3" else "mcap")
     assert sorted(p.name for p in fast_dir.iterdir()) == [name, "metadata.yaml"]
     if storage == "mcap":
@@ -480,7 +494,7 @@ _NAMES = st.sampled_from(["a", "name", "/imu/data", "sensor_msgs/msg/Imu", "x-1.
                           "k" * 120])
 _SCALARS = st.one_of(_NAMES, st.integers(-2**63, 2**64), st.booleans(), st.none(), st.floats(allow_nan=False))
 _YAML_DATA = st.recursive(_SCALARS, lambda kids: st.one_of(st.lists(kids, max_size=4),
-                                                          st.dictionaries(_NAMES, kids, max_size=5)), max_leaves=30)
+                                                           st.dictionaries(_NAMES, kids, max_size=5)), max_leaves=30)
 
 
 @settings(max_examples=400, deadline=None)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The benchmark's physics and plumbing (never its timings): the MuJoCo peer model is the same
 carried platform as gyro_platform's (gimbal-angle trajectories agree), the generated Imu bag
 decodes back to the motion it was made from, the consumer rows go through the real command and
@@ -50,7 +64,7 @@ def test_mujoco_model_has_the_nav1_inertias_and_axes():
 
 def _both(pm, t, w, out_every):
     tg, g, _ = pm.gyro_run(t, w, pm.carried_options(1e-12, 1e-15, max_step=2.5e-4, integrator="rk4",
-                                                     max_substeps=1 << 20), out_every=out_every)
+                                                    max_substeps=1 << 20), out_every=out_every)
     tm, m, _ = pm.mujoco_run(t, w, substeps=16, out_every=out_every)
     np.testing.assert_allclose(tg, tm, atol=1e-12)
     return g, m

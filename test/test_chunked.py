@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The chunked pipeline against the per-message path (the reference, ``engine="per_message"``):
 identical output bags (every topic's records, byte for byte: stamps, values, order), the same
 counts and gate figures, on generated 1 kHz bags full of faults, across chunk boundaries, on
@@ -7,18 +21,18 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 from gyro_platform import replay as rp
 from gyro_platform.io import messages as m
@@ -123,7 +137,8 @@ def assert_same(res: dict[str, tuple[dict, dict]]) -> None:
         assert got[topic] == ref[topic], f"{topic}: records differ"
     for key in ("counts", "gate", "output", "simulated", "no_usable_input"):
         if key == "output":
-            assert {k: v for k, v in s[key].items() if k != "bag"} == {k: v for k, v in s_ref[key].items() if k != "bag"}
+            ref = {k: v for k, v in s_ref[key].items() if k != "bag"}
+            assert {k: v for k, v in s[key].items() if k != "bag"} == ref
         else:
             assert s[key] == s_ref[key], key
     assert list(s["counts"]["simulator"]) == list(s_ref["counts"]["simulator"])    # key order (diagnostics)
@@ -250,8 +265,8 @@ def test_new_slots_is_the_running_due(slots, last):
 
 def test_stats_from_blocks_equal_per_output():
     """Stats.add_block == Stats.add per output (ranges, non-finite counts, drift slope)."""
-    from gyro_platform.engine.outputs import OutputBlock
     from gyro_platform.engine.inputs import RateSample
+    from gyro_platform.engine.outputs import OutputBlock
     from gyro_platform.engine.simulator import Simulator
 
     sim = Simulator()
@@ -398,7 +413,7 @@ def test_signal_stops_at_a_chunk_boundary_with_consistent_counts(tmp_path, sig):
     c = s["counts"]
     assert 0 < c["in"] < len(rows)
     assert c["accepted"] == s["simulated"] == sum(v for k, v in c["simulator"].items()
-                                                 if k in ("pushed", "reset", "restarted"))
+                                                  if k in ("pushed", "reset", "restarted"))
     assert c["accepted"] + c["dropped"] == c["in"]
     got = by_topic(out)                                                   # closed and readable
     assert len(got["/gimbal/joint_states"]) == c["out"] == s["output"]["outputs"]

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The command line as a user meets it: exit codes, one-line errors on bad input of every kind,
 scenes by name from any folder, help texts, broken pipes, results on stdout.
 
@@ -10,21 +24,19 @@ import csv
 import json
 import math
 import os
+from pathlib import Path
 import re
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from test_replay import CABRILLO, HUSKY, imu_msg, need, S, write_bag
 
-from gyro_platform import __version__
-
-from gyro_platform import cli
+from gyro_platform import __version__, cli
 from gyro_platform import replay as rp
 from gyro_platform.io.bag_paths import ROS1_MAGIC
 from gyro_platform.io.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
-from test_replay import CABRILLO, HUSKY, S, imu_msg, need, write_bag
 
 REPO = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -247,7 +259,8 @@ def test_bad_scene_is_exit_2_with_one_line(case, tmp_path, capsys):
 
 @pytest.mark.parametrize("text, says", [
     ("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\na: [1, 2\n",
-     "not valid YAML: line 4:1: expected ',' or ']', but got '<stream end>' (while parsing a flow sequence at line 3:4)"),
+     "not valid YAML: line 4:1: expected ',' or ']', but got '<stream end>' "
+     "(while parsing a flow sequence at line 3:4)"),
     ("duration: 2\nmotion: {type: constant, omega: [0.0, 0.0, 0.0]}\nduration: 3\n",
      "not valid YAML: line 3:1: duplicate key 'duration' (first at line 1:1)"),
     ("duration: 2\nmotion:\n  type: constant\n  omega: [0.0, 0.0, 0.0]\n  omega: [1.0, 0.0, 0.0]\n",
@@ -290,9 +303,9 @@ def test_scenes_by_name_from_any_folder(tmp_path, monkeypatch, capsys):
 def test_default_fidelity_is_one_per_mode_everywhere(tmp_path, capsys):
     """Replay without a scene, a scene without ``fidelity`` and the library all take the
     mode's default from ``options.DEFAULT_FIDELITY``."""
+    from gyro_platform.engine.simulator import Simulator
     from gyro_platform.physics.options import DEFAULT_FIDELITY, ModelOptions
     from gyro_platform.scenes.schema import scene_from_dict
-    from gyro_platform.engine.simulator import Simulator
 
     bag = small_bag(tmp_path / "b")
     assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o"), "--quiet", "--no-plot"]) == 0
@@ -464,7 +477,7 @@ def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     prefix = tmp_path / "prefix"
     src = tmp_path / "src"            # a clean copy: the build leaves build/ and egg-info behind
     shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(".git", "results", "__pycache__", "*.egg-info",
-                                                            "build", ".venv", "test"))
+                                                             "build", ".venv", "test"))
     record = tmp_path / "installed.txt"
     inst = subprocess.run([PY, "setup.py", "-q", "install", "--single-version-externally-managed",
                            "--record", str(record), "--prefix", str(prefix)],
@@ -646,7 +659,8 @@ def test_node_help_says_a_signal_stops_it_with_exit_0(capsys):
 
 @pytest.mark.parametrize("motion,words", [
     ("{type: constant, omega: [1.0e200, 0, 0]}", "motion 'constant': cannot be generated"),
-    ("{type: random, seed: 1, angle_rms_deg: 1.0e300, band_hz: [0.1, 1.0e300]}", "motion 'random': its rates are not finite at"),
+    ("{type: random, seed: 1, angle_rms_deg: 1.0e300, band_hz: [0.1, 1.0e300]}",
+     "motion 'random': its rates are not finite at"),
     ("{type: random, seed: 1, angle_rms_deg: 1, components: 100000000000}",
      "motion.components: must be ≤ 256, got 100000000000"),
 ])
@@ -698,10 +712,9 @@ def test_signals_inside_a_deferred_block_arrive_after_it():
     """In process: a SIGTERM during ``deferred_signals`` is held until the block ends, then
     raised as ``Terminated`` (a KeyboardInterrupt); a second signal after the stop raises nothing."""
     import signal as sg
-
-    from gyro_platform.errors import StopSignals, Terminated, deferred_signals
-
     import threading
+
+    from gyro_platform.errors import deferred_signals, StopSignals, Terminated
 
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers live in the main thread only")

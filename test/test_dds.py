@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Plain-DDS transport (rmw_cyclonedds wire format without ROS): bytes, names, QoS, and
 topic-driven scenarios against the node running as a separate process over loopback DDS.
 
@@ -65,7 +79,8 @@ def random_message(ros_type: str, rng: np.random.Generator, empty: bool = False)
             if name == "bool":
                 return bool(rng.integers(2))
             lo, hi = INT_RANGES[name]
-            return int(rng.choice([lo, hi, 0, int(rng.integers(lo, hi, endpoint=True, dtype=np.int64 if lo < 0 else np.uint64))]))
+            mid = int(rng.integers(lo, hi, endpoint=True, dtype=np.int64 if lo < 0 else np.uint64))
+            return int(rng.choice([lo, hi, 0, mid]))
         if kind == Nodetype.NAME:
             return random_message(args, rng, empty)
         sub, n = args
@@ -104,7 +119,9 @@ def twist_stamped(t: float, w=(0.0, 0.0, 0.0), frame: str = "base_link"):
 
 def handmade_messages():
     """One hand-made message per output type with NaNs, empty sequences and odd string lengths."""
-    hdr = lambda s, n, f: T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=s, nanosec=n), frame_id=f)  # noqa: E731
+    def hdr(s, n, f):
+        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=s, nanosec=n), frame_id=f)
+
     v = lambda x, y, z: T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)  # noqa: E731
     kv = T["diagnostic_msgs/msg/KeyValue"]
     st = T["diagnostic_msgs/msg/DiagnosticStatus"]
@@ -619,7 +636,9 @@ def test_twist_stamped_input_namespace_qos_and_graph(start_node, driver_factory)
     diag = drv.subscribe(m.DIAGNOSTIC_ARRAY, "/diagnostics")
     connect(drv, [pub], [js, diag])
     t0 = 42.0
-    lockstep(drv, pub, [twist_stamped(t0 + k * 0.01, (0.0, 0.0, 0.4)) for k in range(201)], topic="/veh/gimbal/joint_states")
+    lockstep(
+        drv, pub, [twist_stamped(t0 + k * 0.01, (0.0, 0.0, 0.4)) for k in range(201)], topic="/veh/gimbal/joint_states"
+    )
     out = drv.got["/veh/gimbal/joint_states"]
     assert len(out) == 201
     for msg in out:
@@ -666,7 +685,8 @@ def test_twist_stamped_input_namespace_qos_and_graph(start_node, driver_factory)
     writers = {bytes(g.data) for g in entry.writer_gid_seq}
     readers = {bytes(g.data) for g in entry.reader_gid_seq}
     assert w.key.bytes in writers and {r.key.bytes, c.key.bytes} <= readers
-    assert len(writers) == len(m.output_topics()) + 3 and len(readers) == 3  # outputs + diagnostics + robot_description, /tf, /tf_static; input, counter, reset
+    # outputs + diagnostics + robot_description, /tf, /tf_static; input, counter, reset
+    assert len(writers) == len(m.output_topics()) + 3 and len(readers) == 3
 
     # -- another domain sees nothing
     other = driver_factory(1 + (node.domain % 100), "/veh", name="other_domain")

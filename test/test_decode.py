@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """decode_rates: the vectorised CDR decoder equals rosbags' deserialisation + the REP-145 rules
 of ``reading_from_msg`` message by message — on every shared recording, on generated Imu,
 Twist and TwistStamped messages (any frame_id, big-endian, NaN/Inf, covariance -1 flags,
@@ -7,14 +21,15 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
 from gyro_platform.io import messages as m
 from gyro_platform.io.bag_reader import InputBag
-from gyro_platform.io.blocks import REJECT_REASONS, RateBlock, RawRows, concat_rows
+from gyro_platform.io.blocks import concat_rows, RateBlock, RawRows, REJECT_REASONS
 from gyro_platform.io.decode import decode_rates, standard_layout
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
@@ -116,7 +131,7 @@ def make(msgtype, sec, nsec, frame, w, f, cov_w, cov_f):
     header = T["std_msgs/msg/Header"](stamp=stamp(sec, nsec), frame_id=frame)
     if msgtype == TWS:
         return T[TWS](header=header, twist=T["geometry_msgs/msg/Twist"](linear=v3(x=f[0], y=f[1], z=f[2]),
-                                                                       angular=v3(x=w[0], y=w[1], z=w[2])))
+                                                                        angular=v3(x=w[0], y=w[1], z=w[2])))
     cw, cf = np.full(9, 0.25), np.full(9, 0.5)
     cw[0], cf[0] = cov_w, cov_f
     return T[IMU](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
@@ -131,7 +146,7 @@ cov = st.sampled_from([0.0, -1.0, 0.01, math.nan, -0.0])
 frames = st.one_of(st.sampled_from(["", "base_link", "imu_link", "a", "seven77", "eight888", "x" * 17]),
                    st.text(max_size=13))
 mutation = st.one_of(st.just(("none", 0)), st.tuples(st.sampled_from(["cut", "pad", "junk", "flip"]),
-                                                      st.integers(1, 40)))
+                                                     st.integers(1, 40)))
 
 
 @st.composite
@@ -210,7 +225,9 @@ def test_plain_little_endian_rows_never_reach_rosbags():
     rb = decode_rates(IMU, raws, store)
     assert store.calls == 0
     assert_matches_oracle(IMU, raws, J, rb)
-    assert rb.reject_reason(0) == "no_rate" and rb.detail[0] == "angular_velocity_covariance[0] = -1 (rate not reported)"
+    assert (
+        rb.reject_reason(0) == "no_rate" and rb.detail[0] == "angular_velocity_covariance[0] = -1 (rate not reported)"
+    )
     assert not rb.has_force[5] and rb.has_force[1] and rb.frame_id[4] == "ümlaut"
 
 
@@ -235,7 +252,8 @@ def test_bag_definition_with_another_layout_goes_through_rosbags():
     same = get_typestore(Stores.EMPTY)
     same.register(get_types_from_msg(text, IMU))
     other = get_typestore(Stores.EMPTY)
-    other.register(get_types_from_msg(text.replace("std_msgs/Header header\n", "std_msgs/Header header\nfloat64 extra\n", 1), IMU))
+    extra = text.replace("std_msgs/Header header\n", "std_msgs/Header header\nfloat64 extra\n", 1)
+    other.register(get_types_from_msg(extra, IMU))
     assert standard_layout(same, IMU) and not standard_layout(other, IMU)
     cls = other.types
     msgs = [cls[IMU](header=cls["std_msgs/msg/Header"](stamp=cls["builtin_interfaces/msg/Time"](sec=5, nanosec=i),

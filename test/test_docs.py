@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Every file, command, launch argument and parameter the README and ``docs/`` name exists.
 
 Read from ``README.md`` and the pages of ``docs/`` (not the generated API pages): the inline code
@@ -26,15 +40,14 @@ only where Sphinx is installed (the ``docs`` extra).
 from __future__ import annotations
 
 import ast
-import fnmatch
+from dataclasses import dataclass, field
+from functools import lru_cache
 import importlib
 import importlib.util
+from pathlib import Path
 import re
 import subprocess
 import sys
-from dataclasses import dataclass, field
-from functools import lru_cache
-from pathlib import Path
 
 import pytest
 

@@ -1,10 +1,24 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """encode_outputs: the CDR bytes of K output instants at once must be byte-identical to rosbags
 ``serialize_cdr`` of the messages ``output_messages`` builds (every topic, stabilised and
 carried, with and without namespace / frame prefix, random and simulated outputs)."""
 from __future__ import annotations
 
-import zlib
 from types import SimpleNamespace
+import zlib
 
 import numpy as np
 import pytest
@@ -97,7 +111,7 @@ def test_random_outputs_byte_identical(stabilised, namespace, prefix):
         check(outs, stamps, namespace, prefix)
 
 
-@pytest.mark.parametrize("kw", [dict(mount_rates=False), dict(servo=False), dict(rotors=False)])
+@pytest.mark.parametrize("kw", [{"mount_rates": False}, {"servo": False}, {"rotors": False}])
 def test_partial_outputs_byte_identical(kw):
     """Older producers: stabilised without mount rates (JointState velocity/effort empty),
     without servo torque (no servo topic, zero mount efforts), without rotor rates."""

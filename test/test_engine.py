@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Engine against the test oracles of shared/spec/PHYSICS.md section 12 (NAV-1 parameters)."""
 import math
 
@@ -6,14 +20,14 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
-from gyro_platform.errors import GimbalLockError, PrecessionInvalidError
 from gyro_platform.engine.inputs import RateSample
+from gyro_platform.engine.simulator import Simulator
+from gyro_platform.errors import GimbalLockError, PrecessionInvalidError
 from gyro_platform.physics.model import GIMBAL_AXES, rest_matrices
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import NAV1
-from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.system import PlatformSystem
-from gyro_platform.physics.tree import TreeWork, tree_inverse_dynamics
+from gyro_platform.physics.tree import tree_inverse_dynamics, TreeWork
 
 L = NAV1.L[0]
 J = NAV1.lumped()
@@ -54,8 +68,8 @@ def nonzero(ev, tol=1e-6):
 # ---- matrices and nutation (O1) ---------------------------------------------------------
 
 def test_lumped_moments_match_spec():
-    expect = dict(J4=1.84e-4, J5=4.2e-5, J7=4.2e-5, J9=1.02e-4, J10=4.2e-5, Jx4=2.30e-4, Jz4=2.34e-4,
-                  Jx9=1.22e-4, Jy9=1.20e-4)
+    expect = {"J4": 1.84e-4, "J5": 4.2e-5, "J7": 4.2e-5, "J9": 1.02e-4, "J10": 4.2e-5, "Jx4": 2.30e-4, "Jz4": 2.34e-4,
+              "Jx9": 1.22e-4, "Jy9": 1.20e-4}
     for k, v in expect.items():
         assert J[k] == pytest.approx(v, rel=1e-12), k
 
@@ -487,7 +501,7 @@ def test_paper_matrices_match_the_tree():
     """[M76] builds the equations from B(q), A_R, A* = A + BᵀA_R B and the skew gyroscopic
     matrix G_R; the engine evaluates them by Newton–Euler. Both must give the same forces."""
     from gyro_platform.physics.model import paper_matrices, spin_momentum
-    from gyro_platform.physics.tree import TreeWork, tree_mass_and_bias
+    from gyro_platform.physics.tree import tree_mass_and_bias, TreeWork
     rng = np.random.default_rng(2)
     for _ in range(4):
         q = rng.uniform(-1.2, 1.2, size=5)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Faults from outside, on a real ``gyro-platform`` process: Ctrl-C, SIGTERM, a storm of signals
 while the outputs close, SIGKILL, a full disk (``RLIMIT_FSIZE``), and output paths that cannot
 be written (checked before anything runs).
@@ -11,19 +25,19 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 import resource
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
+from test_replay import imu_msg, S, write_bag
 
 from gyro_platform import cli
 from gyro_platform.errors import EXIT_CODES
 from gyro_platform.replay import sidecar_paths
-from test_replay import S, imu_msg, write_bag
 
 REPO = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -167,8 +181,13 @@ def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path,
     from gyro_platform.io.bag_writer import OutputBag
     from gyro_platform.replay import loop
 
-    target = {"making the output bag": (OutputBag, "__init__"), "setting up the output": (OutputBag, "add_output"), "writing the last chunk": (loop._Run, "_written"),
-              "closing the bag": (OutputBag, "close"), "drawing the plot": (loop._Run, "plot")}[where]
+    target = {
+        "making the output bag": (OutputBag, "__init__"),
+        "setting up the output": (OutputBag, "add_output"),
+        "writing the last chunk": (loop._Run, "_written"),
+        "closing the bag": (OutputBag, "close"),
+        "drawing the plot": (loop._Run, "plot"),
+    }[where]
     original = getattr(*target)
     sent = []
 
@@ -197,7 +216,8 @@ def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path,
             assert r.message_count == 0 == summary["output"]["messages"]
         return
     got = read_bag(out)
-    assert got.get("/imu", 0) == summary["counts"]["in"] and got.get("/gimbal/joint_states", 0) == summary["counts"]["out"]
+    assert got.get("/imu", 0) == summary["counts"]["in"]
+    assert got.get("/gimbal/joint_states", 0) == summary["counts"]["out"]
     if summary["counts"]["out"]:
         assert summary["files"]["plot"] == str(plot_path) and plot_path.stat().st_size > 10_000
     assert (summary["counts"]["in"] == 0) == (where in ("making the output bag", "setting up the output"))
@@ -266,8 +286,8 @@ def test_full_disk_during_replay_leaves_the_written_part_readable(big, tmp_path)
 
 def test_full_disk_during_run_is_exit_4(tmp_path):
     """``run`` writing its CSV into a file size limit: exit 4, one line, no traceback."""
-    p = subprocess.run([PY, "-m", "gyro_platform.cli", "run", "default", "--duration", "20", "--out", str(tmp_path / "r")],
-                       env=ENV, capture_output=True, text=True, timeout=900, preexec_fn=_fsize_limit(100_000))
+    cmd = [PY, "-m", "gyro_platform.cli", "run", "default", "--duration", "20", "--out", str(tmp_path / "r")]
+    p = subprocess.run(cmd, env=ENV, capture_output=True, text=True, timeout=900, preexec_fn=_fsize_limit(100_000))
     assert p.returncode == cli.EXIT_WRITE, p.stderr
     assert "Traceback" not in p.stderr
     lines = [ln for ln in p.stderr.splitlines() if "error" in ln]

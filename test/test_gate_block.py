@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Blocks through the input gate: ``Mounting.rotate_block`` and ``TimeGate.offer_block`` decide a
 whole RateBlock exactly as ``reading_from_msg`` and one ``TimeGate.offer`` per message do.
 
@@ -10,14 +24,14 @@ from __future__ import annotations
 
 import math
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
-from gyro_platform.io.blocks import REJECT_REASONS, RateBlock
-from gyro_platform.io.gate import (ACCEPT, DROP, REASONS, RESET, Action, GateConfig, TimeGate, plain_decision)
-from gyro_platform.io.messages import Mounting, Reading, Rejected, jazzy_typestore, reading_from_msg
+from gyro_platform.io.blocks import RateBlock, REJECT_REASONS
+from gyro_platform.io.gate import ACCEPT, Action, DROP, GateConfig, plain_decision, REASONS, RESET, TimeGate
+from gyro_platform.io.messages import jazzy_typestore, Mounting, Reading, reading_from_msg, Rejected
 
 NS = 1_000_000_000
 T0 = 1_700_000_000 * NS
@@ -42,11 +56,11 @@ def rows(draw, n_max=60):
         kind = draw(st.sampled_from(["imu"] * 8 + ["zero", "twist", "reject", "noforce"]))
         w = [draw(VALUES) if draw(st.integers(0, 5)) == 0 else 0.1 * k for k in (1, 2, 3)]
         f = [draw(VALUES) if draw(st.integers(0, 8)) == 0 else v for v in (0.0, 0.0, 9.81)]
-        out.append(dict(stamp=0 if kind in ("zero", "twist") else stamp, has_header=kind != "twist",
-                        omega=w, force=f if kind not in ("noforce", "twist") else [0.0, 0.0, 0.0],
-                        has_force=kind not in ("noforce", "twist"),
-                        reject=draw(st.integers(1, 3)) if kind == "reject" else 0,
-                        identity=draw(st.booleans()), rx=rx))
+        out.append({"stamp": 0 if kind in ("zero", "twist") else stamp, "has_header": kind != "twist",
+                    "omega": w, "force": f if kind not in ("noforce", "twist") else [0.0, 0.0, 0.0],
+                    "has_force": kind not in ("noforce", "twist"),
+                    "reject": draw(st.integers(1, 3)) if kind == "reject" else 0,
+                    "identity": draw(st.booleans()), "rx": rx})
     return out
 
 
@@ -75,7 +89,7 @@ def state(g: TimeGate) -> dict:
     last = g.last
     snap = g.snapshot()
     snap["last"] = None if last is None else (last.action, last.reason, last.stamp_ns, last.source, last.detail,
-                                             None if last.sample is None else (last.sample.t, *last.sample.omega))
+                                              None if last.sample is None else (last.sample.t, *last.sample.omega))
     snap["last_drop"] = None if g.last_drop is None else (g.last_drop.reason, g.last_drop.stamp_ns)
     snap["counts"] = {k: v for k, v in g.counts.items() if v}
     snap["rx"] = (g._s.rx_last, g._s.rx_dt_ema, g._s.dt_ema)
@@ -160,8 +174,21 @@ def test_offer_plain_takes_exactly_the_rows_offer_accepts_as_ok_and_leaves_the_s
 def test_plain_1khz_run_is_accepted_whole_with_exact_times_and_rate_estimates():
     n = 5000
     stamps = T0 + np.arange(n, dtype=np.int64) * 1_000_000
-    rb = block_of([dict(stamp=int(s), has_header=True, omega=[0.1, 0.2, 0.3], force=[0, 0, 9.81], has_force=True,
-                        reject=0, identity=False, rx=0) for s in stamps])
+    rb = block_of(
+        [
+            {
+                "stamp": int(s),
+                "has_header": True,
+                "omega": [0.1, 0.2, 0.3],
+                "force": [0, 0, 9.81],
+                "has_force": True,
+                "reject": 0,
+                "identity": False,
+                "rx": 0,
+            }
+            for s in stamps
+        ]
+    )
     g = TimeGate()
     gb = g.offer_block(rb, stamps + 200_000)
     assert (gb.action == ACCEPT).all() and gb.reason_name(0) == "start" and gb.reason_name(n - 1) == "ok"

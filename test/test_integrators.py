@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Tests of gyro_platform.engine.integrators: orders, exactness, stability, invariants, contract.
 
 Expected numbers come from theory (orders 2^p, stability functions, exact solutions by expm),
@@ -10,8 +24,8 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 
+from gyro_platform.engine.integrators import Integrator, INTEGRATORS, make_integrator, StepStats
 from gyro_platform.errors import SimulationError, ToleranceError
-from gyro_platform.engine.integrators import INTEGRATORS, Integrator, StepStats, make_integrator
 
 ALL = sorted(INTEGRATORS)
 FIXED = ["rk4", "implicit_midpoint", "etd2", "etd4", "exprb"]
@@ -408,7 +422,9 @@ def test_dop853_warm_start_accuracy_and_work():
     step cut short at t1, so n_rhs ≤ calls·1 (initial f) + 12·(N_continuous + calls)."""
     w = 800.0
     sys = Linear([[0.0, w], [-w, 0.0]])
-    exact = lambda t: np.array([math.cos(w * t), -math.sin(w * t)])
+
+    def exact(t):
+        return np.array([math.cos(w * t), -math.sin(w * t)])
     integ = make_integrator("dop853", rtol=1e-10, atol=1e-12)
     assert integ.adaptive and integ.order == 8
     y, t, total, err = exact(0.0), 0.0, 0, 0.0

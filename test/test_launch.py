@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The launch file, checked without ROS: its syntax and arguments (ast: the PyPI 'launch'
 package is not ROS's, so the file is not imported), and what it starts (launch_setup.plan)."""
 from __future__ import annotations
@@ -7,9 +21,9 @@ from pathlib import Path
 
 import pytest
 
-from gyro_platform.ros import launch_setup as L
-from gyro_platform.ros.config import NodeConfig, load_params_file
 from gyro_platform.io.urdf import config_urdf
+from gyro_platform.ros import launch_setup as L
+from gyro_platform.ros.config import load_params_file, NodeConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH = ROOT / "launch" / "platform.launch.py"
@@ -19,7 +33,8 @@ PARAMS = str(ROOT / "config" / "platform.yaml")
 def test_launch_file_parses_and_declares_every_argument_of_the_plan():
     tree = ast.parse(LAUNCH.read_text(), str(LAUNCH))
     imports = {(n.module, a.name) for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
-    assert ("gyro_platform.ros.launch_setup", "ARGUMENTS") in imports and ("gyro_platform.ros.launch_setup", "plan") in imports
+    assert ("gyro_platform.ros.launch_setup", "ARGUMENTS") in imports
+    assert ("gyro_platform.ros.launch_setup", "plan") in imports
     # DeclareLaunchArgument(name, default_value=default, description=desc) for each entry of ARGUMENTS
     comps = [n for n in ast.walk(tree) if isinstance(n, ast.ListComp)
              and isinstance(n.elt, ast.Call) and getattr(n.elt.func, "id", "") == "DeclareLaunchArgument"]

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Message mapping: inputs (Imu/Twist/TwistStamped → base_link), outputs (CDR round trips)."""
 from __future__ import annotations
 
@@ -10,9 +24,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 from gyro_platform.io import messages as m
 from gyro_platform.physics.rotations import euler_xyz_axes
-from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 TYPES = m.MessageTypes.rosbags()
@@ -106,7 +120,6 @@ def test_every_output_message_round_trips_through_cdr():
     assert np.all(np.abs(js.position[8:]) <= math.pi)
     np.testing.assert_array_equal(js.velocity[8:], out.rotor_rates)
 
-
     for name, w in m.bearing_wrenches(out, TYPES, t_ns).items():
         w = roundtrip(w)
         assert w.header.frame_id == BEARING_FRAMES[name]
@@ -173,7 +186,8 @@ def test_joint_state_without_mount_and_missing_bearings():
     out = make_outputs(mount=False)
     del out.bearing_torques["rotor8"]
     js = roundtrip(m.joint_state(out, TYPES, 5))
-    assert js.name == [*GIMBAL_NAMES, *m.ROTOR_JOINT_NAMES] and len(js.position) == len(js.velocity) == len(js.effort) == 8
+    assert js.name == [*GIMBAL_NAMES, *m.ROTOR_JOINT_NAMES]
+    assert len(js.position) == len(js.velocity) == len(js.effort) == 8
     assert np.all(np.isfinite(js.velocity)) and np.all(np.isfinite(js.effort))
     assert "rotor8" not in m.bearing_wrenches(out, TYPES, 5)
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Vehicle motions: body rates, attitude and specific force must be one consistent kinematics."""
 import math
 
@@ -6,9 +20,9 @@ import pytest
 from scipy.integrate import solve_ivp, trapezoid
 from scipy.spatial.transform import Rotation
 
-from gyro_platform.scenes import motions as m
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.physics.params import EARTH_RATE
+from gyro_platform.scenes import motions as m
 
 G = 9.80665
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The node core without ROS: rosbags Jazzy messages in, (topic, message) pairs out.
 
 Drives :class:`gyro_platform.ros.core.NodeCore` the way the rclpy node and the DDS adapter do —
@@ -8,24 +22,24 @@ Callback timing uses a fake clock (25 µs per callback), so no assertion depends
 """
 from __future__ import annotations
 
+from dataclasses import fields
 import itertools
 import math
+from pathlib import Path
 import subprocess
 import sys
-from dataclasses import fields
-from pathlib import Path
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
+from gyro_platform.io.messages import jazzy_typestore, MessageTypes, stamp_ns
+from gyro_platform.physics.params import NAV1, PlatformParams
 from gyro_platform.ros import parameters as P
 from gyro_platform.ros.config import NodeConfig, parameter_defaults
 from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.parameters import ConfigError
-from gyro_platform.io.messages import MessageTypes, jazzy_typestore, stamp_ns
-from gyro_platform.physics.params import NAV1, PlatformParams
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted((ROOT / "config" / "scenes").glob("*.yaml"))
@@ -76,8 +90,8 @@ def statuses(arr) -> dict[str, tuple[int, str, dict[str, str]]]:
     return {s.name: (s.level, s.message, {kv.key: kv.value for kv in s.values}) for s in arr.status}
 
 
-STABILISED_BIAS = dict(effects=["rotor_gyroscopic", "coriolis", "servo", "bias_torque"],
-                       physics={"bias_torque": [0.0, 0.0, 0.0, 0.0, Q10]})
+STABILISED_BIAS = {"effects": ["rotor_gyroscopic", "coriolis", "servo", "bias_torque"],
+                   "physics": {"bias_torque": [0.0, 0.0, 0.0, 0.0, Q10]}}
 
 
 # =========================================================================================
@@ -126,7 +140,8 @@ def test_carried_free_gyro_at_100hz_twist_stamped_outputs_on_a_10hz_grid():
             assert stamp_ns(js.header.stamp) == stamp
             assert js.position[0] == pytest.approx(-0.5 * k * 0.01, abs=1e-9)
             assert np.max(np.abs(np.asarray(js.position[1:5]))) < 1e-9
-            assert list(js.name) == ["alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"]  # carried: no mount joints
+            # carried: no mount joints
+            assert list(js.name) == ["alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"]
     assert published == list(range(0, 401, 10))                   # first sample, then one per 0.1 s slot
 
 
@@ -180,7 +195,9 @@ def test_frame_prefix_is_put_before_every_output_frame():
 # =========================================================================================
 def test_bad_input_is_counted_by_reason_and_never_raises():
     core = make_core(output_rate=0.0, unknown_frame="reject")
-    good = lambda k: core.on_message(imu(BASE + k * MS), BASE + k * MS)
+
+    def good(k):
+        return core.on_message(imu(BASE + k * MS), BASE + k * MS)
     for k in range(5):
         assert good(k)
     bad = [
@@ -320,7 +337,7 @@ def test_pipeline_offer_through_the_plain_lane_equals_the_general_path(draws, ne
     from gyro_platform.pipeline import Pipeline
 
     opts = ModelOptions(effects=ModelOptions().effects | ({"mass_unbalance"} if needs_f else set()),
-                        **(dict(integrator="rk4", rtol=1e-8, atol=1e-11, max_substeps=4) if tight else {}))
+                        **({"integrator": "rk4", "rtol": 1e-8, "atol": 1e-11, "max_substeps": 4} if tight else {}))
     pipes = [Pipeline(Simulator(options=opts), TimeGate(GateConfig()), rate) for _ in range(2)]
     lane, ref = pipes
     stamp = BASE
@@ -379,7 +396,8 @@ def test_diagnostics_content_levels_and_cdr_round_trip():
     # real-time margin = 1 − callback time / input period; the fake clock makes it 1 − 25 µs / 1 ms
     assert float(v["real_time_margin"]) == pytest.approx(0.975)
     # auto rule: NAV-1 nutation 808.6 rad/s × 1 ms = 0.81 < 1.5 (RK4 stable with margin) → rk4
-    assert int(v["integrator_steps"]) == 199 and v["integrator"] == "auto:rk4+exprb"   # auto: primary rk4, exprb fallback
+    # auto: primary rk4, exprb fallback
+    assert int(v["integrator_steps"]) == 199 and v["integrator"] == "auto:rk4+exprb"
     assert float(st["gyro_platform: platform"][2]["gimbal_lock_margin"]) > 0.99
     # nothing for longer than max_gap: STALE
     assert statuses(core.diagnostics(BASE + 5 * 10**9))["gyro_platform: node"][0] == 3

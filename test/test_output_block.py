@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The compiled output kernel (engine.output_kernel) and OutputBlock (engine.outputs).
 
 Reference: the numpy implementation of ``Simulator.outputs()`` as it was before the kernel
@@ -8,26 +22,27 @@ effect, on the shipped scenes and on random states; ``block[i]`` must be exactly
 from __future__ import annotations
 
 import math
-import zlib
 from pathlib import Path
+import zlib
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 
 from gyro_platform.engine.inputs import RateSample
-from gyro_platform.engine.outputs import (BEARING_NAMES, N_COL, OutputBlock, Outputs)
+from gyro_platform.engine.outputs import BEARING_NAMES, N_COL, OutputBlock, Outputs
 from gyro_platform.engine.simulator import Simulator
 from gyro_platform.engine.snapshots import Snapshots
 from gyro_platform.errors import GimbalLockError, NonFiniteOutputError, SimulationError
 from gyro_platform.physics import effects as fx
 from gyro_platform.physics.model import BODY_OF_GIMBAL, GIMBAL_AXES, SPIN_AXES
-from gyro_platform.physics.options import EFFECTS, STABILISED_ONLY, ModelOptions
+from gyro_platform.physics.options import EFFECTS, ModelOptions, STABILISED_ONLY
 from gyro_platform.physics.params import NAV1
 from gyro_platform.physics.rotations import (euler_xyz, euler_xyz_rates, euler_xyz_rates_into, matrix_quat,
                                              matrix_rotvec, quat_matrix, rotvec_matrix)
 from gyro_platform.physics.system import PRECESSION
-from gyro_platform.physics.tree import TreeWork, kinematics, tree_inverse_dynamics
+from gyro_platform.physics.tree import kinematics, tree_inverse_dynamics, TreeWork
 from gyro_platform.scenes.schema import load_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "config" / "scenes").glob("*.yaml"))

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Overload reporting (issue 14): lost input is counted and turns /diagnostics WARN.
 
 ROS-free: the core's InputLoss fed by stamp gaps (what a slow rclpy node sees when its
@@ -8,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gyro_platform.io.messages import jazzy_typestore, MessageTypes
 from gyro_platform.ros.config import NodeConfig
 from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.overload import InputLoss
-from gyro_platform.io.messages import MessageTypes, jazzy_typestore
 
 T = jazzy_typestore().types
 TYPES = MessageTypes.rosbags()

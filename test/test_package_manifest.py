@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The ROS manifest as colcon, ament and rosdep read it (``catkin_pkg``, what colcon uses).
 
 colcon identifies an ``ament_python`` package only if ``package.xml`` parses with catkin_pkg
@@ -8,13 +22,15 @@ version, and declare every third-party module the package imports at run time.
 from __future__ import annotations
 
 import ast
+from pathlib import Path
 import re
 import sys
-from pathlib import Path
 
 import pytest
 
-catkin_pkg = pytest.importorskip("catkin_pkg.package", reason="catkin_pkg (pip install catkin_pkg) parses package.xml as colcon does")
+catkin_pkg = pytest.importorskip(
+    "catkin_pkg.package", reason="catkin_pkg (pip install catkin_pkg) parses package.xml as colcon does"
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "gyro_platform"

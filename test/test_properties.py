@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Property tests (hypothesis) over the public entry points, in process: random flag values,
 random scene mutations and random simulator inputs end in a documented refusal (one line, the
 flag or key named, the documented exception or exit code) or are taken exactly as given —
@@ -13,19 +27,20 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from hypothesis import assume, given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
+from test_replay import imu_msg, S, write_bag
 import yaml
-from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 from gyro_platform import cli
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.errors import InputError
 from gyro_platform.pipeline import MAX_GRID_RATE
 from gyro_platform.replay.command import config_from_args
-from gyro_platform.ros.dds_names import NameError_, expand_topic_name, normalize_namespace
+from gyro_platform.ros.dds_names import expand_topic_name, NameError_, normalize_namespace
 from gyro_platform.scenes.schema import ScenarioError, scene_from_dict
-from test_replay import S, imu_msg, write_bag
 
 REPO = Path(__file__).resolve().parents[1]
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

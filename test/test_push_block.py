@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The compiled stepping (``push`` = one compiled call, ``push_block`` per chunk) against the
 Python integrators, and the engine's reliability contract (issue 17): a reset is a fresh
 start, a refused sample or block leaves state and outputs untouched, bad input is an
@@ -7,10 +21,10 @@ from __future__ import annotations
 
 import math
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.engine.simulator import Simulator
@@ -276,16 +290,22 @@ def test_long_steps_fail_as_simulation_errors(integ):
 
 
 # ---- absurd options and parameters: refused at construction --------------------------------
-@pytest.mark.parametrize("kw", [dict(max_step=1e-12), dict(max_step=0.0), dict(max_step=2.0), dict(max_step=math.nan),
-                                dict(rtol=1e-20), dict(rtol=True), dict(atol=0.0), dict(atol="1e-9"),
-                                dict(max_substeps=0), dict(max_substeps=2.5)])
+@pytest.mark.parametrize("kw", [{"max_step": 1e-12}, {"max_step": 0.0}, {"max_step": 2.0}, {"max_step": math.nan},
+                                {"rtol": 1e-20}, {"rtol": True}, {"atol": 0.0}, {"atol": "1e-9"},
+                                {"max_substeps": 0}, {"max_substeps": 2.5}])
 def test_absurd_options_are_refused_with_the_reason(kw):
     with pytest.raises(OptionsError, match=next(iter(kw))):
         ModelOptions(**kw)
 
 
 def test_massless_gimbals_are_refused_at_construction():
-    zero = dict(frame4=(0.0,) * 3, housing5=(0.0,) * 3, housing7=(0.0,) * 3, rotor_A=(0.0,) * 3, rotor_C=(0.0,) * 3)
+    zero = {
+        "frame4": (0.0,) * 3,
+        "housing5": (0.0,) * 3,
+        "housing7": (0.0,) * 3,
+        "rotor_A": (0.0,) * 3,
+        "rotor_C": (0.0,) * 3,
+    }
     with pytest.raises(ParameterError, match="gimbal inertia J4"):
         PlatformParams(**zero)
     with pytest.raises(ParameterError, match="gimbal inertia"):

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Replay: real recordings through the simulator into output bags, read back with rosbags.
 
 The two real bags are replayed once each (module fixtures) with the real simulator; the
@@ -7,22 +21,21 @@ replay code.
 from __future__ import annotations
 
 import json
-import os
 import math
-import shutil
+import os
 from pathlib import Path
+import shutil
 
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 from gyro_platform import cli
-
 from gyro_platform import replay as rp
-from gyro_platform.io import messages as m
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
+from gyro_platform.io import messages as m
 from gyro_platform.io.bag_paths import read_metadata
 from gyro_platform.io.gate import Action, GateConfig, TimeGate
 
@@ -97,8 +110,15 @@ def cabrillo(tmp_path_factory):
     out = tmp_path_factory.mktemp("cab") / "out"
     cfg = rp.ReplayConfig(output_rate=None, progress=False)          # every sample
     summary = rp.replay(CABRILLO, out, cfg)
-    return dict(bag=CABRILLO, out=out, summary=summary, topic="/logic_tube/imu", rate=None, storage="sqlite3",
-                facts=input_facts(CABRILLO, "/logic_tube/imu"))
+    return {
+        "bag": CABRILLO,
+        "out": out,
+        "summary": summary,
+        "topic": "/logic_tube/imu",
+        "rate": None,
+        "storage": "sqlite3",
+        "facts": input_facts(CABRILLO, "/logic_tube/imu"),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -108,8 +128,8 @@ def husky(tmp_path_factory):
     cfg = rp.ReplayConfig(output_rate=2.0, progress=False,
                           mounting=m.Mounting({"imu_link": HUSKY_RPY}, unknown_frame="reject"))
     summary = rp.replay(HUSKY, out, cfg)
-    return dict(bag=HUSKY, out=out, summary=summary, topic="/imu/data", rate=2.0, storage="mcap",
-                facts=input_facts(HUSKY, "/imu/data"))
+    return {"bag": HUSKY, "out": out, "summary": summary, "topic": "/imu/data", "rate": 2.0, "storage": "mcap",
+            "facts": input_facts(HUSKY, "/imu/data")}
 
 
 @pytest.fixture(params=["cabrillo", "husky"])
@@ -287,8 +307,6 @@ def test_read_samples_cabrillo_uses_receive_time():
     assert 9.5 < gate.snapshot()["input_rate_hz"] < 10.5
 
 
-
-
 # ---- damaged bags ------------------------------------------------------------------------
 def _cut_copy(src: Path, dst: Path, frac: float) -> Path:
     shutil.copytree(src, dst)
@@ -462,7 +480,8 @@ def test_a_fifo_as_input_is_refused_as_a_path(tmp_path, capsys):
     os.mkfifo(fifo)
     out = tmp_path / "out"
     assert cli.main(["replay", str(fifo), "--out", str(out), "--quiet", "--no-plot"]) == cli.EXIT_USAGE
-    assert capsys.readouterr().err == f"gyro-platform replay: error: {fifo}: not a rosbag2 bag (neither a folder nor a regular file)\n"
+    why = "not a rosbag2 bag (neither a folder nor a regular file)"
+    assert capsys.readouterr().err == f"gyro-platform replay: error: {fifo}: {why}\n"
     assert not out.exists()
 
 
@@ -542,8 +561,8 @@ def test_every_bad_input_gets_its_decision_and_counter(tmp_path):
     out = tmp_path / "out"
     cfg = rp.ReplayConfig(output_rate=None, progress=False, plot=False, storage="mcap", mounting=mount)
     s = rp.replay(bag, out, cfg)
-    expect_drop = {r: 1 for r in ("zero_stamp", "repeated_stamp", "backward_stamp", "non_finite", "over_rate",
-                                  "no_rate", "unknown_frame", "bad_message")}
+    expect_drop = dict.fromkeys(("zero_stamp", "repeated_stamp", "backward_stamp", "non_finite", "over_rate", "no_rate",
+                                 "unknown_frame", "bad_message"), 1)
     assert s["counts"]["dropped_by_reason"] == expect_drop
     assert s["counts"]["resets_by_reason"] == {"gap": 1, "jump_back": 1}
     n_acc = sum(1 for _, _, r in seq if r in ("start", "ok", "gap", "jump_back"))
@@ -595,7 +614,8 @@ def test_scene_sets_model_and_output_rate(tmp_path):
     assert cli.main(["replay", str(bag), "--out", str(out), "--scene", str(scene), "--quiet", "--no-plot"]) == 0
     s = json.loads(rp.sidecar_paths(out)[0].read_text())
     assert s["simulator"]["mode"] == "carried" and s["output"]["output_rate_hz"] == 25.0
-    assert len(read_output(out)["/gimbal/joint_states"][0][1].name) == 8      # carried: gimbals and rotors, no mount joints
+    # carried: gimbals and rotors, no mount joints
+    assert len(read_output(out)["/gimbal/joint_states"][0][1].name) == 8
 
 
 def test_cli_errors_are_clear(tmp_path, capsys):
@@ -619,5 +639,6 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     assert len(again["/again/gimbal/joint_states"]) == len(first["/gimbal/joint_states"]) > 0
     assert raw_by_topic(out2)["/gimbal/joint_states"] == raw_by_topic(out)["/gimbal/joint_states"]  # copied
     assert len(again["/diagnostics"]) == 2 * len(first["/diagnostics"])       # shared, as on a robot
-    assert cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"]) == cli.EXIT_USAGE == 2
+    code = cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"])
+    assert code == cli.EXIT_USAGE == 2
     assert "mounting" in capsys.readouterr().err

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``ros2 bag play --clock`` into the launched node with ``use_sim_time``, ``ros2 bag record`` of
 its outputs, read back with rosbags (Jazzy typestore).
 
@@ -14,7 +28,7 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 import rosenv
 
@@ -51,7 +65,7 @@ def replayed(ros_ws, tmp_path_factory):
             rec = ros_ws.start(f'ros2 bag record -o {tmp / "out"} /drift/angle /gimbal/joint_states', domain=domain)
             try:
                 assert rec.wait_for("Recording", 60), rec.output[-3000:]
-                assert rec.wait_for('Subscribed to topic \'/drift/angle\'', 30), rec.output[-3000:]
+                assert rec.wait_for("Subscribed to topic '/drift/angle'", 30), rec.output[-3000:]
                 play = ros_ws.run(f'ros2 bag play --clock 200 {tmp / "input"}', domain=domain, timeout=120)
                 assert play.returncode == 0, play.stdout + play.stderr
                 time.sleep(1.5)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The plain-DDS transport (this venv, no ROS) against real rclpy nodes.
 
 ``gyro-platform node --transport dds`` runs in the interpreter running the tests (cyclonedds,
@@ -7,17 +21,17 @@ and TF through a ``tf2_ros.Buffer``: the wire format, QoS and names must be what
 """
 import math
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 import pytest
 
 import rosenv
-from tfcheck import assert_tf_matches_joint_states, tf_pairs
 from rosenv import Proc
+from tfcheck import assert_tf_matches_joint_states, tf_pairs
 
 pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedds' package (pip install .[dds])")
 

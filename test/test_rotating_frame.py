@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Oracle O12: a physical pendulum on the rotating Earth ([MBB] (24), (25)) — the body-tree
 engine as a "rigid body in a rotating frame" routine (its ω × Iω terms)."""
 import math
@@ -6,7 +20,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from gyro_platform.physics.tree import REVOLUTE, ROOT, BodyTree, TreeWork, tree_mass_and_bias
+from gyro_platform.physics.tree import BodyTree, REVOLUTE, ROOT, tree_mass_and_bias, TreeWork
 
 U = 7.292115e-5          # rad/s
 G = 9.80620              # m/s², g' of the oracle

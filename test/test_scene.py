@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Scene schema (every bad key names its path), recording (drift fit, files) and the ``run`` CLI."""
 import copy
 import csv
@@ -10,11 +24,11 @@ import numpy as np
 import pytest
 
 from gyro_platform import cli
-from gyro_platform.physics.options import DEFAULT_EFFECTS, ModelOptions
 from gyro_platform.engine.outputs import BEARING_NAMES, GIMBAL_NAMES, Outputs
+from gyro_platform.io.recording import fit_slope, print_summary_table, RAD_S_TO_DEG_H, Recorder
+from gyro_platform.physics.options import DEFAULT_EFFECTS, ModelOptions
 from gyro_platform.physics.params import PlatformParams
-from gyro_platform.io.recording import RAD_S_TO_DEG_H, Recorder, fit_slope, print_summary_table
-from gyro_platform.scenes.schema import Check, ScenarioError, Scene, load_scene, scene_from_dict
+from gyro_platform.scenes.schema import Check, load_scene, ScenarioError, Scene, scene_from_dict
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "config" / "scenes").glob("*.yaml"))
@@ -55,7 +69,8 @@ def test_required_scenes_are_shipped():
 
 def test_valid_scene_fields():
     sc = load(BASE)
-    assert sc.name == "t" and sc.mode == "stabilised" and sc.fidelity == "linear"   # default fidelity of a stabilised scene
+    # default fidelity of a stabilised scene
+    assert sc.name == "t" and sc.mode == "stabilised" and sc.fidelity == "linear"
     assert set(sc.effects) == set(DEFAULT_EFFECTS["stabilised"]) | {"bias_torque"}
     assert sc.options.effects == frozenset(sc.effects)
     assert sc.params.bias_torque[4] == 1e-7
@@ -416,7 +431,7 @@ def test_cli_run_exit_status_on_failed_expectation_and_bad_scene(tmp_path, capsy
 # ---- runs in chunks: the output grid after a loop, the CSV under interrupts and full disks ----
 def _looped_bag(path: Path) -> Path:
     """2 s of 100 Hz Imu, then the recording loops (header stamps jump back 2 s) for 1.5 s more."""
-    from test_chunked import S, T0, imu, vehicle_rate, write_bag
+    from test_chunked import imu, S, T0, vehicle_rate, write_bag
 
     rows, dt = [], S // 100
     for i in range(350):
@@ -440,11 +455,14 @@ def test_bag_scene_restarts_its_output_grid_after_a_loop_like_replay(tmp_path):
     s = rp.replay(bag, tmp_path / "out", rp.ReplayConfig(output_rate=5.0, progress=False, plot=False))
     assert s["counts"]["resets_by_reason"] == {"jump_back": 1} and summary["bag"]["reset"] == 1
     # replay's instants: joint state stamps, as s since the first accepted stamp (the scene's t)
+    from rosbags.typesys import get_typestore, Stores
     from test_chunked import by_topic
-    from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
-    js = [store.deserialize_cdr(raw, "sensor_msgs/msg/JointState") for _, raw in by_topic(tmp_path / "out")["/gimbal/joint_states"]]
+    js = [
+        store.deserialize_cdr(raw, "sensor_msgs/msg/JointState")
+        for _, raw in by_topic(tmp_path / "out")["/gimbal/joint_states"]
+    ]
     t_replay = [(x.header.stamp.sec * 10**9 + x.header.stamp.nanosec - s["gate"]["origin_ns"]) / 1e9 for x in js]
     assert len(t_replay) == 10 + 8                      # 2 s and 1.5 s at 5 Hz
     t_scene = rec.t.tolist()

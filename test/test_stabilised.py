@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Stabilised platform: servo loop, drift mechanisms and Earth rate (spec 9, oracle O9)."""
 import math
 
@@ -5,9 +19,9 @@ import numpy as np
 import pytest
 
 from gyro_platform.engine.inputs import RateSample
+from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import NAV1, STANDARD_GRAVITY
-from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.system import PlatformSystem
 
 L = NAV1.L[2]

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Sweeps on a real Dask ``distributed.LocalCluster`` (no mocks): Monte Carlo budgets and fleets.
 
 Physics: the drift rate about platform z is −Q10/L11 (oracle O9 b; the default scene's
@@ -62,7 +76,7 @@ vary:
     ("scene: default\nruns: 2\nvary: {unbalance: {dist: gamma, k: 1}}\n", "dist"),
     ("scene: default\nruns: 2\nvary: {unbalance: {dist: uniform, low: 2, high: 1}}\n", "low"),
     ("scene: default\nruns: 0\nvary: {unbalance: {dist: fixed, value: 1.0e-8}}\n", "runs"),
-    ("scene: default\nruns: 2\nvary: {\"bias_torque[9]\": {dist: fixed, value: 1.0e-8}}\n",
+    ('scene: default\nruns: 2\nvary: {"bias_torque[9]": {dist: fixed, value: 1.0e-8}}\n',
      "sweep 'sweep.yaml': vary.bias_torque[9]: index 9 out of range"),
     ("scene: default\nruns: 2\nvary: {unbalance: {dist: fixed, value: 1}}\nruns: 3\n",
      "not valid YAML: line 4:1: duplicate key 'runs' (first at line 2:1)"),
@@ -155,7 +169,7 @@ def test_results_identical_on_one_and_two_workers(bias_sweep):
 
 def test_refused_run_does_not_stop_the_sweep_and_rerun_skips_finished(tmp_path):
     spec = load_sweep(_write(tmp_path, "scene: default\nduration: 3\nruns: 3\n"
-                                       "vary: {\"spring[0]\": {dist: list, values: [0.5, -1.0, 0.25]}}\n"))
+                                       'vary: {"spring[0]": {dist: list, values: [0.5, -1.0, 0.25]}}\n'))
     out = tmp_path / "out"
     first = run_sweep(spec, out, workers=1)
     assert [r["status"] for r in first.records] == ["ok", "refused", "ok"]
@@ -180,7 +194,7 @@ def test_fewer_runs_count_only_their_records_and_the_summary_is_strict_json(tmp_
     (they counted every record of the folder: "5 of 2 runs"); the σ of a single ok run is null,
     not NaN (which strict JSON parsers refuse)."""
     text = ("scene: default\nduration: 1\nruns: {n}\n"
-            "vary: {{\"bias_torque[4]\": {{dist: list, values: [1.0e-7, 2.0e-7, 3.0e-7]}}}}\n")
+            'vary: {{"bias_torque[4]": {{dist: list, values: [1.0e-7, 2.0e-7, 3.0e-7]}}}}\n')
     out = tmp_path / "out"
     three = load_sweep(_write(tmp_path, text.format(n=3), "three.yaml"))
     finish(three, out, run_sweep(three, out, workers=1), plots=False)
@@ -191,6 +205,7 @@ def test_fewer_runs_count_only_their_records_and_the_summary_is_strict_json(tmp_
     summary = finish(one, out, res, plots=False)
     assert summary["records"] == 1 and summary["status_counts"] == {"ok": 1}
     assert len(_table(out)) == 1
+
     def refuse(name):
         raise ValueError(f"not strict JSON: {name}")
     strict = json.loads((out / "summary.json").read_text(), parse_constant=refuse)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The input gate: every bad-input case gives its documented decision and counter, never raises."""
 from __future__ import annotations
 
@@ -6,10 +20,9 @@ import math
 import numpy as np
 import pytest
 
+import gyro_platform.io.gate as timebase  # isort: skip (flake8-import-order: import before from)
+from gyro_platform.io.gate import ACCEPT_REASONS, Action, DROP_REASONS, GateConfig, NOTES, RESET_REASONS, TimeGate
 from gyro_platform.io.messages import Reading, Rejected
-from gyro_platform.io.gate import (ACCEPT_REASONS, DROP_REASONS, NOTES, RESET_REASONS, Action,
-                                    GateConfig, TimeGate)
-import gyro_platform.io.gate as timebase
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S
@@ -159,8 +172,8 @@ def test_restart_forgets_time_base_but_keeps_counts():
 
 
 def test_config_validation():
-    for bad in (dict(max_gap=0), dict(on_gap="skip"), dict(reset_on_jump_back=-1), dict(max_rate=0),
-                dict(time_source="gps"), dict(rate_smoothing=0)):
+    for bad in ({"max_gap": 0}, {"on_gap": "skip"}, {"reset_on_jump_back": -1}, {"max_rate": 0},
+                {"time_source": "gps"}, {"rate_smoothing": 0}):
         with pytest.raises(ValueError):
             GateConfig(**bad)
 

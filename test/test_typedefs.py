@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The small typestore of the types the package reads and writes (``io.typedefs``) is rosbags'
 Jazzy store for those types: the same message definitions, RIHS01 hashes, fields and CDR bytes."""
 from __future__ import annotations
@@ -6,7 +20,7 @@ import numpy as np
 import pytest
 
 from gyro_platform.io import messages as m
-from gyro_platform.io.typedefs import DEFINITIONS, core_typestore, has_type
+from gyro_platform.io.typedefs import core_typestore, DEFINITIONS, has_type
 
 JAZZY = m.jazzy_typestore()
 CORE = core_typestore()

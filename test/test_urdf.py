@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """URDF and TF of the platform against the model's own kinematics (gyro_platform.io.urdf).
 
 The URDF is parsed with urdf_parser_py (urdfdom-py, what ROS tools use) and its forward
@@ -14,14 +28,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
+from gyro_platform.engine.simulator import Simulator
 from gyro_platform.io import messages as m
 from gyro_platform.io import urdf as U
-from gyro_platform.engine.inputs import RateSample
-from gyro_platform.physics.model import GIMBAL_AXES, SPIN_AXES, platform_tree
+from gyro_platform.physics.model import GIMBAL_AXES, platform_tree, SPIN_AXES
 from gyro_platform.physics.options import ModelOptions
-from gyro_platform.engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
 from gyro_platform.physics.params import PlatformParams
-from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.tree import kinematics
 
 urdf_parser = pytest.importorskip("urdf_parser_py.urdf", reason="urdf_parser_py (pip install urdf-parser-py)")
@@ -64,7 +78,9 @@ def test_urdf_tree_and_joint_names(stabilised):
         assert parent[BODY_LINK[body]] == BODY_LINK[tree.names[tree.parent[i]]]
     for (host, rotor) in U.ROTOR_LINKS:
         assert parent[rotor] == host
-    chain = ["platform", "mount_pitch_link", "mount_roll_link", "base_link"] if stabilised else ["platform", "base_link"]
+    chain = (
+        ["platform", "mount_pitch_link", "mount_roll_link", "base_link"] if stabilised else ["platform", "base_link"]
+    )
     assert [chain[0]] + [parent[c] for c in chain[:-1]] == chain       # REP-105: base_link → platform
     moving = [j.name for j in robot.joints if j.type != "fixed"]
     # joint names are exactly the JointState names of the node's outputs (same order)
@@ -163,9 +179,11 @@ def test_inertials_are_the_parameters_and_visuals_reproduce_them():
         a, b, c = link.visual.geometry.size
         mass = link.inertial.mass
         assert mass == pytest.approx(U.DENSITY["structure"] * a * b * c, rel=1e-12)
-        np.testing.assert_allclose([mass * (b * b + c * c) / 12, mass * (a * a + c * c) / 12,
-                                    mass * (a * a + b * b) / 12], moments, rtol=1e-12)
-    for rotor, C, A, s in zip(("gyro_rotor6", "gyro_rotor8", "gyro_rotor11"), PARAMS.rotor_C, PARAMS.rotor_A, SPIN_AXES):
+        np.testing.assert_allclose(
+            [mass * (b * b + c * c) / 12, mass * (a * a + c * c) / 12, mass * (a * a + b * b) / 12], moments, rtol=1e-12
+        )
+    rotors = ("gyro_rotor6", "gyro_rotor8", "gyro_rotor11")
+    for rotor, C, A, s in zip(rotors, PARAMS.rotor_C, PARAMS.rotor_A, SPIN_AXES):
         cyl = links[rotor].visual.geometry
         mass = links[rotor].inertial.mass
         assert mass == pytest.approx(U.DENSITY["rotor"] * math.pi * cyl.radius ** 2 * cyl.length, rel=1e-12)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Warm-up before "ready" (both transports): every kernel the first real sample needs is
 compiled (or loaded from numba's cache) by synthetic samples on a throwaway core, and the
 real core is left untouched. Checked in a fresh interpreter, so that kernels compiled by
@@ -5,9 +19,9 @@ other tests cannot hide a kernel the warm-up misses."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Work-precision study: what accuracy costs in time (``gyro-platform bench accuracy``).
 
 Every fidelity × integrator × asked tolerance (rtol 1e-4 … 1e-10, steps ≤ 1 ms) on two standard
@@ -17,15 +31,15 @@ from __future__ import annotations
 
 import csv
 import json
-import time
 from pathlib import Path
+import time
 
 import numpy as np
 
+from .bench_scenes import aircraft_scene, BenchScene, SAMPLE_RATE, ship_scene
 from ..engine.simulator import Simulator
 from ..physics.options import ModelOptions
 from ..physics.params import NAV1
-from .bench_scenes import SAMPLE_RATE, BenchScene, aircraft_scene, ship_scene
 
 OUT_EVERY = 100          # compare at 10 Hz
 THRESHOLDS = (1e-3, 1e-6, 1e-9)
@@ -143,8 +157,8 @@ def accuracy(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[dict]
                                               repeats=1 if integ in SLOW else repeats, duration=win)
             except Exception as ex:   # an unstable configuration is a result too
                 print(f"   {fid:10s} {integ:17s} rtol {rtol:g}: FAILED ({type(ex).__name__}: {ex})")
-                rows.append(dict(scene=sc.name, fidelity=fid, integrator=integ,
-                                 step_or_tol=f"rtol {rtol:g}", failed=str(ex)[:80]))
+                rows.append({"scene": sc.name, "fidelity": fid, "integrator": integ,
+                             "step_or_tol": f"rtol {rtol:g}", "failed": str(ex)[:80]})
                 continue
             e = errors(g, d, g_ref, d_ref)
             label = f"rtol {rtol:g}"
@@ -175,7 +189,9 @@ def write_outputs(rows: list[dict], out_dir: Path) -> None:
              "max err gimbal (rad) | max err drift (rad) |", "|" + "---|" * 10]
     for r in rows:
         if "failed" in r:
-            lines.append(f"| {r['scene']} | {r['fidelity']} | {r['integrator']} | {r['step_or_tol']} | | failed | | | | |")
+            lines.append(
+                f"| {r['scene']} | {r['fidelity']} | {r['integrator']} | {r['step_or_tol']} | | failed | | | | |"
+            )
             continue
         sp = r.get("speedup_vs_naive")
         lines.append(f"| {r['scene']} | {r['fidelity']} | {r['integrator']} | {r['step_or_tol']} | "
@@ -233,7 +249,6 @@ def plot(rows: list[dict], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
 
 
 __all__ = ["accuracy", "run_config", "naive_baseline", "errors", "cheapest", "write_outputs", "plot", "CONFIGS",

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The benchmark's input bags: a 1 kHz ``sensor_msgs/Imu`` bag of its own making (a ground
 vehicle's motion with sensor noise, written with rosbags, cached), the shared husky recording
 found as the ``husky_replay`` scene finds it, and short copies of bags for ``--quick``.
@@ -8,12 +22,12 @@ entry that looks complete.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import os
+from pathlib import Path
 import shutil
 import tempfile
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -154,7 +168,7 @@ def cached_imu_bag(duration: float, storage: str, rate: float = 1000.0, seed: in
 
 def husky_bag() -> tuple[Path | None, str]:
     """The husky recording as the ``husky_replay`` scene resolves it: (path, "") or (None, why not)."""
-    from ..scenes.schema import ScenarioError, load_scene
+    from ..scenes.schema import load_scene, ScenarioError
 
     try:
         scene = load_scene(HUSKY_SCENE)

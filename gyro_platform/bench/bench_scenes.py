@@ -1,8 +1,22 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The standard benchmark scenes: vehicle motions sampled at 1 kHz (SI units, rad/s, m/s²)."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -49,4 +63,3 @@ def aircraft_scene(duration: float = 120.0) -> BenchScene:
     eff = DEFAULT_EFFECTS["stabilised"] | {"mass_unbalance"}
     return BenchScene("aircraft", f"aircraft: coordinated turn then rate steps, stabilised, {duration:g} s",
                       t, w, f, eff)
-

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``gyro-platform bench [WHAT]``: the benchmarks' command line (consumer, peer, accuracy, hard,
 effects, hotpath, sweep; without WHAT: consumer then peer).
 
@@ -13,15 +27,14 @@ scene on 1 and 2 Dask workers, results identical. Each writes its tables and plo
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
-
-from ..errors import EXIT_USAGE, OutputError, check_output_path
+import sys
 
 from .accuracy import accuracy
 from .consumer import consumer
 from .hard import hard
 from .hotpath import effects_cost, hotpath
+from ..errors import check_output_path, EXIT_USAGE, OutputError
 
 __all__ = ["add_arguments", "run"]
 

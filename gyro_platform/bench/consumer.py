@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """What a user gets: the consumer paths timed beside the compiled kernel (``gyro-platform bench consumer``).
 
 Rows, all in one process run (medians of ``repeats``):
@@ -27,21 +41,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from dataclasses import asdict, dataclass, field
 import io
 import json
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
-from .bags import IMU_TOPIC, cache_dir, cached_imu_bag, husky_bag, short_copy, vehicle_imu
+from .bags import cache_dir, cached_imu_bag, husky_bag, IMU_TOPIC, short_copy, vehicle_imu
 
 __all__ = ["Row", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
 
@@ -294,7 +308,7 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
         other = vehicle_imu(duration, seed=OTHER_SEED, jitter=OTHER_JITTER)
         k_other = kernel_us(other.t, other.omega, other.force, repeats)
         for variant, kern, bag_kw, label in (("", k_imu, {}, ""),
-                                            ("_other", k_other, {"seed": OTHER_SEED, "jitter": OTHER_JITTER},
+                                             ("_other", k_other, {"seed": OTHER_SEED, "jitter": OTHER_JITTER},
                                              f", another vehicle, stamps jittered ±{OTHER_JITTER:g} period")):
             for storage in ("sqlite3", "mcap"):
                 name = f"replay_1khz{variant}_{storage}"
@@ -330,7 +344,7 @@ def sqlite_floor(bag: Path, repeats: int) -> tuple[float, int]:
 
     import apsw
 
-    from ..io.bag_storage import SQLITE_PAGE_SIZE, insert_rows
+    from ..io.bag_storage import insert_rows, SQLITE_PAGE_SIZE
 
     db3 = next(Path(bag).glob("*.db3"))
     src = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)
@@ -398,7 +412,10 @@ def _node_rows(duration: float, n: int, repeats: int, imu) -> list[Row]:
         raise
     except Exception as e:
         bad = f"failed: {type(e).__name__}: {str(e)[:120]}"
-        return [Row("node_median", what + " (median)", "", status=bad), Row("node_p99", what + " (p99)", "", status=bad)]
+        return [
+            Row("node_median", what + " (median)", "", status=bad),
+            Row("node_p99", what + " (p99)", "", status=bad),
+        ]
     extra = {k: r[k] for k in ("max_us", "published", "internal_errors")}
     return [Row("node_median", what + " (median)", "generated", us_per_sample=r["median_us"], kernel_us=r["kernel_us"],
                 extra=extra, target=TARGETS["node_median"]),
@@ -431,8 +448,8 @@ def table(rows: list[Row]) -> str:
             continue
         wc = r.extra.get("whole_command_wall_s")
         whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
-        lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} | {_fmt(r.kernel_us, '.2f')} "
-                     f"| {_fmt(r.ratio, '.1f')} | {r.target} |")
+        lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} "
+                     f"| {_fmt(r.kernel_us, '.2f')} | {_fmt(r.ratio, '.1f')} | {r.target} |")
     return "\n".join(lines) + "\n"
 
 

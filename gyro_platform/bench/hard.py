@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The hard-case table (``gyro-platform bench hard``).
 
 The hard-case catalogue (:mod:`gyro_platform.engine.hardcases`): every method asked for rtol
@@ -53,11 +67,11 @@ def hard(out_dir: Path, quick: bool = False, cases: list[str] | None = None) -> 
             res = run_case(case, m, *ASK, duration=dur)
             v, err = verdict(res, ref)
             cpu = res.cpu / max(res.sim_s, 1e-3 / 2)
-            row = dict(case=case.name, method=m, integrator=res.stats.get("integrator", m), duration=dur,
-                       error=err, cpu_per_sim_s=cpu, verdict=v,
-                       error_estimate=res.stats.get("max_error_estimate", math.nan),
-                       steps_per_sample=res.stats.get("n_steps", 0) / max(res.stats.get("n_samples", 1), 1),
-                       refused=(res.refused or "")[:160])
+            row = {"case": case.name, "method": m, "integrator": res.stats.get("integrator", m), "duration": dur,
+                   "error": err, "cpu_per_sim_s": cpu, "verdict": v,
+                   "error_estimate": res.stats.get("max_error_estimate", math.nan),
+                   "steps_per_sample": res.stats.get("n_steps", 0) / max(res.stats.get("n_samples", 1), 1),
+                   "refused": (res.refused or "")[:160]}
             rows.append(row)
             print(f"   {m:18s} {v:8s} error {err:9.2e} rad  {cpu:9.3g} CPU s/sim s  "
                   f"{row['steps_per_sample']:7.1f} steps/sample  {row['refused'][:90]}", flush=True)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Per-sample cost: the hot path and the cost of each effect (``gyro-platform bench hotpath|effects``).
 
 ``hotpath``: µs per sample of ``Simulator.push`` (what the ROS node does per message) and of
@@ -7,16 +21,16 @@ is off costs nothing. Timing is CPU time (``time.process_time``), medians of rep
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
+import time
 
 import numpy as np
 
+from .bench_scenes import ship_scene
 from ..engine.inputs import RateSample
 from ..engine.simulator import Simulator
 from ..physics.options import DEFAULT_EFFECTS, EFFECTS, ModelOptions
 from ..physics.params import NAV1
-from .bench_scenes import ship_scene
 
 __all__ = ["hotpath", "effects_cost"]
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Peer comparison: the same carried platform in MuJoCo, at equal accuracy (``gyro-platform bench peer``).
 
 The model (:func:`mjcf`): the platform is a body on a ball joint whose motion is prescribed
@@ -27,23 +41,23 @@ Needs ``pip install '.[bench]'`` (mujoco); without it the benchmark says so and 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import json
 import os
+from pathlib import Path
 import shutil
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .bags import BAG_VERSION, cache_dir, VehicleImu, write_imu_bag
+from .bench_scenes import BenchScene, SAMPLE_RATE, ship_scene
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
 from ..scenes.motions import RateSteps
-from .bags import BAG_VERSION, VehicleImu, cache_dir, write_imu_bag
-from .bench_scenes import SAMPLE_RATE, BenchScene, ship_scene
 
 __all__ = ["mjcf", "MujocoPlatform", "gyro_run", "mujoco_run", "peer", "GIMBALS", "BASE_INERTIA", "ROTOR_KV",
            "carried_options", "available", "steps_scene", "compare_scene"]
@@ -61,7 +75,7 @@ FIXED_LEVELS = (1e-6, 1e-8)   # rad
 
 
 def available() -> str:
-    """"" if mujoco can be imported, else why not."""
+    """The empty string if mujoco can be imported, else why not."""
     try:
         import mujoco  # noqa: F401
     except ImportError as e:
@@ -215,7 +229,7 @@ def _max_err(ta, qa, tb, qb) -> float:
 def _consumer_cpu(sc: BenchScene, rtol: float) -> float:
     """CPU s per simulated s of the replay loop (bag in, gate, compiled engine, outputs at
     10 Hz, bag out) at tolerance ``rtol`` on a cached bag of the motion."""
-    from ..replay.loop import ReplayConfig, replay
+    from ..replay.loop import replay, ReplayConfig
 
     bag = cache_dir() / f"peer_{sc.name}_v{BAG_VERSION}_{sc.t[-1]:g}s_mcap"
     if not (bag / "metadata.yaml").is_file():
@@ -264,8 +278,8 @@ def compare_scene(sc: BenchScene, repeats: int) -> dict:
     for rtol in GYRO_RTOLS:
         runs = [gyro_run(t, w, carried_options(rtol)) for _ in range(repeats)]
         err = _max_err(tg, gref, runs[0][0], runs[0][1])
-        rows.append(dict(who="gyro_platform", config=f"auto rtol {rtol:g}", rtol=rtol, error=err,
-                         cpu_per_sim_s=float(np.median([r[2] for r in runs])) / sim_s))
+        rows.append({"who": "gyro_platform", "config": f"auto rtol {rtol:g}", "rtol": rtol, "error": err,
+                     "cpu_per_sim_s": float(np.median([r[2] for r in runs])) / sim_s})
         print(f"    gyro_platform auto rtol {rtol:7.0e}: error {err:.2e} rad, "
               f"{rows[-1]['cpu_per_sim_s']:.3e} CPU s/sim s", flush=True)
     for integ, ks in MJ_SUBSTEPS.items():
@@ -273,8 +287,8 @@ def compare_scene(sc: BenchScene, repeats: int) -> dict:
             runs = [mujoco_run(t, w, substeps=k, integrator=integ) for _ in range(repeats)]
             err = _max_err(tm, mref, runs[0][0], runs[0][1])
             stable = np.all(np.isfinite(runs[0][1]))
-            rows.append(dict(who="MuJoCo", config=f"{integ} h = 1/{k} ms", error=err if stable else float("inf"),
-                             cpu_per_sim_s=float(np.median([r[2] for r in runs])) / sim_s))
+            rows.append({"who": "MuJoCo", "config": f"{integ} h = 1/{k} ms", "error": err if stable else float("inf"),
+                         "cpu_per_sim_s": float(np.median([r[2] for r in runs])) / sim_s})
             print(f"    MuJoCo {integ:8s} h = 1/{k:<3d} ms: " + (f"error {err:.2e} rad" if stable else "unstable")
                   + f", {rows[-1]['cpu_per_sim_s']:.3e} CPU s/sim s", flush=True)
             if stable and err < min(FIXED_LEVELS) * 1e-2:
@@ -285,7 +299,7 @@ def compare_scene(sc: BenchScene, repeats: int) -> dict:
     comp = []
     for label, lv in levels:
         g, mj = _cheapest(rows, "gyro_platform", lv), _cheapest(rows, "MuJoCo", lv)
-        c = dict(level=label, error_level=lv, gyro=g, mujoco=mj)
+        c = {"level": label, "error_level": lv, "gyro": g, "mujoco": mj}
         if g is not None:
             c["consumer_cpu_per_sim_s"] = float(np.median([_consumer_cpu(sc, g["rtol"]) for _ in range(repeats)]))
         if g is not None and mj is not None:
@@ -334,7 +348,8 @@ def table(doc: dict) -> str:
             cons = c.get("consumer_cpu_per_sim_s")
             lines.append(
                 f"| {sc['scene']} | {c['level']}: {c['error_level']:.1e} rad | {gtxt} "
-                f"| {'' if g is None else format(g['cpu_per_sim_s'], '.2e')} | {'' if cons is None else format(cons, '.2e')} "
+                f"| {'' if g is None else format(g['cpu_per_sim_s'], '.2e')} "
+                f"| {'' if cons is None else format(cons, '.2e')} "
                 f"| {mtxt} | {'' if m is None else format(m['cpu_per_sim_s'], '.2e')} "
                 f"| {format(c['ratio_kernel'], '.1f') if 'ratio_kernel' in c else ''} "
                 f"| {format(c['ratio_consumer'], '.2f') if 'ratio_consumer' in c else ''} |")

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Compiled stepping: one numba call per input sample (``push``) or per chunk (``block``).
 
 ``Engine`` owns a simulator's integration state and every array the compiled step touches, in
@@ -28,15 +42,14 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from .integrators import COARSEN, MAX_JUMP, STEP_SLACK
-from .integrators import ETD2, TAIL_MIN, TAIL_ULP
+from .integrators import COARSEN, ETD2, MAX_JUMP, STEP_SLACK, TAIL_MIN, TAIL_ULP
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import FASTMATH, LAY_STAB, SEG_N, platform_rhs, support_regime
+from ..physics.system import FASTMATH, LAY_STAB, platform_rhs, SEG_N, support_regime
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
 #: integrators with a compiled path → method code
@@ -390,7 +403,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         else:
                             csr_axpy(mi, po, j - 1, io, md, do, Kf, yw, U)
                         if not ((qa < 0 or _quat_ok(U[qa], U[qa + 1], U[qa + 2], U[qa + 3]))
-                                    and (qp < 0 or _quat_ok(U[qp], U[qp + 1], U[qp + 2], U[qp + 3]))):
+                                and (qp < 0 or _quat_ok(U[qp], U[qp + 1], U[qp + 2], U[qp + 3]))):
                             status |= ST_NONFINITE
                             break
                         nrhs += 1

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Hard cases as a catalogue: where integrators are tempted to be silently wrong.
 
 Each ``HardCase`` is a short run (1 kHz vehicle input) that ``run_case`` integrates with one
@@ -15,20 +29,20 @@ Tests (``test/test_accuracy_on_request.py``) assert that no cell is ``WRONG`` at
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import math
 import time
-from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
+from .integrators import fd_jacobian, make_integrator
+from .simulator import Simulator
 from ..errors import SimulationError
 from ..physics.gyro import GimballedGyro, GyroModel
-from .integrators import fd_jacobian, make_integrator
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
-from ..physics.rotations import quat_matrix, matrix_rotvec
-from .simulator import Simulator
+from ..physics.rotations import matrix_rotvec, quat_matrix
 
 RATE = 1000.0                 # Hz, vehicle input
 OK_RAD = 1e-5                 # verdict threshold against the reference (rad)

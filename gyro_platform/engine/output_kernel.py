@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Outputs in compiled code: K state snapshots in, K output rows out, in one call.
 
 ``output_rows`` (numba) evaluates, for each instant, everything ``Outputs`` reports — gimbal
@@ -19,21 +33,21 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
+from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE, C_NSTEPS,
+                      C_OM, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, COLUMN_NAMES, N_COL, OutputBlock, Outputs,
+                      outputs_of_row)
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
 from ..physics.options import NEEDS_SPECIFIC_FORCE
+from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
                                  rotvec_matrix_into)
-from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, P_L, P_WIN, PRECESSION,
-                              PlatformSystem, platform_rhs)
+from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, P_L, P_WIN, platform_rhs,
+                              PlatformSystem, PRECESSION)
 from ..physics.tree import kinematics_rw, newton_euler, rotor_torques
-from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE,
-                      C_NSTEPS, C_OM, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, COLUMN_NAMES, N_COL, OutputBlock,
-                      Outputs, outputs_of_row)
 
 #: step (s) of the central difference that gives the gimbal accelerations in precession
 PRECESSION_EPS = 1e-6

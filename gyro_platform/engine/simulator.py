@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The simulator: input samples in, platform state integrated, outputs on demand.
 
 ``push(sample)`` integrates from the previous sample to this one with the input interpolated
@@ -12,22 +26,24 @@ import math
 
 import numpy as np
 
-from ..errors import GimbalLockError, InputError, SimulationError
+from .batch import (COMPILED, Engine, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
+                    J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
+                    ST_ORDER, ST_TOLERANCE)
+from .checks import as_time as _time
+from .checks import as_vec3 as _vec3
+from .checks import check_block
 from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
-from ..physics.model import spin_momentum
-from ..physics.options import NEEDS_SPECIFIC_FORCE, ModelOptions
-from .batch import (COMPILED, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
-                    J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
-                    ST_ORDER, ST_TOLERANCE, Engine)
 from .output_kernel import OutputKernel
 from .outputs import OutputBlock, Outputs, outputs_of_row
-from .checks import as_time as _time, as_vec3 as _vec3, check_block
-from .snapshots import SEG_N, Snapshots, first_segment
+from .snapshots import first_segment, SEG_N, Snapshots
+from ..errors import GimbalLockError, InputError, SimulationError
+from ..physics.model import spin_momentum
+from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
 from ..physics.params import NAV1, PlatformParams
-from ..physics.system import PlatformSystem
 from ..physics.rotations import quat_matrix, rotvec_matrix
-from ..physics.tree import TreeWork, kinematics, mass_matrix
+from ..physics.system import PlatformSystem
+from ..physics.tree import kinematics, mass_matrix, TreeWork
 
 #: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
 #: step (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
@@ -97,7 +113,12 @@ def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
     """The integrator of ``options`` (``auto``: ``Auto(auto_primary(...), exprb)``)."""
-    kw = dict(max_step=options.max_step, rtol=options.rtol, atol=options.atol, max_substeps=options.max_substeps)
+    kw = {
+        "max_step": options.max_step,
+        "rtol": options.rtol,
+        "atol": options.atol,
+        "max_substeps": options.max_substeps,
+    }
     if options.integrator == "auto":
         return Auto(make_integrator(auto_primary(options, params), **kw), make_integrator("exprb", **kw))
     return make_integrator(options.integrator, **kw)

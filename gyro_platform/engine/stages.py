@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The exponential methods' stage matrices in CSR form and the compiled products with them.
 
 ``stage_matrices`` turns an etd2/etd4 integrator's stage matrices for one step (and the linear
@@ -8,10 +22,10 @@ level and grid step and steps with ``csr_axpy`` / ``csr_mv``; ``phi_taylor`` app
 """
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from .integrators import TAYLOR_MAX, TAYLOR_TOL, taylor_bound
+from .integrators import taylor_bound, TAYLOR_MAX, TAYLOR_TOL
 from ..physics.system import FASTMATH
 
 __all__ = ["stage_matrices", "csr_axpy", "csr_mv", "phi_taylor"]

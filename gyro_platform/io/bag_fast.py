@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Fast readers of an intact rosbag2 bag's rows in blocks (issue 12): the same rows, in the same
 order, as rosbags' ``Reader.messages`` gives them, read without a Python object per row.
 
@@ -18,14 +32,14 @@ the caller then reads through rosbags. Errors propagate as raised (apsw errors, 
 """
 from __future__ import annotations
 
-import struct
 from itertools import islice
 from operator import itemgetter
 from pathlib import Path
+import struct
 from typing import Any, Iterator
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from .blocks import RawRows
 
@@ -220,7 +234,11 @@ def mcap_records(hdr, buf, beg, end):  # pragma: no cover - compiled
     return out
 
 
-WALK_ERRORS = {1: "truncated record header", 2: "record runs past the chunk end", 3: "message record shorter than 22 bytes"}
+WALK_ERRORS = {
+    1: "truncated record header",
+    2: "record runs past the chunk end",
+    3: "message record shorter than 22 bytes",
+}
 
 
 @njit(cache=True, inline="always")
@@ -316,7 +334,6 @@ class McapFile:
     count from the statistics). Rows come from :func:`mcap_batches` like an intact bag's."""
 
     def __init__(self, path: Path):
-        from mcap.exceptions import McapError
         from mcap.reader import make_reader
         from rosbags.rosbag2.storage_mcap import ChunkInfo
 

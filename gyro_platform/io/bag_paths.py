@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Where a rosbag2 bag's files are: path checks (ROS 1 bags, stray files), its storage files,
 ``metadata.yaml`` and storage kind (``sqlite3``/``mcap``); the lazily imported rosbags pieces.
 
@@ -14,15 +28,14 @@ ROS1_MAGIC = b"#ROSBAG V2.0"
 
 def rosbags_api():
     """The rosbags pieces used by the bag modules, imported on first use (keeps ``--help`` fast)."""
-    from rosbags.interfaces import (Connection, ConnectionExtRosbag2, MessageDefinition,
-                                    MessageDefinitionFormat)
+    from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
     from rosbags.rosbag2 import Reader, ReaderError
-    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
 
-    return dict(Connection=Connection, Ext=ConnectionExtRosbag2, MsgDef=MessageDefinition,
-                MsgDefFormat=MessageDefinitionFormat, Reader=Reader, ReaderError=ReaderError,
-                Stores=Stores, from_idl=get_types_from_idl, from_msg=get_types_from_msg,
-                get_typestore=get_typestore)
+    return {"Connection": Connection, "Ext": ConnectionExtRosbag2, "MsgDef": MessageDefinition,
+            "MsgDefFormat": MessageDefinitionFormat, "Reader": Reader, "ReaderError": ReaderError,
+            "Stores": Stores, "from_idl": get_types_from_idl, "from_msg": get_types_from_msg,
+            "get_typestore": get_typestore}
 
 
 def storage_files(path: Path) -> list[Path]:
@@ -109,4 +122,3 @@ def storage_of(path: Path) -> str:
             return "sqlite3"
     raise BagPathError(f"{path}: not a rosbag2 bag (give a bag folder with metadata.yaml, "
                        f"or a .db3 / .mcap file)")
-

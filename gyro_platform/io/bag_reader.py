@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Reading an intact rosbag2 bag (sqlite3 or mcap; a folder, a lone storage file, a folder
 without ``metadata.yaml``) with rosbags: connections, the input topic, messages as a stream,
 CDR decoding through the bag's own definitions or the Jazzy typestore.
@@ -12,15 +26,14 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from ..errors import BagReadError, ReplayError
 from . import messages as msgs
-from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .bag_fast import Batch, McapBag, row_batches
+from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .bag_salvage import Salvage
-from .blocks import RowChunk, concat_rows, row_lens
+from .blocks import concat_rows, row_lens, RowChunk
 from .messages import INPUT_TYPES
 from .typedefs import core_msgdef, core_typestore, has_type
-
+from ..errors import BagReadError, ReplayError
 
 #: a chunk of :meth:`InputBag.chunks` ends once its rows hold this much payload (bytes), however
 #: many rows were asked: a 1 kHz Imu chunk of 32 768 rows is ~11 MB, but a bag that also carries
@@ -288,7 +301,6 @@ def typestore_for(conn: Any) -> Any:
         except Exception:
             pass
     return msgs.jazzy_typestore()
-
 
 
 def _rows(batches: Iterator[Batch], by_id: dict[int, Any]) -> Iterator[tuple[Any, int, bytes]]:

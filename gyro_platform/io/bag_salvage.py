@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Reading what is readable of a damaged rosbag2 bag (no index, no footer, a cut-off database).
 
 Used by :class:`.bag_reader.InputBag` when rosbags cannot open the bag. Messages are streamed
@@ -19,15 +33,15 @@ in file order up to the damage, then ``BagReadError`` names the file and where i
 """
 from __future__ import annotations
 
-import sqlite3
 from pathlib import Path
+import sqlite3
 from typing import Any, BinaryIO, Iterator
 
 import numpy as np
 
-from ..errors import BagReadError
 from .bag_paths import read_metadata, rosbags_api, storage_files
 from .blocks import RawRows
+from ..errors import BagReadError
 
 
 class Salvage:
@@ -267,7 +281,7 @@ def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
 def _spans(f: Path, pos: int, buf: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """(opcodes, begins, ends) of a chunk's records with ``want[op]``, and the error that ended
     the walk early ("" if none) — the records before it are kept."""
-    from .bag_fast import WALK_ERRORS, record_spans
+    from .bag_fast import record_spans, WALK_ERRORS
 
     err, at, n, ops, beg, end = record_spans(buf, want)
     why = f"{f}: corrupt record at offset {pos}: {WALK_ERRORS[err]} at offset {at} of its records" if err else ""
@@ -307,7 +321,9 @@ def mcap_connections(f: Path) -> list[tuple[int, Any]]:
         name, senc, text = schemas.get(sid, ("", "", ""))
         mfmt = {"ros2msg": fmt.MSG, "ros2idl": fmt.IDL, "omgidl": fmt.IDL}.get(senc, fmt.NONE)
         ext = rb["Ext"](menc, _qos(meta.get("offered_qos_profiles")))
-        res.append((cid, rb["Connection"](cid, topic, name, rb["MsgDef"](mfmt, text if senc else ""), "", 0, ext, None)))
+        res.append(
+            (cid, rb["Connection"](cid, topic, name, rb["MsgDef"](mfmt, text if senc else ""), "", 0, ext, None))
+        )
 
     try:
         for op, pos, c in top_records(f, frozenset((OP_SCHEMA, OP_CHANNEL, OP_CHUNK))):

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """rosbags' rosbag2 ``Writer`` with a batched, bounded, fault-aware message path (used by
 :class:`gyro_platform.io.bag_writer.OutputBag`; the files are those rosbags writes).
 
@@ -18,14 +32,14 @@
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+from io import BytesIO
 import os
+from pathlib import Path
 import re
 import sqlite3
 import struct
 import time
-from contextlib import contextmanager
-from io import BytesIO
-from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 import apsw
@@ -176,6 +190,8 @@ def insert_rows(cursor: Any, cids: np.ndarray, ts: np.ndarray, raws: Sequence[An
                            (flat[3 * a:3 * a + 3] for a in range(m, n)))
 
 # ---- storage writers: rosbags' with a batched, bounded, fault-aware message path -------------
+
+
 def storage_classes():
     from rosbags.rosbag2.storage_mcap import McapWriter
     from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer

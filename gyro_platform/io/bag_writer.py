@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The output rosbag2 bag (version 9, sqlite3 or mcap): input connections copied byte for
 byte plus the simulator's output topics, offered with the rclpy default QoS.
 
@@ -27,25 +41,25 @@ What survives a fault (issue 17):
 from __future__ import annotations
 
 import atexit
-import os
-import sys
 from contextlib import contextmanager
 from functools import lru_cache
+import os
 from pathlib import Path
+import sys
 from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
-from ..errors import OutputError, deferred_signals
 from . import messages as msgs
 from .bag_paths import rosbags_api
-from .bag_storage import SQLITE_ERRORS, Rows, segments, writer_class
+from .bag_storage import Rows, segments, SQLITE_ERRORS, writer_class
 from .typedefs import core_typestore, has_type
+from ..errors import deferred_signals, OutputError
+
 
 def default_qos() -> list:
     """QoS offered by the output publishers: reliable, volatile, keep last 10 (rclpy default)."""
-    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
-                                    QosTime)
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     zero = QosTime(0, 0)
     return [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE, QosDurability.VOLATILE, zero, zero,

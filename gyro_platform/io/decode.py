@@ -1,10 +1,25 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Vectorised CDR decoding of the input rows (issue 12 contract: the decode half of ``io.codec``).
 
 :func:`decode_rates` turns the CDR bytes of ``N`` ``sensor_msgs/Imu``, ``geometry_msgs/Twist``
 or ``geometry_msgs/TwistStamped`` messages into one :class:`~gyro_platform.io.blocks.RateBlock`
 in one compiled pass (numba, ``nogil``) over the rows in one buffer (joined, or in place in an
-MCAP chunk: :class:`~gyro_platform.io.blocks.RawRows`): every field is read at its byte offset (the offsets after the header shift with the length of ``frame_id``; each
-row's are computed from its own string length) and each distinct ``frame_id`` is decoded once.
+MCAP chunk: :class:`~gyro_platform.io.blocks.RawRows`): every field is read at its byte offset
+(the offsets after the header shift with the length of ``frame_id``; each row's are computed from
+its own string length) and each distinct ``frame_id`` is decoded once.
 Only what is sure to decode as rosbags decodes it is taken this way: a little-endian CDR
 encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact size rosbags accepts
 (up to 3 bytes of padding) and the standard message layout (the Jazzy definition, or a bag's own
@@ -22,11 +37,11 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail, row_lens
-from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
+from .blocks import bad_stamp_detail, RateBlock, Raw, RawRows, row_lens
+from .messages import IMU, jazzy_typestore, Mounting, Reading, reading_from_msg, TWIST, TWIST_STAMPED
 from .typedefs import core_typestore, has_type
 
 #: detail of an Imu row whose rate is not reported (the text of ``reading_from_msg``)
@@ -77,7 +92,7 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
         np.cumsum(lens[:-1], out=beg[1:])
     kind = _KINDS[msgtype]
     ok, code, first, nsec, no_rate = _decode_rows(buf, beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
-                                                   rb.force, rb.has_force)
+                                                  rb.force, rb.has_force)
     if kind != _KIND_TWIST:
         names = []
         for k in range(len(first)):           # each distinct frame_id decoded once

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """CDR bytes of the per-instant output messages for K instants at once (issue 12 fast path).
 
 :func:`encode_outputs` makes exactly the messages :func:`gyro_platform.io.messages.output_messages`
@@ -10,16 +24,16 @@ alignment relative to the end of the encapsulation header, as rosbags and Fast D
 """
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 from functools import lru_cache
+import struct
 from typing import Any
 
 import numpy as np
 
-from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES
 from . import messages as msgs
 from .messages import rows_of
+from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES
 
 _HEAD = b"\x00\x01\x00\x00"      # CDR_LE encapsulation, options 0
 NS = 1_000_000_000

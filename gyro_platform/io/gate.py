@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Input gate between messages and the simulator: timing and sanity of every rate sample.
 
 :meth:`TimeGate.offer` takes what :func:`gyro_platform.io.messages.reading_from_msg` made of one
@@ -46,22 +60,22 @@ decision and the rate estimates end as after one ``offer`` per row.
 
 Default ``on_gap="reset"``: across a gap the simulator would interpolate the rate linearly and
 so invent the vehicle's motion; restarting is honest, and the outputs before the gap are kept.
-"""
+"""  # noqa: E501 (the reason table: one row a line)
 from __future__ import annotations
 
-import copy
-import math
 from collections import Counter
+import copy
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Any
+import math
+from typing import Any, TYPE_CHECKING
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from ..engine.inputs import RateSample
 from .blocks import REJECT_REASONS
 from .messages import Reading, Rejected
+from ..engine.inputs import RateSample
 
 if TYPE_CHECKING:
     from .blocks import RateBlock

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """ROS 2 message mapping of the platform (ROS-free: works on rosbags' and rclpy's classes).
 
 Inputs are read duck-typed (same field names in rosbags and rclpy); outputs are built through a
@@ -22,21 +36,20 @@ Topics (names relative to the node namespace, except ``/diagnostics``; copy this
 
 Output stamps are in the input's time base (the sample's header stamp, or its receive time when
 the stamps are not set), see :mod:`gyro_platform.io.gate`.
-"""
+"""  # noqa: E501 (the topic table: one row a line, as the README shows it)
 from __future__ import annotations
 
 import array
+from dataclasses import dataclass
 import importlib
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence, TYPE_CHECKING
 
 import numpy as np
 
 from .blocks import bad_stamp_detail
-from ..engine.outputs import (BEARING_FRAMES, BEARING_NAMES, C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MOTOR,
-                              C_MOUNT, C_MRATE, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, GIMBAL_NAMES, MOUNT_NAMES,
-                              Outputs)
+from ..engine.outputs import (BEARING_FRAMES, BEARING_NAMES, C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MOTOR, C_MOUNT,
+                              C_MRATE, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, GIMBAL_NAMES, MOUNT_NAMES, Outputs)
 
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
@@ -146,7 +159,7 @@ def jazzy_typestore():
     """The rosbags ROS 2 Jazzy typestore (cached)."""
     global _JAZZY
     if _JAZZY is None:
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import get_typestore, Stores
 
         _JAZZY = get_typestore(Stores.ROS2_JAZZY)
     return _JAZZY
@@ -228,7 +241,7 @@ class Mounting:
         header (Twist) take the vehicle frame; usable rows of an unknown frame are flagged in
         ``identity`` (policy ``identity``: values kept) or rejected ``unknown_frame``
         (policy ``reject``). Rows already rejected are left as they are."""
-        from .blocks import REJECT_UNKNOWN_FRAME, RateBlock
+        from .blocks import RateBlock, REJECT_UNKNOWN_FRAME
 
         n = len(rb)
         omega, force = rb.omega.copy(), rb.force.copy()
@@ -303,7 +316,7 @@ def _group(frames: list[str]) -> dict[str, np.ndarray]:
 
 def as_rotation(value: Any) -> Rotation:
     """Rotation from a Rotation, a unit quaternion (x, y, z, w) or roll, pitch, yaw (rad)."""
-    from scipy.spatial.transform import Rotation      # here: 0.2 s of import a replay without mounting skips
+    from scipy.spatial.transform import Rotation  # here: 0.2 s of import a replay without mounting skips
 
     if isinstance(value, Rotation):
         return value
@@ -511,7 +524,8 @@ def joint_columns(src: Any) -> JointColumns:
     t = np.asarray(src.t, dtype=np.float64).reshape(-1)
     k = t.shape[0]
     names = list(GIMBAL_NAMES)
-    pos, vel, eff = [rows_of(src.gimbal_angles, k)], [rows_of(src.gimbal_rates, k)], [rows_of(src.gimbal_axial_torques, k)]
+    pos, vel = [rows_of(src.gimbal_angles, k)], [rows_of(src.gimbal_rates, k)]
+    eff = [rows_of(src.gimbal_axial_torques, k)]
     complete = True
     if src.mount_angles is not None:
         names += MOUNT_NAMES

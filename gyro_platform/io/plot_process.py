@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """A helper process that draws a command's plot (``Recorder.plot``).
 
 Importing matplotlib takes ~0.75 s on a 2 GHz core, about a fifth of a whole ``replay`` or
@@ -16,10 +30,10 @@ from __future__ import annotations
 
 import atexit
 import os
+from pathlib import Path
 import pickle
 import subprocess
 import sys
-from pathlib import Path
 from typing import Any
 
 #: the longest wait for the helper's plot (s), after which it is killed and this process draws

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Recording of simulator outputs: arrays per field, CSV/JSON files, a summary and a plot.
 
 Units: time s, angles rad, rates rad/s, torques N m; drift rates also in °/h
@@ -12,9 +26,9 @@ torques in platform axes; vehicle rates in vehicle body axes (FLU).
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -31,18 +45,19 @@ QUAT = ("qx", "qy", "qz", "qw")
 #: meaning). ``<…>`` stands for each name listed in the meaning; the unit is also the name's
 #: suffix (``_rad``, ``_rad_s`` = rad/s, ``_N_m`` = N m; quaternions and counts have none).
 CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
-    ("t_s", "s", "output instant, s since the first accepted input sample (synthetic scene: its start; bag: its first sample, whose stamp the output messages' header stamps continue)"),
+    ("t_s", "s", "output instant, s since the first accepted input sample (synthetic scene: its start; bag: its "
+                 "first sample, whose stamp the output messages' header stamps continue)"),
     ("<gimbal>_rad", "rad", "gimbal angle; <gimbal> = alpha4, beta5, beta7, alpha9, beta10"),
     ("<gimbal>_rate_rad_s", "rad/s", "gimbal angle rate"),
     ("<gimbal>_axial_torque_N_m", "N m", "torque applied about the gimbal axis (spring, damper, friction, torquer)"),
     ("platform_rate_<axis>_rad_s", "rad/s", "platform inertial angular rate, platform axes; <axis> = x, y, z"),
     ("platform_attitude_<q>", "1", "platform attitude quaternion, platform -> inertial frame; <q> = qx, qy, qz, qw"),
     ("drift_angle_<axis>_rad", "rad", "platform attitude error against its reference (rotation vector, platform axes; "
-                                     "carried mode: the gyros' inertial reference)"),
+     "carried mode: the gyros' inertial reference)"),
     ("drift_rate_<axis>_rad_s", "rad/s", "instantaneous rate of the drift angle (follows the vehicle's oscillations; "
-                                        "the summary's drift rate is the least-squares slope of the drift angle)"),
+     "the summary's drift rate is the least-squares slope of the drift angle)"),
     ("<bearing>_torque_<axis>_N_m", "N m", "bearing reaction torque in the axes of outputs.BEARING_FRAMES; <bearing> = "
-                                          "support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11"),
+     "support, gimbal4, gimbal5, gimbal7, gimbal9, gimbal10, rotor6, rotor8, rotor11"),
     ("motor_torque_<rotor>_N_m", "N m", "rotor motor torque about the spin axis; <rotor> = rotor6, rotor8, rotor11"),
     ("<mount>_rad", "rad", "stabilised mode: mount angles (XYZ Euler, vehicle -> platform); <mount> = mount_roll, "
                            "mount_pitch, mount_yaw"),
@@ -207,7 +222,7 @@ class Recorder:
 
     # ---- arrays -------------------------------------------------------------------------
     def field(self, name: str) -> np.ndarray:
-        """Stacked values of an ``Outputs`` field (e.g. ``gimbal_angles`` → (N, 5)) or of an
+        """Stack the values of an ``Outputs`` field, e.g. ``gimbal_angles`` → (N, 5), or of an
         extra series. Optional fields that are ``None`` give ``None``."""
         if name in self._cache:
             return self._cache[name]

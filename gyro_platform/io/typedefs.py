@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The ROS 2 Jazzy definitions of the message types this package reads and writes, and a small
 rosbags typestore of them (:func:`core_typestore`).
 
@@ -43,7 +57,7 @@ def core_typestore() -> Any:
     """A rosbags typestore of the types in :data:`DEFINITIONS` (built once, ~10 ms)."""
     global _CORE
     if _CORE is None:
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+        from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
         (first, text), *rest = DEFINITIONS.items()
         sep = "=" * 80 + "\n"

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """URDF of the platform, generated from its parameters (ROS-free), and the joint transforms for TF.
 
 Frames (REP-105, REP-103 FLU) and joints; joint names equal the ``JointState`` names the node
@@ -27,16 +41,16 @@ those of the equivalent solids (the model has no masses except ``gyro_mass``).
 """
 from __future__ import annotations
 
-import math
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+import math
 from typing import Mapping, Sequence
+import xml.etree.ElementTree as ET
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..physics.model import GIMBAL_AXES, SPIN_AXES
 from ..engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
+from ..physics.model import GIMBAL_AXES, SPIN_AXES
 from ..physics.params import PlatformParams
 
 #: densities of the equivalent solids (kg/m³): aluminium frames and housings, steel rotors
@@ -293,4 +307,3 @@ def config_urdf(config) -> str:
     """URDF text of a node configuration (``ros.config.NodeConfig``; what the node and the launch
     file publish)."""
     return platform_urdf(config.params, config.options.mode == "stabilised")
-

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Effects: each switchable effect is one small kernel that adds its generalised forces.
 
 Generalised forces act on the gimbal axes (``Q``: ``alpha4, beta5, beta7, alpha9, beta10``,
@@ -14,8 +28,8 @@ unless ``mass_unbalance``/``anisoelastic`` is on; the platform pivot does not tr
 """
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from .options import EFFECTS
 

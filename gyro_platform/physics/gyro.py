@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The single gimballed gyro with massive gimbals ([MBB] section 7) on the same body-tree engine.
 
 Base (prescribed rate, usually at rest) → outer ring (α about base +z) → inner ring
@@ -16,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..errors import GimbalLockError
 from .params import ParameterError
-from .tree import REVOLUTE, ROOT, SPIN, BodyTree, TreeWork, tree_inverse_dynamics, tree_mass_and_bias
+from .tree import BodyTree, REVOLUTE, ROOT, SPIN, tree_inverse_dynamics, tree_mass_and_bias, TreeWork
+from ..errors import GimbalLockError
 
 #: reciprocal condition number of the mass matrix below which the gyro is reported locked
 LOCK_RCOND = 1e-12

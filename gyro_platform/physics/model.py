@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The three-gyro platform of Magnus (1976): geometry, fidelities and equations of motion.
 
 Bodies (spec section 1): platform P (root), frame 4 (α4 about P +2), housing 5 (β5 about 4 +3,
@@ -22,16 +36,16 @@ servo integrals (3, rad s, stabilised).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from ..errors import PrecessionInvalidError
 from .options import ModelOptions
 from .params import PlatformParams
-from .tree import REVOLUTE, ROOT, BodyTree, TreeWork, kinematics, mass_matrix, newton_euler, generalised
+from .tree import BodyTree, generalised, kinematics, mass_matrix, newton_euler, REVOLUTE, ROOT, TreeWork
+from ..errors import PrecessionInvalidError
 
 E1, E2, E3 = np.eye(3)
 GIMBAL_AXES = np.array([E2, E3, -E3, E3, E1])  # joint axes of α4, β5, β7, α9, β10 (child axes)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Physical parameters of the three-gyro platform (SI units), NAV-1 defaults of the spec.
 
 Axes: platform axes 1, 2, 3 = x, y, z of frame ``platform``; every body's principal axes are
@@ -6,8 +20,8 @@ parallel to them in the normal position (all gimbal angles zero). Housings are g
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
+import math
 from typing import Any
 
 import numpy as np

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The platform as an ODE system ``ẏ = f(t, y)`` for one scene: model (only the effects that
 are on) + the current input interval. This is what the integrators step.
 
@@ -9,19 +23,19 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from . import effects as fx
-from ..errors import GimbalLockError, SimulationError
-from .model import (LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LOCK_COS, StateLayout,
-                    check_precession_valid, linear_coefficients, linear_gimbal_accel, platform_tree,
-                    precession_rates, rest_matrices, spin_momentum)
+from .model import (check_precession_valid, LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z,
+                    linear_coefficients, linear_gimbal_accel, LOCK_COS, platform_tree, precession_rates, rest_matrices,
+                    spin_momentum, StateLayout)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
 from .rotations import quat_matrix, quat_rate_at, quat_to_matrix_at
-from .tree import TreeWork, kinematics, mass_matrix, newton_euler, generalised, rot_axis
+from .tree import generalised, kinematics, mass_matrix, newton_euler, rot_axis, TreeWork
+from ..errors import GimbalLockError, SimulationError
 
 FULL, LINEAR, PRECESSION = 0, 1, 2
 FIDELITY_CODE = {"full": FULL, "linear": LINEAR, "precession": PRECESSION}

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``gyro-platform replay IN_BAG --out OUT_BAG [--topic T] [--scene S] [--storage sqlite3|mcap]
 [--output-rate HZ] [--mount FRAME=qx,qy,qz,qw | FRAME=roll,pitch,yaw] …``: the command line.
 
@@ -25,12 +39,12 @@ import re
 import sys
 from typing import Any
 
-from ..errors import (EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, EXIT_WRITE,
-                      BagPathError, BagReadError, OutputError, ReplayError, check_output_path, write_failure)
+from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, replay, ReplayConfig, sidecar_paths
+from ..errors import (BagPathError, BagReadError, check_output_path, EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK,
+                      EXIT_TERMINATED, EXIT_USAGE, EXIT_WRITE, OutputError, ReplayError, write_failure)
 from ..io.gate import GateConfig
 from ..io.messages import Mounting
 from ..pipeline import check_grid_rate, no_sample_hint
-from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, ReplayConfig, replay, sidecar_paths
 
 #: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
 #: (rmw_validate_namespace, plus the design article's rule against repeated underscores)

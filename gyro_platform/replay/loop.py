@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The replay run: a rosbag2 bag through the pipeline into an output bag, a JSON summary and a plot.
 
 Every input message is copied to the output bag (same record time); the input topic goes
@@ -13,18 +27,19 @@ is written before the bag is closed).
 """
 from __future__ import annotations
 
-import json
-import sys
-import time
 from contextlib import closing
 from dataclasses import dataclass, field
+import json
 from pathlib import Path
+import sys
+import time
 from typing import Any
 
 import numpy as np
 
-from ..errors import BagReadError, ReplayError, SimulationError, deferred_signals, stop_reason
+from .stats import PlotSeries, Stats
 from ..engine.outputs import OutputBlock
+from ..errors import BagReadError, deferred_signals, ReplayError, SimulationError, stop_reason
 from ..io import messages as msgs
 from ..io.bag_reader import InputBag
 from ..io.bag_writer import OutputBag
@@ -32,9 +47,8 @@ from ..io.encode import encode_outputs
 from ..io.gate import GateConfig, TimeGate
 from ..io.messages import MessageTypes, Mounting
 from ..io.typedefs import core_typestore
-from ..pipeline import (ADVANCED, DROP, NS, ChunkPacer, Pipeline, bag_chunks, copy_chunk,
-                        grid_index, grid_indices, judge, new_slots, no_sample_hint, prefetched)
-from .stats import PlotSeries, Stats
+from ..pipeline import (ADVANCED, bag_chunks, ChunkPacer, copy_chunk, DROP, grid_index, grid_indices, judge, new_slots,
+                        no_sample_hint, NS, Pipeline, prefetched)
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
 DEFAULT_DIAGNOSTICS_RATE = 1.0  # Hz
@@ -97,8 +111,13 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             print(f"gyro-platform replay: warning: {w}", file=sys.stderr)
         out_topics = msgs.output_topics(cfg.namespace)
         # /diagnostics is shared by every node (status names tell them apart): no clash there
-        clash = sorted({c.topic for c in bag.connections
-                        if c.topic in out_topics and not (c.topic == "/diagnostics" and c.msgtype == out_topics[c.topic])})
+        clash = sorted(
+            {
+                c.topic
+                for c in bag.connections
+                if c.topic in out_topics and not (c.topic == "/diagnostics" and c.msgtype == out_topics[c.topic])
+            }
+        )
         if clash:
             raise ReplayError(f"{in_bag}: has output topic(s) {clash} already; use --namespace to separate them")
         kwargs = {}
@@ -152,8 +171,6 @@ def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, plot: bool) 
         summary["files"]["plot"], summary["recorder"] = run.plot(plot_path)
     summary_path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
     return summary
-
-
 
 
 def json_default(o: Any) -> Any:

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Statistics of a replay's outputs, streamed: min/max per output column, the least-squares
 drift rate of the last segment, and bounded min/max buckets of the plotted quantities for the
 figure and the summary's maxima."""
@@ -337,7 +351,7 @@ class PlotSeries:
         output: maxima of |value| (from the buckets' minima and maxima), final values, and
         the drift rate of ``drift`` = ``(fit start time s, slope (3,) rad/s)`` (the replay's
         least-squares fit over the last segment, ``Stats.drift_fit``; the plot's legend)."""
-        from ..io.recording import AXES, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS, axes_dict
+        from ..io.recording import AXES, axes_dict, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
 
         s: dict[str, Any] = {"n_outputs": self.n}
         if self.n == 0:

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``gyro-platform node``: run the platform node on rclpy or on plain DDS (no ROS install).
 
 ``gyro-platform node [--transport auto|ros|dds] [--params-file FILE] [--scene S]
@@ -31,14 +45,15 @@ from __future__ import annotations
 import argparse
 import gc
 import os
+from pathlib import Path
 import signal
 import sys
 import time
-from pathlib import Path
 from typing import Any, Callable
 
 from ..engine.blas import limit_blas_threads
 from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
+
 TRANSPORTS = ("auto", "ros", "dds")
 
 
@@ -114,7 +129,7 @@ def freeze_startup_objects() -> None:
 def build_config(args: argparse.Namespace, node_name: str) -> tuple[Any, dict[str, Any]]:
     """NodeConfig from ``--params-file`` and ``--scene`` (ConfigError on a bad value), and the
     parameters it was built from (ROS's own, such as ``use_sim_time``, among them)."""
-    from .config import NodeConfig, load_params_file
+    from .config import load_params_file, NodeConfig
 
     params = load_params_file(args.params_file, node_name) if args.params_file else {}
     if args.scene:

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Validated node configuration: :class:`NodeConfig`, params files and scene defaults.
 
 * :class:`NodeConfig` — validated values of every parameter of
@@ -12,19 +26,20 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from dataclasses import fields as dc_fields
 import difflib
 import functools
-import re
-from dataclasses import dataclass, field, fields as dc_fields
 from pathlib import Path
+import re
 from typing import Any, Mapping
 
+from .dds_names import expand_topic_name, NameError_
+from .parameters import ConfigError, INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS
 from ..io.gate import GateConfig
 from ..io.messages import Mounting, output_topics
-from ..physics.options import DEFAULT_EFFECTS, NEEDS_SPECIFIC_FORCE, ModelOptions, OptionsError
+from ..physics.options import DEFAULT_EFFECTS, ModelOptions, NEEDS_SPECIFIC_FORCE, OptionsError
 from ..physics.params import ParameterError, PlatformParams
-from .dds_names import NameError_, expand_topic_name
-from .parameters import INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS, ConfigError
 
 #: parameters every rclpy node (or a library it uses) declares itself; accepted and ignored here
 ROS_STANDARD_PARAMETERS = ("use_sim_time", "start_type_description_service", "diagnostic_updater.period")
@@ -43,7 +58,7 @@ def scene_dirs() -> list[Path]:
 
 def resolve_scene(name: str) -> Path:
     """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
-    from ..scenes.schema import ScenarioError, find_scene
+    from ..scenes.schema import find_scene, ScenarioError
 
     try:
         return find_scene(name)
@@ -54,7 +69,7 @@ def resolve_scene(name: str) -> Path:
 def load_node_scene(name: str):
     """Load a scene for the node: as ``scene.load_scene`` but a ``bag`` motion (whose bag the
     node does not need) is replaced by a zero rate, so a missing bag does not stop the node."""
-    from ..scenes.scene_yaml import SceneYAMLError, load_yaml
+    from ..scenes.scene_yaml import load_yaml, SceneYAMLError
     from ..scenes.schema import ScenarioError, scene_from_dict
 
     path = resolve_scene(name)
@@ -274,7 +289,7 @@ class NodeConfig:
         (``no_specific_force``) before it reaches the time base; a reset re-anchors the time
         origin (a reset is a fresh start of the core)."""
         kw = {k: self[f"gate.{k}"] for k in ("max_gap", "on_gap", "reset_on_jump_back", "max_rate",
-                                              "max_specific_force", "time_source")}
+                                             "max_specific_force", "time_source")}
         try:
             return GateConfig(**kw, require_specific_force=needs_force, rebase_on_reset=True)
         except ValueError as e:
@@ -327,7 +342,6 @@ class NodeConfig:
             raise ConfigError("effects", f"{need} need the specific force, which input_type "
                                          f"'{self['input_type']}' does not carry (use input_type imu)")
         return opts
-
 
 
 __all__ = ["NodeConfig", "load_params_file", "parameter_defaults", "resolve_scene", "load_node_scene",

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Transport-independent core of the platform node (ROS-free): :class:`NodeCore`.
 
 The rclpy node (:mod:`gyro_platform.ros.node`) and a plain-DDS adapter are thin shells around
@@ -24,20 +38,20 @@ new simulator state, time origin and output grid at the next sample, input-loss 
 """
 from __future__ import annotations
 
-import time
 from collections import Counter
 from dataclasses import dataclass
+import time
 from typing import Any, Callable, Mapping
 
+from .config import NodeConfig
+from .overload import InputLoss
+from .parameters import ConfigError, SPECS
 from ..engine.outputs import C_QUAT, C_ROTOR, outputs_of_row
 from ..errors import SimulationError
 from ..io import messages as msgs
-from ..io.messages import MessageTypes, Reading
-from .config import NodeConfig
-from .overload import InputLoss
-from .parameters import SPECS, ConfigError
-from ..pipeline import Pipeline, grid_index
 from ..io.gate import NS, TimeGate
+from ..io.messages import MessageTypes, Reading
+from ..pipeline import grid_index, Pipeline
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: gimbal-lock proximity: WARN when min |cos| of the inner gimbal angles falls below this
@@ -67,7 +81,6 @@ class _Timing:
             self.max_ns = dt
         e = self.ema_ns
         self.ema_ns = float(dt) if e is None else e + a * (dt - e)
-
 
 
 class OutputMessages:

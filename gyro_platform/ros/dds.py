@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """ROS 2 on plain DDS: the node's second transport, without a ROS install.
 
 Speaks the DDS wire format of ``rmw_cyclonedds_cpp`` through the ``cyclonedds`` Python package,
@@ -16,7 +30,9 @@ so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
   ``ros2 node list`` show the node.
 * **The platform node** (:class:`PlatformDdsNode`): the thin adapter around
   :class:`gyro_platform.ros.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
-  ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node), ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of :mod:`gyro_platform.io.urdf`), ``~/reset``
+  ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node),
+  ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of
+  :mod:`gyro_platform.io.urdf`), ``~/reset``
   (``std_msgs/msg/Empty``) instead of the rclpy reset service, wall-clock jumps forwarded to
   the core.
 
@@ -37,11 +53,11 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..io.gate import NS
-from .dds_names import (DISCOVERY_TOPIC, DISCOVERY_TYPE, domain_id_from_env, dds_topic_name, expand_topic_name,
+from .dds_names import (dds_topic_name, DISCOVERY_TOPIC, DISCOVERY_TYPE, domain_id_from_env, expand_topic_name,
                         normalize_namespace, validate_node_name)
-from .dds_types import DEFAULT, DISCOVERY_INFO, LATCHED, SENSOR_DATA, TF, IdlTypes, QosProfile, dds_qos, \
-    type_hash_user_data, zero_message
+from .dds_types import (dds_qos, DEFAULT, DISCOVERY_INFO, IdlTypes, LATCHED, QosProfile, SENSOR_DATA, TF,
+                        type_hash_user_data, zero_message)
+from ..io.gate import NS
 
 
 # =========================================================================================
@@ -237,7 +253,8 @@ class DdsNode:
         T = self.types.typestore.types
 
         def gid(b: bytes) -> Any:
-            return T["rmw_dds_common/msg/Gid"](data=np.frombuffer(bytes(b).ljust(16, b"\0")[:16], dtype=np.uint8).copy())
+            data = np.frombuffer(bytes(b).ljust(16, b"\0")[:16], dtype=np.uint8).copy()
+            return T["rmw_dds_common/msg/Gid"](data=data)
 
         node = T["rmw_dds_common/msg/NodeEntitiesInfo"](
             node_namespace=self.namespace, node_name=self.name,
@@ -410,7 +427,7 @@ class PlatformDdsNode:
     def _setup_robot_description(self) -> None:
         """``/robot_description`` (URDF, transient local) and ``/tf_static`` (fixed joints)
         published once, latched; ``/tf`` (moving joints) with every JointState output."""
-        from ..io.messages import STRING, TF_MESSAGE, string_message, tf_message
+        from ..io.messages import STRING, string_message, TF_MESSAGE, tf_message
         from ..io.urdf import config_model, config_urdf
 
         self.model = config_model(self.core.config)

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """DDS discovery without multicast: when Cyclone's default SPDP cannot work, and what to use instead.
 
 On a host where no up network interface supports multicast (e.g. a loopback-only network
@@ -13,12 +27,12 @@ IFF_UP, IFF_LOOPBACK, IFF_MULTICAST = 0x1, 0x8, 0x1000
 #: rmw_cyclonedds' configuration for ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, in Cyclone XML:
 #: loopback only, no multicast, unicast discovery to localhost on the ports of participant
 #: indices 0..32 — what both sides need on a host without a multicast-capable interface
-LOCALHOST_DISCOVERY_XML = (
-    '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General><Interfaces>'
-    '<NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast>'
-    '</General><Discovery><ParticipantIndex>auto</ParticipantIndex>'
-    '<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address="localhost"/></Peers>'
-    '</Discovery></Domain></CycloneDDS>')
+LOCALHOST_DISCOVERY_XML = (  # noqa: Q000 (XML attributes in double quotes)
+    '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General><Interfaces>'  # noqa: Q000
+    '<NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast>'  # noqa: Q000
+    '</General><Discovery><ParticipantIndex>auto</ParticipantIndex>'  # noqa: Q000
+    '<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex><Peers><Peer address="localhost"/></Peers>'  # noqa: Q000
+    '</Discovery></Domain></CycloneDDS>')  # noqa: Q000
 
 
 def interface_flags(sys_class_net: str = "/sys/class/net") -> dict[str, int]:

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """ROS message types and QoS on DDS: IDL classes from the rosbags typestore, conversions, QoS.
 
 * :class:`IdlTypes`: ``cyclonedds.idl`` ``IdlStruct`` classes generated at run time from the
@@ -17,13 +31,14 @@ cyclonedds is an optional dependency, imported lazily (:func:`import_cyclonedds`
 """
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
+import threading
 from typing import Any, Callable
 
 import numpy as np
 
 from .dds_names import dds_type_name
+
 
 # =========================================================================================
 # types: rosbags field definitions → cyclonedds IdlStruct classes, conversion both ways
@@ -35,7 +50,9 @@ def import_cyclonedds():
         import cyclonedds.idl as idl
         import cyclonedds.idl.types as idl_types
     except ImportError as e:  # pragma: no cover - depends on the install
-        raise ImportError(f"the DDS transport needs the 'cyclonedds' package (pip install 'gyro_platform[dds]'): {e}") from e
+        raise ImportError(
+            f"the DDS transport needs the 'cyclonedds' package (pip install 'gyro_platform[dds]'): {e}"
+        ) from e
     return idl, idl_types
 
 

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """What ``launch/platform.launch.py`` starts, computed from its argument values (ROS-free, tested).
 
 The launch file only declares the arguments (:data:`ARGUMENTS`) and turns :func:`plan` into
@@ -18,13 +32,13 @@ The launch file only declares the arguments (:data:`ARGUMENTS`) and turns :func:
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 from typing import Any, Mapping
 
+from .config import load_params_file, NodeConfig
+from .parameters import ConfigError, NODE_NAME, SPECS
 from ..io.urdf import config_urdf
-from .config import NodeConfig, load_params_file
-from .parameters import NODE_NAME, SPECS, ConfigError
 
 #: (name, default, description); the launch file declares exactly these
 ARGUMENTS: tuple[tuple[str, str, str], ...] = (

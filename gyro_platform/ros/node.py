@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """ROS 2 (rclpy, Jazzy) node of the gyro platform: a thin adapter around :class:`core.NodeCore`.
 
 The only module of the package that imports rclpy. Everything the node does with a message —
@@ -38,15 +52,15 @@ import time
 from typing import Any
 
 try:
-    import rclpy
     from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+    import rclpy
     from rclpy.clock import JumpThreshold
     from rclpy.duration import Duration
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
     from rclpy.parameter import Parameter
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
     from std_srvs.srv import Trigger
 except ImportError as e:  # pragma: no cover - depends on the machine
     raise ImportError(
@@ -54,11 +68,11 @@ except ImportError as e:  # pragma: no cover - depends on the machine
         "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
         "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
+from .command import freeze_startup_objects, warm_up
 from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
-from .parameters import NODE_NAME, PARAMETERS, SPECS, ConfigError, ParamSpec
+from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
 from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
-from .command import freeze_startup_objects, warm_up
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``gyro-platform run SCENE [--out DIR] [--duration S] [--integrator NAME] [--max-step S]
 [--no-files]``: run a scene (a YAML file or a shipped scene's name), print the summary table and
 the expectation results. Exit status: 0 every expectation passes; 1 one fails or is not
@@ -7,14 +21,14 @@ readable part is run and written) or a bag that gave no usable sample; 4 the res
 be written (disk full); 130/143 Ctrl-C/SIGTERM (no results are written)."""
 from __future__ import annotations
 
-import sys
 from pathlib import Path
+import sys
 
-from ..errors import (EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, EXIT_WRITE, BagPathError, BagReadError,
-                      OutputError, ReplayError, SimulationError, check_output_path, write_failure)
-from ..io.recording import print_summary_table
 from .runner import run_scene
-from .schema import MotionError, ScenarioError, load_scene
+from .schema import load_scene, MotionError, ScenarioError
+from ..errors import (BagPathError, BagReadError, check_output_path, EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE,
+                      EXIT_WRITE, OutputError, ReplayError, SimulationError, write_failure)
+from ..io.recording import print_summary_table
 
 
 def print_results(results, file=None) -> None:

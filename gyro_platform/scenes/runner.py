@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Running a scene: its motion (synthetic, or a bag through the pipeline's gate) into the
 simulator in chunks (one ``push_block`` per chunk, outputs at the instants of the output grid),
 expectations evaluated; ``outputs.csv`` written as the run goes (whole rows, flushed per chunk),
@@ -11,20 +25,19 @@ the CSV ends on a whole row and ``KeyboardInterrupt`` is raised (``run`` exits 1
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
+import time
 from typing import Any, Iterator
 
 import numpy as np
 
-from ..errors import BagReadError, SimulationError, deferred_signals
+from .schema import Check, load_scene, MotionError, ScenarioError, Scene, scene_info
+from ..errors import BagReadError, deferred_signals, SimulationError
 from ..io.bag_reader import InputBag
 from ..io.gate import TimeGate
 from ..io.plot_process import draw
 from ..io.recording import CsvWriter, Recorder
-from ..pipeline import (ADVANCED, OUTCOMES, ChunkPacer, Pipeline, bag_chunks, new_slots, no_sample_hint,
-                        push_block)
-from .schema import Check, MotionError, ScenarioError, Scene, load_scene, scene_info
+from ..pipeline import ADVANCED, bag_chunks, ChunkPacer, new_slots, no_sample_hint, OUTCOMES, Pipeline, push_block
 
 __all__ = ["run_scene", "evaluate", "load_scene", "synthetic_samples"]   # load_scene: for callers that load and run
 
@@ -131,7 +144,7 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
                 if last is not None:
                     feed.pending = None if last in emitted else {"vehicle_omega": rb.omega[last].copy()}
             pace.observe(len(chunk.ts), time.perf_counter() - t0)
-    feed.counts = {k: v for k, v in pipe.outcomes.items()}
+    feed.counts = dict(pipe.outcomes.items())
 
 
 def run_scene(scene: Scene, out_dir=None):

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Scene files: a YAML description of one simulation run, validated into a typed ``Scene``.
 
 A scene names the model (mode, fidelity, effects, parameter overrides, integrator), the vehicle
@@ -89,22 +103,24 @@ running is :func:`gyro_platform.scenes.runner.run_scene`, the command
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from dataclasses import fields as dc_fields
+from dataclasses import replace
 import math
+from pathlib import Path
 import re
 import sys
-from dataclasses import dataclass, fields as dc_fields, replace
-from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 
 from . import motions as mo
-from .scene_yaml import SceneYAMLError, as_float, load_yaml
-from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, RunBudget, oversize, run_budget
-from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, ModelOptions, OptionsError
+from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, oversize, run_budget, RunBudget
+from .scene_yaml import as_float, load_yaml, SceneYAMLError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
-from ..physics.params import ParameterError, PlatformParams
 from ..io.recording import ROTORS
+from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, ModelOptions, MODES, OptionsError
+from ..physics.params import ParameterError, PlatformParams
 from ..pipeline import MAX_GRID_RATE
 
 AXIS_KEYS = ("x", "y", "z", "norm")
@@ -636,7 +652,7 @@ def _motion(v: _V, raw: Any, params: PlatformParams, base_dir: Path | None, path
                 seed=v.integer(m["seed"], J("seed"), lo=0),
                 angle_rms=np.radians(v.scalar_or_vector(m["angle_rms_deg"], J("angle_rms_deg"), lo=0.0)),
                 band=tuple(band), components=v.integer(m.get("components", 16), J("components"), lo=1,
-                                                     hi=mo.RandomMotion.MAX_COMPONENTS),
+                                                       hi=mo.RandomMotion.MAX_COMPONENTS),
                 accel_rms=v.scalar_or_vector(m.get("accel_rms", 0.0), J("accel_rms"), lo=0.0),
                 heading=deg("heading_deg"))
         else:  # bag

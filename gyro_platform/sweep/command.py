@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``gyro-platform sweep SPEC.yaml --out DIR``: a Monte Carlo budget or a fleet replay on Dask.
 
 Runs go to a Dask cluster: by default a local cluster of worker processes (one per core, one
@@ -15,22 +29,22 @@ terminated (SIGTERM): the table holds the runs finished so far.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import math
 import os
+from pathlib import Path
 import signal
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable
 
 from .plots import budget_stats, plot_budget
 from .runs import execute_run, lost_record
-from .spec import SweepSpec, SweepSpecError, load_sweep
-from .store import ResultStore, StoreError, atomic_write, json_bytes
-from ..errors import (EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError, StopSignals,
-                      check_output_path, stop_reason, write_failure)
+from .spec import load_sweep, SweepSpec, SweepSpecError
+from .store import atomic_write, json_bytes, ResultStore, StoreError
+from ..errors import (check_output_path, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError,
+                      stop_reason, StopSignals, write_failure)
 
 EXIT_RUNS_FAILED = 1
 
@@ -109,7 +123,8 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
         client = make_client(workers, scheduler) if own else client
         futures = []
         try:
-            say(f"{len(tasks)} run(s) to do, {len(done)} already done, on {len(client.scheduler_info()['workers'])} worker(s)")
+            workers = len(client.scheduler_info()["workers"])
+            say(f"{len(tasks)} run(s) to do, {len(done)} already done, on {workers} worker(s)")
             futures = client.map(execute_run, tasks, key=[f"gyro-sweep-{spec.fingerprint()}-{t.run}" for t in tasks],
                                  pure=False, retries=0)
             by_key = {f.key: t for f, t in zip(futures, tasks)}

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """One sweep run: a self-contained task in, one flat record of figures out (a pure function).
 
 A run never raises: its ``status`` says how it ended —
@@ -15,10 +29,10 @@ estimate, the CPU and wall time of the run.
 """
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
+import time
 from typing import Any
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES

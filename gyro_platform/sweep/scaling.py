@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Benchmark of sweeps: runs per minute of the 60 s default scene on 1 and 2 local workers.
 
 ``gyro-platform bench sweep`` runs the same Monte Carlo sweep (bias torque on β10 drawn from a
@@ -9,9 +23,9 @@ Writes ``results/bench/sweep.{csv,md,png}``.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import tempfile
 import time
-from pathlib import Path
 
 SPEC = """scene: default
 duration: {duration}

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The sweep file: one scene plus parameter distributions (Monte Carlo), or one scene and many bags.
 
 Schema (every key is checked; errors name the key)::
@@ -24,20 +38,20 @@ the same output folder.
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass, fields
 import hashlib
 import json
 import math
-import re
-from dataclasses import dataclass, fields
 from pathlib import Path
+import re
 from typing import Any
 
 import numpy as np
 
-from ..physics.params import PlatformParams
-from ..scenes.scene_yaml import SceneYAMLError, as_float, load_yaml
-from ..scenes.schema import ScenarioError, find_scene, fit_window_too_short, scene_from_dict
 from .runs import RunTask
+from ..physics.params import PlatformParams
+from ..scenes.scene_yaml import as_float, load_yaml, SceneYAMLError
+from ..scenes.schema import find_scene, fit_window_too_short, ScenarioError, scene_from_dict
 
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
     "normal": ("mean", "std"),

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The sweep's output folder: crash-safe run records and the results table.
 
 Layout of ``OUT/``::
@@ -20,7 +34,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .runs import FINISHED, figure_columns
+from .runs import figure_columns, FINISHED
 
 
 class StoreError(ValueError):

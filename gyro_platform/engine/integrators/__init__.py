@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Time integrators for the simulator: one ``advance(system, t0, y0, t1)`` per input sample.
 
 One contract (:mod:`.base`: ``Integrator``, ``StepStats``, the weighted error norm, the
@@ -18,16 +32,17 @@ Methods (see ``INTEGRATORS``):
 :mod:`.jacobian` holds the Jacobians (a system's own or forward differences) the linearising
 methods share. Imports only ``errors`` (and numpy, scipy, numba).
 """
-from .auto import AUTO_STICKY, Auto
-from .base import COARSEN, MAX_JUMP, MAX_SUBSTEPS, STEP_SLACK, Controlled, Integrator, OdeSystem, StepStats, error_norm
-from .exponential import ETD2, ETD4, TAIL_MIN, TAIL_ULP, TAYLOR_MAX, TAYLOR_TOL, ExpRosenbrock, taylor_bound
+from .auto import Auto, AUTO_STICKY
+from .base import COARSEN, Controlled, error_norm, Integrator, MAX_JUMP, MAX_SUBSTEPS, OdeSystem, STEP_SLACK, StepStats
+from .exponential import ETD2, ETD4, ExpRosenbrock, TAIL_MIN, TAIL_ULP, taylor_bound, TAYLOR_MAX, TAYLOR_TOL
 from .implicit import ImplicitMidpoint
 from .jacobian import fd_jacobian, jacobian_of
 from .registry import INTEGRATORS, make_integrator
 from .rk import RK4
-from .scipy_methods import DOP853, RK45, Radau
+from .scipy_methods import DOP853, Radau, RK45
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
-           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "Auto", "AUTO_STICKY", "RK4", "ETD2", "ETD4",
+           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "Auto", "AUTO_STICKY", "RK4", "ETD2",
+           "ETD4",
            "ExpRosenbrock", "ImplicitMidpoint", "DOP853", "RK45", "Radau", "fd_jacobian", "jacobian_of",
            "TAIL_MIN", "TAIL_ULP", "TAYLOR_MAX", "TAYLOR_TOL", "taylor_bound"]

@@ -1,8 +1,22 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """``auto``: a cheap primary method with a robust fallback for the intervals it refuses."""
 from __future__ import annotations
 
-from ...errors import ToleranceError
 from .base import Controlled, Integrator
+from ...errors import ToleranceError
 
 __all__ = ["Auto", "AUTO_STICKY"]
 

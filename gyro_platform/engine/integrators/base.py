@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The integrator contract: ``Integrator``, ``StepStats``, the error norm and the step controller.
 
 All methods integrate ``dy/dt = system.rhs(t, y)`` (``OdeSystem``) from ``t0`` to exactly
@@ -29,9 +43,9 @@ Non-finite results are never returned: ``SimulationError``.
 """
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+import math
 from typing import Any, Callable, Hashable, Protocol
 
 import numpy as np

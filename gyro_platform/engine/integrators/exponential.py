@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Exponential integrators and their matrix functions (φ-functions by augmented expm).
 
 - ``etd2``, ``etd4``: exponential integrators for ``f(t, y) = A y + g(t, y)`` with ``A`` from
@@ -18,8 +32,8 @@ from __future__ import annotations
 import math
 from typing import Hashable
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from .base import Controlled, is_rejected
 from .jacobian import jacobian_of
@@ -35,7 +49,7 @@ def _phi_blocks(Z: np.ndarray, p: int) -> list[np.ndarray]:
     W[:n, :n] = Z
     for k in range(p):
         W[k * n:(k + 1) * n, (k + 1) * n:(k + 2) * n] = np.eye(n)
-    import scipy.linalg        # here, not at import: ~0.2 s a compiled rk4 run never needs
+    import scipy.linalg  # here, not at import: ~0.2 s a compiled rk4 run never needs
 
     E = scipy.linalg.expm(W)
     return [E[:n, k * n:(k + 1) * n] for k in range(p + 1)]

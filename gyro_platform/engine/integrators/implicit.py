@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Implicit midpoint rule (A-stable, symplectic) on the controlled grid of :class:`~.base.Controlled`.
 
 ``implicit_midpoint``: keeps quadratic invariants to round-off; estimate by step doubling (the
@@ -16,7 +30,7 @@ __all__ = ["ImplicitMidpoint"]
 
 _EPS = np.finfo(float).eps
 _NEWTON_TOL = 2 * _EPS    # Newton to round-off (relative, 2-norm), so quadratic invariants
-                          # drift by round-off only, not by 1e-14 per step
+# drift by round-off only, not by 1e-14 per step
 _NEWTON_MAXITER = 10
 
 
@@ -54,7 +68,9 @@ class ImplicitMidpoint(Controlled):
 
     def _newton_matrix(self, h: float) -> np.ndarray:
         J, key, n = self._J, self._key, self._J.shape[0]
-        make = lambda: _inv(np.eye(n) - 0.5 * h * J)
+
+        def make():
+            return _inv(np.eye(n) - 0.5 * h * J)
         if key is not None:
             return self._cached(key, h, make)
         M = self._call_cache.get(h)
@@ -115,6 +131,6 @@ class ImplicitMidpoint(Controlled):
 
 def _inv(M: np.ndarray) -> np.ndarray:
     """Inverse via LU (used once per (key, h) or per call, never in the step loop)."""
-    import scipy.linalg        # here, not at import (see exponential._phi_blocks)
+    import scipy.linalg  # here, not at import (see exponential._phi_blocks)
 
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M), np.eye(M.shape[0]))

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Jacobians ∂f/∂y of an ODE system: its own, or by forward differences.
 
 Used by the methods that linearise (exprb, implicit midpoint) and by the hard-case catalogue
@@ -29,7 +43,6 @@ def fd_jacobian(rhs, t: float, y: np.ndarray) -> np.ndarray:
         J[:, j] = (np.asarray(rhs(t, yp), dtype=float) - f0) / (yp[j] - y[j])
         yp[j] = y[j]
     return J
-
 
 
 def jacobian_of(system, t: float, y: np.ndarray) -> tuple[np.ndarray, int]:

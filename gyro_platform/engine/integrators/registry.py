@@ -1,13 +1,27 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The integrators by name: ``INTEGRATORS`` (name → description) and :func:`make_integrator`."""
 from __future__ import annotations
 
 import math
 
-from .base import MAX_SUBSTEPS, Integrator
+from .base import Integrator, MAX_SUBSTEPS
 from .exponential import ETD2, ETD4, ExpRosenbrock
 from .implicit import ImplicitMidpoint
 from .rk import RK4
-from .scipy_methods import DOP853, RK45, Radau
+from .scipy_methods import DOP853, Radau, RK45
 
 __all__ = ["INTEGRATORS", "make_integrator"]
 
@@ -17,7 +31,8 @@ INTEGRATORS: dict[str, str] = {
     "dop853": "Dormand-Prince 8(5,3), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
     "rk45": "Dormand-Prince 5(4), adaptive (rtol/atol), scipy OdeSolver, warm-started step",
     "radau": "Radau IIA order 5, implicit adaptive (rtol/atol), for stiff damped systems",
-    "implicit_midpoint": "implicit midpoint, step doubling to rtol/atol, A-stable, symplectic, keeps quadratic invariants",
+    "implicit_midpoint": ("implicit midpoint, step doubling to rtol/atol, A-stable, symplectic, "
+                          "keeps quadratic invariants"),
     "etd2": "exponential ETD2RK (Cox-Matthews) about the rest state, embedded estimate, substeps to rtol/atol",
     "etd4": "exponential ETDRK4 (Krogstad) about the rest state, embedded estimate, substeps to rtol/atol",
     "exprb": "exponential Rosenbrock exprb32, re-linearised every step, embedded estimate; large angles, fast rotors",

@@ -1,3 +1,17 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Adaptive methods of scipy (``dop853``, ``rk45``, ``radau``) behind the integrator contract.
 
 scipy's ``OdeSolver`` step API, warm-started step size, bounded by ``max_step`` and the budget.
@@ -8,8 +22,8 @@ import math
 
 import numpy as np
 
+from .base import Integrator, MAX_SUBSTEPS, StepStats
 from ...errors import SimulationError
-from .base import MAX_SUBSTEPS, Integrator, StepStats
 
 __all__ = ["DOP853", "RK45", "Radau"]
 
