@@ -176,14 +176,15 @@ def test_twist_input_frame_prefix_and_no_robot_state_publisher(ros_ws, domain):
 
 
 def test_scene_argument_sets_the_model(ros_ws, domain):
-    """scene:=earth_rest (carried mode at rest on the rotating Earth): no servo torque topic is
-    needed and the gimbal angles move only by the Earth rate — different from the default."""
-    spec = spec_for(count=100, w=(0.0, 0.0, 0.0))
-    report, code, out = launch_and_probe(ros_ws, domain, "scene:=earth_rest output_rate:=50.0", spec)
+    """scene:=rate_step_shock (a carried platform): the node says so and its JointState has the gimbals and
+    rotors but no mount joints (the default scene is stabilised: three mount joints more)."""
+    spec = spec_for(count=100)
+    report, code, out = launch_and_probe(ros_ws, domain, "scene:=rate_step_shock output_rate:=50.0", spec)
     assert code == 0
-    assert "earth_rest" in out
+    assert "carried/" in out and "scene rate_step_shock" in out, out[-2000:]
     js = report["topics"]["/gimbal/joint_states"]
     assert js and all(math.isfinite(x) for m in js for x in m["position"])
+    assert js[0]["name"] == ["alpha4", "beta5", "beta7", "alpha9", "beta10", "rotor6", "rotor8", "rotor11"]
 
 
 def test_a_bad_launch_argument_is_one_line_not_a_traceback(ros_ws, domain):
