@@ -156,7 +156,6 @@ CASES: list[HardCase] = [
              mode="stabilised", fidelity="linear", motion=_ship, bench_only=True,
              reference=("rk4", 1e-12, 1e-15), methods=("auto", "rk4", "etd2", "etd4")),
 ]
-BY_NAME = {c.name: c for c in CASES}
 
 
 @dataclass

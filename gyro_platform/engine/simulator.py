@@ -41,7 +41,7 @@ from ..errors import GimbalLockError, InputError, SimulationError
 from ..physics.model import spin_momentum
 from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
 from ..physics.params import NAV1, PlatformParams
-from ..physics.rotations import quat_matrix, rotvec_matrix
+from ..physics.rotations import quat_matrix
 from ..physics.system import PlatformSystem
 from ..physics.tree import kinematics, mass_matrix, TreeWork
 
@@ -595,10 +595,6 @@ class Simulator:
         R_IB = quat_matrix(self.y[st.quat_IB])
         R_IP = quat_matrix(self.y[st.quat_IP]) if st.quat_IP is not None else R_IB @ self.system.R_BP
         return R_IB, R_IP
-
-    def reference_matrix(self) -> np.ndarray:
-        """R_IC: the frame the platform should hold (inertial, or local level with Earth rate)."""
-        return rotvec_matrix(self.system.w_IN * self.t_rel)
 
     def invariants(self) -> dict[str, float]:
         """T2 = ½ ẋᵀ A* ẋ (J) and the total angular momentum |p_Ω| (N m s, stabilised), the

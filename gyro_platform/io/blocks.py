@@ -31,7 +31,6 @@ import numpy as np
 #: reasons of ``RateBlock.reject`` (value = 1 + index; 0 = usable reading); the names of
 #: :class:`gyro_platform.io.messages.Rejected` reasons
 REJECT_REASONS: tuple[str, ...] = ("no_rate", "unknown_frame", "bad_message")
-REJECT_OK = 0
 REJECT_NO_RATE, REJECT_UNKNOWN_FRAME, REJECT_BAD_MESSAGE = 1, 2, 3
 
 Raw = Union[bytes, memoryview]

@@ -587,13 +587,6 @@ def joint_state(out: Outputs, types: MessageTypes, t_ns: int) -> Any:
                               velocity=fa(cols.velocity[0]), effort=fa(cols.effort[0]))
 
 
-def joint_state_values(out: Outputs) -> tuple[list[str], list[float], list[float], list[float]]:
-    """Names, positions, velocities and efforts of :func:`joint_state` (Python floats; the
-    numbers of :func:`joint_columns`)."""
-    cols = joint_columns(out)
-    return (list(cols.names), cols.position[0].tolist(), cols.velocity[0].tolist(), cols.effort[0].tolist())
-
-
 def _vector3(types: MessageTypes, v: Sequence[float]) -> Any:
     return types["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 

@@ -118,13 +118,6 @@ def _columns(field: Any, bearing: Any, status: dict, t: np.ndarray) -> dict[str,
     return cols
 
 
-def columns_markdown() -> str:
-    """The README table of the ``outputs.csv`` columns (from ``CSV_COLUMNS``)."""
-    lines = ["| column | unit | meaning |", "| --- | --- | --- |"]
-    lines += [f"| `{c}` | {u} | {m} |" for c, u, m in CSV_COLUMNS]
-    return "\n".join(lines) + "\n"
-
-
 def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Least-squares slope of ``y`` (N,) or (N, k) against ``t`` (N,): units of y per second."""
     t = np.asarray(t, dtype=float)

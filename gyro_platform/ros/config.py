@@ -49,13 +49,6 @@ ROS_STANDARD_PREFIXES = ("qos_overrides.",)
 # =========================================================================================
 # scenes
 # =========================================================================================
-def scene_dirs() -> list[Path]:
-    """Folders searched for a scene given by name (see ``scene.scene_dirs``)."""
-    from ..scenes.schema import scene_dirs as dirs
-
-    return dirs()
-
-
 def resolve_scene(name: str) -> Path:
     """Path of a scene given as a path or by name (``scene.find_scene``); ConfigError if none."""
     from ..scenes.schema import find_scene, ScenarioError
@@ -238,10 +231,6 @@ class NodeConfig:
             values[k] = SPECS[k].coerce(v)
         return NodeConfig._build(values, self.scene)
 
-    def as_ros_params(self) -> dict[str, Any]:
-        """Plain ``name -> value`` (lists for arrays), as a params file would hold them."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.values.items()}
-
     # ---- derived objects ------------------------------------------------------------
     def _check_input(self) -> None:
         """The input topic is a name rcl accepts and none of the node's own topics (a
@@ -345,4 +334,4 @@ class NodeConfig:
 
 
 __all__ = ["NodeConfig", "load_params_file", "parameter_defaults", "resolve_scene", "load_node_scene",
-           "scene_defaults", "scene_dirs", "ROS_STANDARD_PARAMETERS", "ROS_STANDARD_PREFIXES"]
+           "scene_defaults", "ROS_STANDARD_PARAMETERS", "ROS_STANDARD_PREFIXES"]
