@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, fields as dc_fields
 from typing import Any
 
+from ..errors import not_finite
 from ..io import messages as msgs
 from ..io.gate import GateConfig
 from ..io.messages import IMU, TWIST, TWIST_STAMPED, Mounting
@@ -117,8 +118,8 @@ class ParamSpec:
                 self._fail(f"expected {what}, got the integer {v} (write {v}.0)")
             self._fail(f"expected {what}, got {type(v).__name__} {v!r}")
         x = float(v)
-        if not math.isfinite(x):
-            self._fail(f"expected a finite number, got {x}")
+        if not_finite(x):                   # the rule of every number (errors.not_finite)
+            self._fail(not_finite(x))
         return x
 
     def _fail(self, message: str):
