@@ -555,6 +555,8 @@ class TimeGate:
             else:
                 dt_ema = _ema_add(dt_ema, dt_ns / NS, cfg.rate_smoothing)
 
+        if action is _A_RESET and cfg.rebase_on_reset and cfg.time_source == "auto" and stamp_valid:
+            source, t_ns = "header", int(stamp)     # a fresh start chooses its time source again (restart())
         # -- commit
         if source == "receive":
             note += ("receive_time",)
