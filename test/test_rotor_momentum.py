@@ -37,11 +37,13 @@ def test_the_reason_is_one_line_naming_the_parameter():
 
 
 def test_urdf_never_sees_a_rotor_without_polar_inertia():
-    from gyro_platform.io.urdf import platform_urdf
+    from gyro_platform.io.urdf import equivalent_cylinder, platform_urdf
 
     assert "gyro_rotor6" in platform_urdf(NAV1, stabilised=True)
     with pytest.raises(ParameterError, match=REASON):
         NAV1.with_(rotor_C=(0.0, 2.0e-5, 2.0e-5))
+    with pytest.raises(ParameterError, match=REASON):           # was ZeroDivisionError
+        equivalent_cylinder(0.0, 1.2e-5, 7850.0)
 
 
 @pytest.mark.parametrize("C", ["[0.0, 0.0, 0.0]", "[2.0e-5, 2.0e-5, 0.0]"])
