@@ -39,7 +39,7 @@ import sys
 
 from . import __version__
 from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
-                     EXIT_WRITE, stop_exit_code, stop_reason, StopSignals, write_failure)
+                     EXIT_WRITE, not_finite, stop_exit_code, stop_reason, StopSignals, write_failure)
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
@@ -95,10 +95,11 @@ def _quiet_broken_pipe() -> None:
         pass
 
 
-def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str | None:
     """argparse turns ``--flag=--`` into ``[]`` without calling the flag's type: refuse any
     single-valued option (int, float or text) whose value is not of its type (argparse's
-    one-line error, exit 2)."""
+    one-line error, exit 2). A float flag that is not finite (``inf``, ``nan``, ``1e400``:
+    ``errors.not_finite``, the rule of every number) gives the error line to print (exit 2)."""
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
     for action in sub._actions:
         typ = str if action.type is None else action.type
@@ -108,6 +109,9 @@ def _check_scalar_values(parser: argparse.ArgumentParser, args: argparse.Namespa
             if value is not None and value is not action.default and not isinstance(value, typ):
                 kind = "" if typ is str else f" {typ.__name__}"
                 sub.error(f"argument {'/'.join(action.option_strings)}: expected one{kind} value")
+            if typ is float and value is not None and not_finite(value):    # the rule of every number
+                return f"argument {'/'.join(action.option_strings)}: {not_finite(value)}"
+    return None
 
 
 def command_of(argv: list[str]) -> str:
@@ -136,7 +140,10 @@ def _main(argv: list[str] | None) -> int:
         plot_process.start()            # matplotlib imported beside this process's start-up
     parser = build_parser(command_of(words))
     args = parser.parse_args(argv)
-    _check_scalar_values(parser, args)
+    bad = _check_scalar_values(parser, args)
+    if bad:
+        print(f"gyro-platform {args.command}: error: {bad}", file=sys.stderr)
+        return EXIT_USAGE
     err = getattr(args, "_import_error", None)
     if err:
         print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)

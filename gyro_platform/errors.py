@@ -24,6 +24,8 @@ a file is being closed; :func:`check_output_path` refuses unwritable outputs bef
 """
 from contextlib import contextmanager
 import errno
+import math
+import numbers
 import os
 from pathlib import Path
 import signal
@@ -84,6 +86,34 @@ class OutputError(Exception):
     """An output cannot be written: refused before the start (read-only or missing folder, a path
     under a file, a folder where a file goes) or failed during the run (disk full, file size
     limit, I/O error). The message names the path and the cause in one line."""
+
+
+# ---- numbers ---------------------------------------------------------------------------------
+def not_finite(x) -> str | None:
+    """The one rule of every numeric flag and parameter (command-line flags, scene and sweep
+    files, node parameters, ``GateConfig``): a real number, and finite. None if ``x`` is one,
+    else why not in words the caller prefixes with the name (``expected a finite number, got
+    inf``): ``inf`` is no "no limit" anywhere."""
+    if isinstance(x, bool) or not isinstance(x, numbers.Real):
+        return f"expected a number, got {type(x).__name__} {x!r}"
+    return None if math.isfinite(x) else f"expected a finite number, got {float(x)!r}"
+
+
+def check_number(name: str, x, unit: str = "", *, gt: float | None = None, ge: float | None = None,
+                 le: float | None = None) -> float:
+    """``x`` as a float if :func:`not_finite` has nothing against it and it is within the bounds
+    (``> gt``, ``>= ge``, ``<= le``); else ValueError ``"{name} = {x} {unit}; …"`` (one line)."""
+    what = f"{name} = {x!r}{' ' + unit if unit else ''}"
+    why = not_finite(x)
+    if why is None and gt is not None and not x > gt:
+        why = f"must be > {gt:g}"
+    elif why is None and ge is not None and not x >= ge:
+        why = f"must be >= {ge:g}"
+    elif why is None and le is not None and not x <= le:
+        why = f"must be <= {le:g}"
+    if why is not None:
+        raise ValueError(f"{what}; {why}")
+    return float(x)
 
 
 # ---- exit status of every command (re-exported by ``gyro_platform.cli``) ----------------

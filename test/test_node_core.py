@@ -490,7 +490,8 @@ def test_effect_needing_specific_force_is_refused_on_a_twist_input():
     ({"physics": {"servo_kp": True}}, "physics.servo_kp"),                       # a bool is not a double
     ({"physics": {"bias_torque": [[0.0, 0.0], [0.0, 0.0, 0.0]]}}, "physics.bias_torque"),   # not flattened
     ({"effects": [["servo"]]}, "effects"),
-    ({"fidelity": "precession", "physics": {"rotor_C": [0.0, 2.0e-5, 2.0e-5]}}, "fidelity"),  # L6 = 0: det G_R = 0
+    ({"fidelity": "precession", "physics": {"rotor_speed": [0.0, 2500.0, 2500.0]}}, "fidelity"),  # L6 = 0: det G_R = 0
+    ({"physics": {"rotor_C": [0.0, 2.0e-5, 2.0e-5]}}, "physics.rotor_C"),     # no polar inertia: no gyro at all
     ({"fidelity": "precession", "physics": {"rotor_speed": [2500.0, 2500.0, 0.0]}}, "fidelity"),
     # a traceback before: names rcl refuses, the node's own topics as input
     ({"imu_topic": "bad topic"}, "imu_topic"),
@@ -682,7 +683,7 @@ def test_params_file_reads_exponent_numbers_as_doubles_as_rcl_does(tmp_path):
     ("/**: [1]\n", "has no 'ros__parameters'"),
     ("? [1, 2]\n: 3\n", "unhashable key"),
     ("/**:\n  ros__parameters:\n    physics: {servo_kp: true}\n", "expected a double"),
-    ("/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_C: [0.0, 2.0e-5, 2.0e-5]}\n",
+    ("/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_speed: [0.0, 2500.0, 2500.0]}\n",
      "zero spin momentum"),
 ])
 def test_bad_params_files_give_one_line_naming_the_file(tmp_path, text, says):
@@ -706,7 +707,9 @@ def test_precession_with_a_rotor_at_rest_is_refused_at_node_start(tmp_path):
     """The refusal a scene gives: ``gyro-platform node`` exits 2 with one line before it joins
     any transport (no traceback)."""
     f = tmp_path / "p.yaml"
-    f.write_text("/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_C: [0.0, 2.0e-5, 2.0e-5]}\n")
+    f.write_text(
+        "/**:\n  ros__parameters:\n    fidelity: precession\n    physics: {rotor_speed: [0.0, 2500.0, 2500.0]}\n"
+    )
     r = subprocess.run([sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--params-file", str(f)],
                        cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2, r.stderr

@@ -76,6 +76,7 @@ import numpy as np
 from .blocks import REJECT_REASONS
 from .messages import Reading, Rejected
 from ..engine.inputs import RateSample
+from ..errors import check_number
 
 if TYPE_CHECKING:
     from .blocks import RateBlock
@@ -160,21 +161,16 @@ class GateConfig:
     require_specific_force: bool = False
     rebase_on_reset: bool = False
 
-    def __post_init__(self) -> None:
-        if not (self.max_gap > 0 and math.isfinite(self.max_gap)):
-            raise ValueError(f"max_gap = {self.max_gap} s; must be > 0")
+    def __post_init__(self) -> None:       # numbers: errors.check_number, the rule of every flag (finite)
+        check_number("max_gap", self.max_gap, "s", gt=0)
+        check_number("reset_on_jump_back", self.reset_on_jump_back, "s", ge=0)
+        check_number("max_rate", self.max_rate, "rad/s", gt=0)
+        check_number("max_specific_force", self.max_specific_force, "m/s²", gt=0)
+        check_number("rate_smoothing", self.rate_smoothing, gt=0, le=1)
         if self.on_gap not in ("reset", "integrate"):
             raise ValueError(f"on_gap = {self.on_gap!r}; allowed: reset, integrate")
-        if not self.reset_on_jump_back >= 0:
-            raise ValueError(f"reset_on_jump_back = {self.reset_on_jump_back} s; must be >= 0")
-        if not self.max_rate > 0:
-            raise ValueError(f"max_rate = {self.max_rate} rad/s; must be > 0")
-        if not self.max_specific_force > 0:
-            raise ValueError(f"max_specific_force = {self.max_specific_force} m/s²; must be > 0")
         if self.time_source not in ("auto", "header", "receive"):
             raise ValueError(f"time_source = {self.time_source!r}; allowed: auto, header, receive")
-        if not 0 < self.rate_smoothing <= 1:
-            raise ValueError(f"rate_smoothing = {self.rate_smoothing}; allowed (0, 1]")
 
 
 @dataclass
@@ -573,6 +569,8 @@ class TimeGate:
             else:
                 dt_ema = _ema_add(dt_ema, dt_ns / NS, cfg.rate_smoothing)
 
+        if action is _A_RESET and cfg.rebase_on_reset and cfg.time_source == "auto" and stamp_valid:
+            source, t_ns = "header", int(stamp)     # a fresh start chooses its time source again (restart())
         # -- commit
         if source == "receive":
             note += ("receive_time",)

@@ -51,7 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from ..engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
 from ..physics.model import GIMBAL_AXES, SPIN_AXES
-from ..physics.params import PlatformParams
+from ..physics.params import NO_POLAR_INERTIA, ParameterError, PlatformParams
 
 #: densities of the equivalent solids (kg/m³): aluminium frames and housings, steel rotors
 DENSITY = {"structure": 2700.0, "rotor": 7850.0}
@@ -153,8 +153,11 @@ def equivalent_box(moments: Sequence[float], density: float) -> tuple[tuple[floa
 def equivalent_cylinder(C: float, A: float, density: float) -> tuple[float, float, float]:
     """Radius (m), length (m) and mass (kg) of the solid cylinder of ``density`` with axial
     moment ``C = m r²/2`` and equatorial moment ``A = m (3 r² + h²)/12`` (kg m²). ``2A ≤ C``
-    (a disc flatter than any solid cylinder) gives a thin disc of length r/10."""
+    (a disc flatter than any solid cylinder) gives a thin disc of length r/10. ``C ≤ 0`` is
+    refused (ParameterError, as ``PlatformParams`` refuses it: no such rotor)."""
     C, A = float(C), float(A)
+    if not C > 0.0:
+        raise ParameterError(f"rotor_C = {C:g}: {NO_POLAR_INERTIA}")
     h2_m = max(12.0 * A - 6.0 * C, 0.0)                                   # m h²
     if h2_m <= 1e-3 * C:
         # thin disc: m = ρ π r² (r/10), C = m r²/2 → r^5 = 20 C / (ρ π)

@@ -179,6 +179,20 @@ def _check(name: str, values, lo: float, hi: float = math.inf, *, lo_open: bool 
                                  f"{'(' if lo_open else '['}{lo:g}, {hi:g}]")
 
 
+#: why a rotor needs polar inertia (spec 3: L_r = C_r φ̇_r; section 1: the platform is a gyro)
+NO_POLAR_INERTIA = ("a rotor without polar inertia has no spin momentum (L = C·φ̇ = 0): the platform is no gyro "
+                    "(no precession, no stabilisation); a rotor at rest is rotor_speed 0")
+
+
+def check_rotor_momentum(p: PlatformParams) -> None:
+    """Every rotor has polar inertia ``C_r > 0`` (a rotor at rest, ``rotor_speed`` 0, is a
+    gyro switched off and allowed; a rotor without ``C_r`` is no gyro at any speed)."""
+    for i, C in enumerate(p.rotor_C):
+        if not C > 0.0:
+            raise ParameterError(f"parameter 'rotor_C[{i}]' = {C:g} is outside its allowed range (0, 1000]: "
+                                 + NO_POLAR_INERTIA)
+
+
 def validate(p: PlatformParams) -> None:
     """Reject unphysical parameters with a message naming the parameter and its range."""
     for name in ("rotor_C", "rotor_A", "housing5", "housing7", "housing10", "frame4", "frame9"):
@@ -200,6 +214,7 @@ def validate(p: PlatformParams) -> None:
             raise ParameterError(f"gimbal inertia {name} = {value:g} kg m² (from {GIMBAL_INERTIAS[name]}) must be "
                                  f"> {MIN_GIMBAL_INERTIA:g} kg m²: a gimbal without inertia about its axis makes the "
                                  "mass matrix singular")
+    check_rotor_momentum(p)
     _check("platform[0:3]", p.platform[:3], 0.0, 1e4, lo_open=True)
     _check("platform[3:6]", p.platform[3:], -1e4, 1e4)
     eig = np.linalg.eigvalsh(p.platform_tensor)

@@ -29,6 +29,7 @@ from dataclasses import fields as dc_fields
 import math
 from typing import Any
 
+from ..errors import not_finite
 from ..io import messages as msgs
 from ..io.gate import GateConfig
 from ..io.messages import IMU, Mounting, TWIST, TWIST_STAMPED
@@ -132,8 +133,8 @@ class ParamSpec:
                 self._fail(f"expected {what}, got the integer {v} (write {v}.0)")
             self._fail(f"expected {what}, got {type(v).__name__} {v!r}")
         x = float(v)
-        if not math.isfinite(x):
-            self._fail(f"expected a finite number, got {x}")
+        if not_finite(x):                   # the rule of every number (errors.not_finite)
+            self._fail(not_finite(x))
         return x
 
     def _fail(self, message: str):

@@ -22,14 +22,19 @@ or a killed worker lose at most the runs in flight, and the same command again r
 is missing.
 
 Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
-``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them), or the
-local cluster could not start; 2 a bad sweep file, flag or output folder, or a ``--scheduler``
-that cannot be reached (tried before anything is written); 130 interrupted (Ctrl-C), 143
-terminated (SIGTERM): the table holds the runs finished so far.
+``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them), the
+scheduler went away during the sweep (one line; the finished records and the table stay), or
+the local cluster could not start; 2 a bad sweep file, flag or output folder, another sweep
+writing into the same folder now (``OUT/.lock``), or a ``--scheduler`` that cannot be reached
+(tried before anything is written); 4 an output could not be written (disk full: one line
+naming the file; no temporary is left, the records written so far stay readable); 130
+interrupted (Ctrl-C), 143 terminated (SIGTERM): the table holds the runs finished so far. A
+damaged run record is named on stderr and its run done again.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import logging
 import math
 import os
 from pathlib import Path
@@ -40,9 +45,9 @@ import time
 from typing import Any, Callable
 
 from .plots import budget_stats, plot_budget
-from .runs import execute_run, lost_record
+from .runs import execute_run, FINISHED, lost_record
 from .spec import load_sweep, SweepSpec, SweepSpecError
-from .store import atomic_write, json_bytes, ResultStore, StoreError
+from .store import atomic_write, json_bytes, ResultStore, StoreError, SweepLock
 from ..errors import (check_output_path, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError,
                       stop_reason, StopSignals, write_failure)
 
@@ -59,6 +64,8 @@ class SweepResult:
     wall_s: float = 0.0
     counts: dict[str, int] = field(default_factory=dict)
     beyond: int = 0                 # records in the folder of runs ≥ the sweep's runs (not counted)
+    damaged: dict[str, str] = field(default_factory=dict)   # record file that was no record -> why (redone)
+    scheduler_lost: str | None = None   # why the sweep stopped: its Dask scheduler went away (runs left undone)
 
 
 #: the files a sweep writes into its folder (checked before any run: none may be a folder)
@@ -108,15 +115,25 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
               progress: Callable[[str], None] | None = None, client: Any = None) -> SweepResult:
     """Run the runs of ``spec`` not yet finished in ``out``; return every record of the folder.
     ``client``: a connected ``distributed.Client`` to use (left open for its owner); without
-    it one is made (``make_client``) and closed here."""
+    it one is made (``make_client``) and closed here. Holds ``OUT/.lock`` (``SweepLock``) while
+    it runs; a damaged record file is named through ``progress`` and its run done again."""
+    with SweepLock(out):        # a second sweep into ``out`` is refused (StoreError) while this one runs
+        return _run_locked(spec, out, workers, scheduler, progress or (lambda s: None), client)
+
+
+def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str | None,
+                say: Callable[[str], None], client: Any) -> SweepResult:
     from distributed import as_completed
 
-    say = progress or (lambda s: None)
     store = ResultStore(out, spec.fingerprint(), {"sweep": str(spec.source), "scene": str(spec.scene_path),
                                                   "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed}).open()
     done = store.finished()
     tasks = spec.tasks(skip=done)
-    res = SweepResult(records=[], skipped=len(done))
+    res = SweepResult(records=[], skipped=len(done), damaged={str(p): why for p, why in store.damaged.items()})
+    for path, why in store.damaged.items():
+        run = int(path.stem.split("_")[1])
+        say(f"warning: damaged run record {path}: {why}; "
+            + (f"run {run} runs again" if run < spec.n_runs else "left as it is (beyond runs)"))
     t0 = time.perf_counter()
     if tasks:
         own = client is None
@@ -133,6 +150,11 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
                 try:
                     rec = fut.result()
                 except Exception as e:  # noqa: BLE001 — KilledWorker, lost connection, …
+                    if scheduler_lost(client, e):    # no run of its own failed: the rest is not done, not lost
+                        res.scheduler_lost = " ".join(f"{type(e).__name__}: {e}".split())
+                        # the client's reconnection attempts log tracebacks: the command says it once
+                        logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
+                        break
                     rec = lost_record(task, f"{type(e).__name__}: {e}")
                 store.put(rec)
                 res.executed += 1
@@ -153,6 +175,13 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
     return res
 
 
+def scheduler_lost(client: Any, exc: BaseException) -> bool:
+    """True when ``exc`` (from a run's future) says the scheduler went away, not the run's worker:
+    the future was cancelled for a lost scheduler connection, or the client no longer runs."""
+    reason = str(getattr(exc, "reason", "") or "")
+    return "scheduler" in reason or getattr(client, "status", "running") not in ("running", "newly-created")
+
+
 def close_client(client: Any) -> None:
     """Close a client made by ``make_client``, and its local cluster if it has one."""
     cluster = getattr(client, "cluster", None)
@@ -162,13 +191,18 @@ def close_client(client: Any) -> None:
 
 
 def finish(spec: SweepSpec, out: Path, res: SweepResult, plots: bool = True) -> dict[str, Any]:
-    """Write the table, summary.json and the plot; return the summary."""
+    """Write the table, summary.json and the plot (holding ``OUT/.lock``); return the summary."""
+    with SweepLock(out):
+        return _finish_locked(spec, out, res, plots)
+
+
+def _finish_locked(spec: SweepSpec, out: Path, res: SweepResult, plots: bool) -> dict[str, Any]:
     store = ResultStore(out, spec.fingerprint(), {})
     parquet, csv = store.write_table(res.records)
     summary = {"sweep": str(spec.source), "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed,
                "records": len(res.records), "status_counts": res.counts, "executed_now": res.executed,
                "skipped_finished": res.skipped, "records_beyond_runs": res.beyond,
-               "interrupted": res.interrupted, "wall_s": res.wall_s,
+               "interrupted": res.interrupted, "wall_s": res.wall_s, "damaged_records_redone": res.damaged,
                "drift_budget": budget_stats(res.records), "table": [str(parquet), str(csv)]}
     if plots and any(r["status"] == "ok" for r in res.records):
         summary["plot"] = str(plot_budget(res.records, out / "budget.png",
@@ -232,8 +266,14 @@ def run(args) -> int:
             print(f"{prog}: {e}", file=sys.stderr)
             return EXIT_USAGE
         try:
-            res = run_sweep(spec, out, workers=args.workers, client=client,
-                            progress=lambda s: print(s, file=sys.stderr, flush=True))
+            with SweepLock(out):        # held from the first record to the summary: one sweep per folder
+                try:
+                    res = run_sweep(spec, out, workers=args.workers, client=client,
+                                    progress=lambda s: print(s, file=sys.stderr, flush=True))
+                finally:
+                    if client is not None:
+                        close_client(client)
+                summary = finish(spec, out, res, plots=not args.no_plots)
         except StoreError as e:
             print(f"{prog}: {e}", file=sys.stderr)
             return EXIT_USAGE
@@ -242,11 +282,13 @@ def run(args) -> int:
                 raise
             print(f"{prog}: the Dask cluster could not start: {' '.join(str(e).split())}", file=sys.stderr)
             return EXIT_RUNS_FAILED
-        finally:
-            if client is not None:
-                close_client(client)
-        summary = finish(spec, out, res, plots=not args.no_plots)
     print_summary(summary)
+    if res.scheduler_lost:
+        left = spec.n_runs - sum(res.counts.get(k, 0) for k in FINISHED)
+        print(f"{prog}: the Dask scheduler went away during the sweep ({res.scheduler_lost}); the {res.executed} "
+              f"run(s) finished now are kept in {out / 'runs'}; run the same command again to do the {left} left",
+              file=sys.stderr)
+        return EXIT_RUNS_FAILED
     if res.interrupted:
         print(f"gyro-platform sweep: {res.stop}; {res.executed} run(s) finished now, run the same command to go on",
               file=sys.stderr)

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from .store import replacing
+
 AXES = ("x", "y", "z")
 SIGMA_QUANTILES = {"-3σ": 0.00135, "-1σ": 0.15866, "+1σ": 0.84134, "+3σ": 0.99865}
 
@@ -150,8 +152,9 @@ def plot_budget(records: list[dict[str, Any]], path: Path, title: str) -> Path:
             ax.legend(fontsize=8, loc="lower right")
         fig.suptitle(title)
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    tmp.replace(path)
+    try:
+        with replacing(path, suffix=path.suffix) as tmp:
+            fig.savefig(tmp, dpi=90)
+    finally:
+        plt.close(fig)
     return path

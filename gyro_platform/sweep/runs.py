@@ -42,6 +42,7 @@ from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
 AXES = ("x", "y", "z")
 FINISHED = ("ok", "refused", "failed_input")  # a re-run skips these; 'failed'/'lost' run again
+STATUSES = (*FINISHED, "failed", "lost")
 
 
 @dataclass(frozen=True)
