@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from .integrators import COARSEN, MAX_JUMP, STEP_SLACK
 from .integrators import ETD2, TAIL_MIN, TAIL_ULP

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx

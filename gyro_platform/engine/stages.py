@@ -9,7 +9,7 @@ level and grid step and steps with ``csr_axpy`` / ``csr_mv``; ``phi_taylor`` app
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from .integrators import TAYLOR_MAX, TAYLOR_TOL, taylor_bound
 from ..physics.system import FASTMATH

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from .blocks import RawRows
 

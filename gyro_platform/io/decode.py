@@ -23,7 +23,7 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail, row_lens
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg

@@ -57,7 +57,7 @@ from enum import Enum
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numba import njit
+from ..physics.jit import njit
 
 from ..engine.inputs import RateSample
 from .blocks import REJECT_REASONS

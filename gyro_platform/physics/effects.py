@@ -15,7 +15,7 @@ unless ``mass_unbalance``/``anisoelastic`` is on; the platform pivot does not tr
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from .jit import njit
 
 from .options import EFFECTS
 

@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from .jit import njit
 
 from ..errors import PrecessionInvalidError
 from .options import ModelOptions

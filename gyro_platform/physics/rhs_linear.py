@@ -12,7 +12,7 @@ for ω_B. May import the physics room's kernels only.
 """
 from __future__ import annotations
 
-from numba import njit
+from .jit import njit
 
 from . import effects as fx
 from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z

@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from .jit import njit
 
 ROOT, REVOLUTE, SPIN = 0, 1, 2
 

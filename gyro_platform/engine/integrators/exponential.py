@@ -19,7 +19,7 @@ import math
 from typing import Hashable
 
 import numpy as np
-from numba import njit
+from ...physics.jit import njit
 
 from .base import Controlled, is_rejected
 from .jacobian import jacobian_of
