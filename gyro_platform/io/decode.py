@@ -25,7 +25,7 @@ from typing import Any, Sequence
 import numpy as np
 from ..physics.jit import njit
 
-from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail, row_lens
+from .blocks import RateBlock, Raw, RawRows, bad_stamp_detail, readonly, row_lens
 from .messages import IMU, TWIST, TWIST_STAMPED, Mounting, Reading, jazzy_typestore, reading_from_msg
 from .typedefs import core_typestore, has_type
 
@@ -76,7 +76,7 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
         beg = np.zeros(n, np.int64)
         np.cumsum(lens[:-1], out=beg[1:])
     kind = _KINDS[msgtype]
-    ok, code, first, nsec, no_rate = _decode_rows(buf, beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
+    ok, code, first, nsec, no_rate = _decode_rows(readonly(buf), beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
                                                    rb.force, rb.has_force)
     if kind != _KIND_TWIST:
         names = []

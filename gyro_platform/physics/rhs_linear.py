@@ -54,7 +54,7 @@ def _row8(m, k, i, f0, f1, f2, f3, f4, f5, f6, f7):
             + m[k, i, 4] * f4 + m[k, i, 5] * f5 + m[k, i, 6] * f6 + m[k, i, 7] * f7)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     """ẏ of the linear stabilised model into ``yd`` (state layout of ``I[0]``; ``P`` packed
     coefficients, whose first block is the effect vector ``k``; ``seg`` the input interval;

@@ -258,7 +258,7 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
             za[i] = 0.0
         veh = on[fx.VEHICLE_ACC] and not stab
         newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, L, vv, za,
-                     V[V_OMD] if veh else V[V_ZERO], R, w, on[fx.CORIOLIS], on[fx.GYRO], tau_ext, wd, f)
+                     V[V_OMD] if veh else V[V_ZERO], R, w, on[fx.CORIOLIS] != 0, on[fx.GYRO] != 0, tau_ext, wd, f)
         generalised(jtype, axis, vidx, stab, f, c)
         off = nv - 5
         if stab:

@@ -58,6 +58,7 @@ from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
 from .parameters import NODE_NAME, PARAMETERS, SPECS, ConfigError, ParamSpec
 from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from ..physics.jit import compile_notices
 from .command import freeze_startup_objects, warm_up
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
@@ -235,6 +236,7 @@ def _ignore_further_interrupts() -> None:
 def main(args: list[str] | None = None) -> int:
     """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
     with one line on stderr when the parameters are invalid."""
+    compile_notices(NODE_NAME)          # kernels compiling before "ready": said on stderr (physics.jit)
     rclpy.init(args=args)
     node = None
     code = 0

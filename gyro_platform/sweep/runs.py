@@ -23,6 +23,7 @@ from typing import Any
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..errors import BagReadError, ReplayError, SimulationError
+from ..physics.jit import compile_notices
 from ..scenes.runner import run_scene
 from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
@@ -73,6 +74,7 @@ def _figures(summary: dict[str, Any], results: list) -> dict[str, Any]:
 
 def execute_run(task: RunTask) -> dict[str, Any]:
     """Run one task; return its record (never raises)."""
+    compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
     rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
     rec.update({f"param:{k}": v for k, v in task.values.items()})
     cpu0, wall0 = time.process_time(), time.perf_counter()
