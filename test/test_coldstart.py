@@ -69,3 +69,35 @@ def test_package_kernels_cached_by_content_under_the_cache_dir(tmp_path, monkeyp
     monkeypatch.setattr(config, "CACHE_DIR", "")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert jit.cache_dir() == tmp_path / "xdg" / "gyro_platform" / "numba" / jit.source_digest()
+
+
+def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch):
+    """The bench row logic without running the commands: the first run of each on its fresh cache
+    folder is cold (and says so), the later ones warm; ratio, table, JSON, Markdown, PNG."""
+    import json
+
+    from gyro_platform.bench import coldstart as cs
+
+    seen: dict[str, int] = {}
+
+    def fake(cache):
+        n = seen.get(str(cache), 0)
+        seen[str(cache)] = n + 1
+        return (10.0, cs.NOTICE) if n == 0 else (2.0 + 0.1 * n, "")
+
+    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
+    monkeypatch.setattr(cs, "husky_bag", lambda: (None, "not found"))
+    rows = cs.coldstart(tmp_path / "out", repeats=3)
+    by = {r.name: r for r in rows}
+    assert set(by) == {"run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run"}
+    assert by["replay_husky"].status == "not found"
+    r = by["run_default"]
+    assert r.cold_s == 10.0 and r.warm_s == pytest.approx(2.2) and r.ratio == pytest.approx(10 / 2.2)
+    assert r.notice and r.extra["warm_notice"] is False
+    text = (tmp_path / "out" / "coldstart.md").read_text()
+    assert "| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes |" in text
+    doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())
+    assert [x["name"] for x in doc["rows"]] == [r.name for r in rows] and doc["meta"]["repeats"] == 3
+    assert (tmp_path / "out" / "coldstart.png").stat().st_size > 0

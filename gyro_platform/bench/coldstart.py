@@ -3,9 +3,9 @@ subprocesses, each first on an empty kernel cache, then again on the cache it fi
 
 Rows (``--quick``: 5 s of the scene, the husky recording's first 30 s):
 
-* ``run default`` (the README's first command, ``--no-files``);
-* ``replay`` of the shared husky recording, default options (``--no-plot``; "not found" when
-  the recording is absent);
+* ``run default`` (the README's first command: CSV, JSON and plot written);
+* ``replay`` of the shared husky recording, default options (bag, summary and plot written;
+  "not found" when the recording is absent);
 * the DDS node (``node --transport dds``, loopback config): wall time to its ``ready:`` line,
   then stopped by SIGTERM (the rclpy node warms up the same kernels; it needs a ROS install);
 * a Dask worker's first run: ``sweep`` of one default-scene run on a fresh one-worker local
@@ -178,7 +178,9 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
         extra_d = ["--duration", f"{duration:g}"] if duration else []
 
         def run_default(cache: Path, i: int):
-            wall, err = timed([*_cli(), "run", "default", "--no-files", *extra_d], cache)
+            out = work / f"run_{cache.name}_{i}"
+            wall, err = timed([*_cli(), "run", "default", "--out", str(out), *extra_d], cache)
+            shutil.rmtree(out, ignore_errors=True)
             return wall, err, {}
         rows.append(_measure(ColdRow("run_default", "run default" + (" --duration 5" if quick else "")),
                              run_default, repeats, work))
@@ -193,8 +195,10 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
 
             def replay(cache: Path, i: int):
                 out = work / f"husky_{cache.name}_{i}"
-                wall, err = timed([*_cli(), "replay", str(bag), "--out", str(out), "--no-plot", "--quiet"], cache)
+                wall, err = timed([*_cli(), "replay", str(bag), "--out", str(out)], cache)
                 shutil.rmtree(out, ignore_errors=True)
+                for f in out.parent.glob(out.name + ".*"):      # OUT.summary.json, OUT.png
+                    f.unlink()
                 return wall, err, {}
             rows.append(_measure(ColdRow("replay_husky", what), replay, repeats, work))
         print(_line(rows[-1]), flush=True)

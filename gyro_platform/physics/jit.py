@@ -4,7 +4,7 @@ Every kernel module takes ``njit`` from here, so that importing any of them inst
 :class:`PackageCacheLocator` first: the package's kernels are cached under
 ``$NUMBA_CACHE_DIR/gyro_platform`` if that is set, else ``$XDG_CACHE_HOME/gyro_platform/numba``
 (``~/.cache/…``), in a folder named by a digest of the package's kernel sources (the ``.py``
-files that import this module) and the numba version. A fresh clone, a reinstall, a colcon
+files that take ``njit`` from here) and the numba version. A fresh clone, a reinstall, a colcon
 workspace or a container sharing that folder reuses what any of them compiled from the same
 sources; a change to any kernel file gives a new folder (numba's own in-tree cache misses a
 change in a callee's file). ``GYRO_PLATFORM_IN_TREE_CACHE=1`` restores numba's in-tree cache.
@@ -38,14 +38,14 @@ PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def source_digest() -> str:
-    """Digest (16 hex) of every package source that compiles kernels (the files importing this
-    module, read as bytes) and of the numba version: the cache folder's name."""
+    """Digest (16 hex) of every package source that compiles kernels (the files taking ``njit``
+    from this module, read as bytes) and of the numba version: the cache folder's name."""
     global _DIGEST
     if _DIGEST is None:
         h = hashlib.sha256(numba.__version__.encode())
         for p in sorted(PACKAGE.rglob("*.py")):
             data = p.read_bytes()
-            if b"physics.jit import" in data or b".jit import" in data or p.name == "jit.py":
+            if b"jit import njit" in data and p.name != "jit.py":     # the kernel modules
                 h.update(str(p.relative_to(PACKAGE)).encode())
                 h.update(data)
         _DIGEST = h.hexdigest()[:16]
