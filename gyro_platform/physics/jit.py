@@ -13,7 +13,9 @@ change in a callee's file). ``GYRO_PLATFORM_IN_TREE_CACHE=1`` restores numba's i
 compile, one line on stderr, then one line per compiled kernel; and a compile asked for on the
 main thread runs on a helper thread while the main thread waits, so that SIGINT/SIGTERM
 (``errors.StopSignals``) stop the command at once instead of after the compile (LLVM runs for
-seconds without returning to the interpreter). :func:`cache_dir` is the folder in use.
+seconds without returning to the interpreter); :func:`abandon_compiles_when` does the same for
+a worker thread (the replay's bag reader) whose consumer stops. :func:`cache_dir` is the folder
+in use.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import os
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numba
@@ -31,7 +34,8 @@ from numba.core.dispatcher import Dispatcher
 
 from ..errors import StopSignals
 
-__all__ = ["njit", "cache_dir", "compile_notices", "PackageCacheLocator", "source_digest"]
+__all__ = ["njit", "cache_dir", "compile_notices", "abandon_compiles_when", "CompileAbandoned", "PackageCacheLocator",
+           "source_digest"]
 
 #: the package folder (the kernel sources below it get the locator)
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -144,11 +148,32 @@ _local = threading.local()
 _notices: _Notices | None = None
 
 
+class CompileAbandoned(Exception):
+    """A thread stopped waiting for a kernel compile (:func:`abandon_compiles_when`)."""
+
+
+@contextmanager
+def abandon_compiles_when(stop: threading.Event):
+    """In this (non-main) thread, for the block: a kernel compile runs on a helper thread and
+    the wait for it ends with :class:`CompileAbandoned` once ``stop`` is set (a reader thread
+    whose consumer stopped need not finish a compile of seconds first). Needs
+    :func:`compile_notices` installed; otherwise the block just runs."""
+    old = getattr(_local, "abandon", None)
+    _local.abandon = stop
+    try:
+        yield
+    finally:
+        _local.abandon = old
+
+
 def _compile_off_main(self, sig):
     """``Dispatcher.compile`` of a main-thread call run on a helper thread: the main thread
     waits in short, interruptible waits, so a signal handler raising there (StopSignals) ends
-    the wait at once; the helper is a daemon and dies with the process."""
-    if (threading.current_thread() is not threading.main_thread() or getattr(_local, "busy", False)):
+    the wait at once; the helper is a daemon and dies with the process. The same for a thread
+    inside :func:`abandon_compiles_when`, whose wait ends when its event is set."""
+    main = threading.current_thread() is threading.main_thread()
+    abandon = getattr(_local, "abandon", None)
+    if (not main and abandon is None) or getattr(_local, "busy", False):
         return _original_compile(self, sig)
     result: list = []
 
@@ -163,7 +188,10 @@ def _compile_off_main(self, sig):
     th.start()
     while th.is_alive():
         th.join(0.05)
-        StopSignals.raise_held()            # a signal inside a deferred block: the compile has changed nothing
+        if main:
+            StopSignals.raise_held()        # a signal inside a deferred block: the compile has changed nothing
+        elif abandon.is_set():
+            raise CompileAbandoned(f"compile of {self.py_func.__qualname__} abandoned: the consumer stopped")
     ok, value = result[0]
     if ok:
         return value

@@ -16,6 +16,7 @@ estimate, the CPU and wall time of the run.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -72,9 +73,23 @@ def _figures(summary: dict[str, Any], results: list) -> dict[str, Any]:
     return f
 
 
+def in_dask_worker() -> bool:
+    """This code runs in a Dask worker (``distributed`` imported and a worker found)."""
+    if "distributed" not in sys.modules:
+        return False
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except Exception:  # noqa: BLE001 - ValueError outside a worker
+        return False
+    return True
+
+
 def execute_run(task: RunTask) -> dict[str, Any]:
     """Run one task; return its record (never raises)."""
-    compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
+    if in_dask_worker():
+        compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
     rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
     rec.update({f"param:{k}": v for k, v in task.values.items()})
     cpu0, wall0 = time.process_time(), time.perf_counter()
