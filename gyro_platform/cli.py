@@ -151,6 +151,9 @@ def _main(argv: list[str] | None) -> int:
     prog = f"gyro-platform {args.command}"
     from .engine.blas import limit_blas_threads
     limit_blas_threads()                            # small matrices: one BLAS thread (engine.blas)
+    if argv is None:                                # the process's own command line (not a library call)
+        from .physics.jit import compile_notices
+        compile_notices(prog)                       # kernels compiling: said on stderr, interruptible
     with StopSignals(prog, final=argv is None):      # argv None: the process's own command line
         try:
             return int(importlib.import_module(args._module).run(args) or 0)

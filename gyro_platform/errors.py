@@ -208,6 +208,16 @@ class StopSignals:
         self.received = signum
         raise self.exception(signum)
 
+    @classmethod
+    def raise_held(cls) -> None:
+        """Raise a signal that :func:`deferred_signals` holds now, inside the block: for a wait
+        that has changed nothing yet (kernels compiling before the block's first step), so that
+        the stop does not wait for it."""
+        stop = cls._active
+        if stop is not None and stop.pending is not None and stop.received is None:
+            stop.received, stop.pending = stop.pending, None
+            raise stop.exception(stop.received)
+
     def release(self) -> None:
         """End of a deferred block: raise a held signal now."""
         if self.depth == 0 and self.pending is not None and self.received is None:

@@ -50,6 +50,7 @@ from .io.blocks import take_rows
 from .io.decode import decode_rates
 from .io.gate import Action, ALL_REASONS, Decision, DROP, NS, plain_decision, reading_of, RESET, TimeGate
 from .io.messages import Mounting, Rejected
+from .physics.jit import abandon_compiles_when
 
 offer_block = TimeGate.offer_block
 rotate_block = Mounting.rotate_block
@@ -81,9 +82,10 @@ def prefetched(items: Iterator[Any], work: Callable[[Any], Any]) -> Iterator[tup
 
     def produce() -> None:
         try:
-            for item in items:
-                if not put((item, work(item), None)):
-                    return
+            with abandon_compiles_when(stop):      # a stop does not wait for a kernel compiling here
+                for item in items:
+                    if not put((item, work(item), None)):
+                        return
         except BaseException as e:                  # raised in the caller, in order
             put((None, None, e))
             return

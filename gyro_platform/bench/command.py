@@ -12,8 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""``gyro-platform bench [WHAT]``: the benchmarks' command line (consumer, peer, accuracy, hard,
-effects, hotpath, sweep; without WHAT: consumer then peer).
+"""``gyro-platform bench [WHAT]``: the benchmarks' command line (coldstart, consumer, peer,
+accuracy, hard, effects, hotpath, sweep; without WHAT: coldstart, consumer, then peer).
+
+``coldstart`` (:mod:`.coldstart`): whole commands (``run default``, the husky replay, the DDS
+node's time to ready, a Dask worker's first run) on an empty kernel cache beside warm, and
+their ratio;
 
 ``consumer`` (:mod:`.consumer`): replay, scene run and node figures beside the compiled kernel;
 ``peer`` (:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs
@@ -42,12 +46,13 @@ __all__ = ["add_arguments", "run"]
 def add_arguments(p) -> None:
     """The ``bench`` subcommand's arguments on the argparse parser ``p``."""
     p.add_argument("what", nargs="?", default="default",
-                   choices=["default", "consumer", "peer", "accuracy", "effects", "hotpath", "hard", "sweep"],
-                   help="which benchmark (default: consumer, then peer)")
+                   choices=["default", "coldstart", "consumer", "peer", "accuracy", "effects", "hotpath", "hard",
+                            "sweep"],
+                   help="which benchmark (default: coldstart, consumer, then peer)")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
-                   help="short runs (consumer: 10 s bags, husky's first 30 s; peer: 2 s scenes; accuracy: 60 s "
-                        "ship, 30 s aircraft; hard: the tests' durations)")
+                   help="short runs (coldstart: 5 s scene, husky's first 30 s; consumer: 10 s bags, husky's first "
+                        "30 s; peer: 2 s scenes; accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
     p.add_argument("--runs", type=int, default=8,
@@ -92,6 +97,12 @@ def run(args) -> int:
         check_output_path(out, "--out")
     except OutputError as e:
         return _error(str(e))
+    if args.what in ("default", "coldstart"):
+        from .coldstart import coldstart
+
+        coldstart(out, quick=args.quick, repeats=args.repeats)
+    if args.what == "coldstart":
+        return 0
     if args.what in ("default", "consumer"):
         consumer(out, quick=args.quick, repeats=args.repeats, whole_command=not args.no_whole_command)
     if args.what in ("default", "peer"):

@@ -42,12 +42,12 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 import numpy as np
 
 from .integrators import COARSEN, ETD2, MAX_JUMP, STEP_SLACK, TAIL_MIN, TAIL_ULP
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
+from ..physics.jit import njit
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.system import FASTMATH, LAY_STAB, platform_rhs, SEG_N, support_regime
 
@@ -159,7 +159,7 @@ def _k1_carried(ih, yk, y, tr, wr, fr, n):
 
 
 @njit(cache=True, fastmath=FASTMATH, nogil=True)
-def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_out, ns_out):
+def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_out, ns_out, gen, expo):
     """Samples ``first…N−1`` of a chunk (ts (N,) s in the samples' time base, ws (N, 3) rad/s,
     fs (N, 3) m/s², vehicle axes; ``fs`` ignored unless ``has_f``); after each sample listed in
     ``out_idx`` (increasing) its snapshot goes to ``y_out``/``seg_out``/``ns_out`` (the rows from
@@ -171,7 +171,11 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     counters and input rows are committed and ``seg`` is the interval's; otherwise the state
     and level are unchanged, ``seg`` is restored from ``F_SEGSAVE`` and the float header
     describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
-    (``NEED_REGIME``). Everything is in this one function: the views of the buffers are made
+    (``NEED_REGIME``). ``gen``: None when the engine takes the linear stabilised model
+    (``takes_linear_path``), else 0; ``expo``: None for RK4, else 0. numba compiles a kernel
+    per combination and prunes the branches a None rules out before typing them (the general
+    right-hand side, the exponential methods' stage and regime code): a command compiles only
+    what its model and method run. Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
     counting of array arguments would cost more than the step)."""
     fh = _f1(fb, ib, F_HDR)
@@ -221,7 +225,6 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     table = _i1(ib, I_TABLE)
     method = ih[J_METHOD]
     fid = ih[J_FID]
-    lin = takes_linear_path(fid == 1, I)
     q1 = ih[J_Q1]
     max_level = ih[J_MAX_LEVEL]
     nlev = ih[J_NLEV]
@@ -283,6 +286,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         nchunk = nsub0
         if method == RK4:
             h0 = (t1 - t0) / nsub0
+            r = 0
+        elif expo is None:                  # (not reached: an RK4 engine; pruned at compile time)
+            h0 = 0.0
             r = 0
         else:
             # the plan of _ETD._plan: nsub0 chunks of G grid steps q in all, then a tail to t1
@@ -378,6 +384,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             if meth == RK4:
                                 for m in range(n):
                                     y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
+                            elif expo is None:  # (not reached: RK4)
+                                pass
                             elif in_tail:       # y1 = U + hφ2(hA)(f1 − f0 − A(U − y))
                                 for m in range(n):
                                     Ul[m] = U[m] - yw[m]
@@ -396,6 +404,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             cj = c[j] * h
                             for m in range(n):
                                 U[m] = yw[m] + cj * K[j - 1, m]
+                        elif expo is None:      # (not reached: RK4)
+                            pass
                         elif in_tail:           # U = y + hφ1(hA) f0
                             if not phi_taylor(mi, po, io, md, do, h * h * a2, h, 1, K[0], yw, U, Ta, Tb):
                                 status |= ST_NONFINITE
@@ -408,7 +418,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             break
                         nrhs += 1
                         tj = h if j == ss or (in_tail and j == 1) else c[j] * h
-                        if lin:     # the same model without the general kernel's 28 arguments
+                        if gen is None:     # the same model without the general kernel's 28 arguments
                             status |= stabilised_linear_rhs(t + tj, U, k5 if j == ss else K[j], I, P, seg, mats, F)
                         else:
                             status |= platform_rhs(t + tj, U, k5 if j == ss else K[j], fid, I,
@@ -421,7 +431,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         bad = True
                         t_bad = t
                         break
-                    if meth == EXPRK:
+                    if expo is None:        # RK4: y1 made with the last stage
+                        pass
+                    elif meth == EXPRK:
                         # output y1 = y + M_s [f_0 … f_{s−1}]; U holds the last stage (c = 1)
                         csr_axpy(mi, po, s - 1, io, md, do, Kf, yw, y1)
                     elif meth == EXPRK_D:
@@ -557,16 +569,16 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
 
 
 @njit(cache=True)
-def push_kernel(fb, ib, mi, md, t, w, f, has_f):
+def push_kernel(fb, ib, mi, md, t, w, f, has_f, gen, expo):
     """One sample (``w``, ``f`` (3,) arrays; ``f`` ignored unless ``has_f``): ``block_kernel``
     on a one-row chunk kept in the buffers (``F_PUSH``). Returns the status."""
     if has_f:
-        return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], f[0], f[1], f[2], True)
-    return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], 0.0, 0.0, 0.0, False)
+        return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], f[0], f[1], f[2], True, gen, expo)
+    return push_values_kernel(fb, ib, mi, md, t, w[0], w[1], w[2], 0.0, 0.0, 0.0, False, gen, expo)
 
 
 @njit(cache=True)
-def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f):
+def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f, gen, expo):
     """``push_kernel`` of a sample given as scalars (no input arrays to make or unbox: the
     node's per-message path; ``fx, fy, fz`` ignored unless ``has_f``)."""
     o = ib[SLOT_W * F_PUSH]
@@ -578,7 +590,7 @@ def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f):
         fb[o + 4], fb[o + 5], fb[o + 6] = 0.0, 0.0, 0.0
     n = ib[SLOT_W * F_Y + 1]
     return block_kernel(fb, ib, mi, md, fb[o:o + 1], view2(fb, o + 1, (1, 3)), view2(fb, o + 4, (1, 3)),
-                        has_f, 0, ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0])
+                        has_f, 0, ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0], gen, expo)
 
 
 # ---------------------------------------------------------------------------- Python side
@@ -650,6 +662,9 @@ class Engine:
         ih[J_Q1] = stepper.q1 if stepper is not None else 4
         ih[J_MAX_LEVEL] = max_level
         ih[J_NLEV] = nlev
+        #: the kernels' compile-time switches (block_kernel): None rules the code out
+        self.gen = None if takes_linear_path.py_func(system.fid == 1, iviews[I_I]) else 0
+        self.expo = None if method == RK4 else 0
         if stepper is not None:
             fh[H_MAX_STEP], fh[H_RTOL], fh[H_ATOL] = stepper.max_step, stepper.rtol, stepper.atol
 
@@ -665,7 +680,7 @@ class Engine:
     def push(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> int:
         """One sample through the compiled step (building missing matrices on the way)."""
         while True:
-            st = push_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f)
+            st = push_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f, self.gen, self.expo)
             if st != NEED_REGIME:
                 return st
             self.add_matrices()
@@ -674,7 +689,8 @@ class Engine:
                     has_f: bool) -> int:
         """:meth:`push` of a sample given as floats."""
         while True:
-            st = push_values_kernel(self.fb, self.ib, self.mi, self.md, t, wx, wy, wz, fx, fy, fz, has_f)
+            st = push_values_kernel(self.fb, self.ib, self.mi, self.md, t, wx, wy, wz, fx, fy, fz, has_f, self.gen,
+                                    self.expo)
             if st != NEED_REGIME:
                 return st
             self.add_matrices()
@@ -684,7 +700,7 @@ class Engine:
         self.ih[J_JOUT] = int(np.searchsorted(out_idx, first))
         while True:
             st = block_kernel(self.fb, self.ib, self.mi, self.md, t, w, f, has_f, first, out_idx, y_out,
-                              seg_out, ns_out)
+                              seg_out, ns_out, self.gen, self.expo)
             if st != NEED_REGIME:
                 return st
             first = int(self.ih[J_DONE])

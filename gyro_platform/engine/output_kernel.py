@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 import numpy as np
 
 from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE, C_NSTEPS,
@@ -41,6 +40,7 @@ from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXA
                       outputs_of_row)
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
+from ..physics.jit import njit
 from ..physics.options import NEEDS_SPECIFIC_FORCE
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
@@ -123,7 +123,7 @@ def _rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, 
 
 @njit(cache=True, error_model="numpy")
 def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f,
-              M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E):
+              M, c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E, gen, carried):
     """Outputs of K instants into the rows of ``OUT`` (K, N_COL) (arguments: ``output_rows``;
     the loop over the instants is in here: a call per instant with its ~40 array arguments
     cost more than the outputs themselves). Returns (done, code, detail) as ``output_rows``;
@@ -148,13 +148,14 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
     Lsys = P[P_L:P_L + 3]
     wIN = P[P_WIN:P_WIN + 3]
     stab = lay[LAY_STAB] == 1
+    yes = nb > 0        # True, typed bool: newton_euler's one signature (a literal True would be another)
     nv = lay[LAY_NV]
     n = Y.shape[1]
     for kk in range(Y.shape[0]):
         t, t_rel, n_steps = T[kk], TR[kk], NS[kk]
         y, seg, out = Y[kk], SEG[kk], OUT[kk]
         # --- generalised velocities and accelerations of the tree (Simulator._accelerations) ----
-        if takes_linear_path(fid == LINEAR, I):     # what platform_rhs hands over to, inlined here
+        if gen is None:     # takes_linear_path: what platform_rhs hands over to, inlined here
             st = stabilised_linear_rhs(t_rel, y, yd, I, P, seg, mats, F)
         else:
             st = _rhs(t_rel, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
@@ -168,6 +169,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
             for i in range(nv):
                 v[i] = y[5 + i]
                 acc[i] = yd[5 + i]
+        elif gen is None:                   # (not reached: the linear model; pruned at compile time)
+            pass
         else:
             # q̇ from the model, q̈ by a central difference along the motion
             eps = PRECESSION_EPS
@@ -250,7 +253,7 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
             fx.g_sensitive_torques(k, on[fx.UNBALANCE], on[fx.ANISO], rhost, raxis, fb, tau_ext)
         kinematics_rw(parent, jtype, axis, qidx, vidx, stab, y, v, w0, R, w)
         newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, Lout, v, acc, wd0, R, w,
-                     True, True, tau_ext, wd, f)
+                     yes, yes, tau_ext, wd, f)
         rotor_torques(rhost, raxis, CF[F_C:F_C + 3], CF[F_A:F_A + 3], Lout, w, wd, rtau)
         for i in range(3):
             out[C_BEAR + i] = f[0, i]
@@ -292,6 +295,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
             for i in range(3):
                 out[C_MOUNT + i] = mount[i]
                 out[C_MRATE + i] = X[7, i]
+        elif carried is None:               # (not reached: a stabilised platform; pruned at compile time)
+            pass
         else:
             if not _gyro_reference_drift(R, w, raxis, R_IP, R_IC, wIN, T1, T2, MM[5], X, out):
                 return kk, REFERENCE_UNDEFINED, 0
@@ -404,12 +409,15 @@ def work_size(n, nb, nv, nr):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
+def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK, gen, carried):
     """Outputs of K instants (t (K,) s, t_rel (K,) s, n_steps (K,), states Y (K, n), input
     segments SEG (K, 14)) into OUT (K, N_COL); WK: work (``work_size`` floats). Returns
     (done, code, detail): the instants ``[0, done)`` are written and finite; code OK,
     RHS_FAILED (the model refused the state of instant ``done``; its (t, y) in E) or
-    NON_FINITE (column ``detail`` of instant ``done``)."""
+    NON_FINITE (column ``detail`` of instant ``done``). ``gen``: None when the model is the
+    linear stabilised one (``takes_linear_path``), else 0; ``carried``: None for a stabilised
+    platform, else 0 — numba prunes the code a None rules out before typing it (a kernel per
+    combination: a command compiles what its model needs)."""
     n = Y.shape[1]
     nb = OI[I_NB]
     nr = OI[I_NR]
@@ -452,17 +460,17 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK):
     X = WK[o:o + 3 * N_X].reshape((N_X, 3))
     MM = WK[o + 3 * N_X:o + 3 * N_X + 9 * N_MM].reshape((N_MM, 3, 3))
     return _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, v, acc, R, w, wd, J, f, M,
-                     c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E)
+                     c, tau_ext, fb, chol, F, a, Q, RR, V, W, rtau, X, MM, E, gen, carried)
 
 
 @njit(cache=True, error_model="numpy")
-def output_row(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, E, WK):
+def output_row(t, t_rel, n_steps, y, seg, out, I, P, mats, CF, OI, E, WK, gen, carried):
     """``output_rows`` for one instant (scalars t, t_rel, n_steps; y (n,), seg (14,), out
     (N_COL,)). Returns (done, code, detail)."""
     T = np.empty(3)
     T[0], T[1], T[2] = t, t_rel, n_steps
     return output_rows(T[0:1], T[1:2], T[2:3], y.reshape((1, y.shape[0])), seg.reshape((1, seg.shape[0])),
-                       out.reshape((1, out.shape[0])), I, P, mats, CF, OI, E, WK)
+                       out.reshape((1, out.shape[0])), I, P, mats, CF, OI, E, WK, gen, carried)
 
 
 # ---- Python side ------------------------------------------------------------------------------
@@ -488,6 +496,9 @@ class OutputKernel:
                            dtype=np.int64)
         self.E = np.zeros(1 + system.layout.n)
         self.WK = np.zeros(work_size(system.layout.n, tree.nb, tree.nv, len(tree.rotor_host)))
+        #: the kernels' compile-time switches (output_rows)
+        self.gen = None if takes_linear_path.py_func(system.fid == LINEAR, system.I) else 0
+        self.carried = None if system.I[0, LAY_STAB] == 1 else 0
 
     def row(self, t: float, t_rel: float, n_steps: float, y: np.ndarray, seg: np.ndarray) -> Outputs:
         """Outputs at one instant: time t (s), t_rel (s since the first sample), accepted
@@ -505,7 +516,7 @@ class OutputKernel:
         s = self.system
         try:
             _, code, detail = output_row(t, t_rel, n_steps, y, seg, out, s.I, s.P, s.mats, self.CF, self.OI,
-                                         self.E, self.WK)
+                                         self.E, self.WK, self.gen, self.carried)
         except ArithmeticError as e:       # inside a model kernel (python error model)
             raise self._numeric(e, t) from e
         if code != OK:
@@ -526,7 +537,7 @@ class OutputKernel:
         OUT = np.empty((K, N_COL))
         try:
             done, code, detail = output_rows(T, TR, NS, Y, SEG, OUT, s.I, s.P, s.mats, self.CF, self.OI, self.E,
-                                             self.WK)
+                                             self.WK, self.gen, self.carried)
         except ArithmeticError:
             # a model kernel raised: find the instant one by one (rare path)
             for k in range(K):

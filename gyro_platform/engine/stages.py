@@ -22,10 +22,10 @@ level and grid step and steps with ``csr_axpy`` / ``csr_mv``; ``phi_taylor`` app
 """
 from __future__ import annotations
 
-from numba import njit
 import numpy as np
 
 from .integrators import taylor_bound, TAYLOR_MAX, TAYLOR_TOL
+from ..physics.jit import njit
 from ..physics.system import FASTMATH
 
 __all__ = ["stage_matrices", "csr_axpy", "csr_mv", "phi_taylor"]

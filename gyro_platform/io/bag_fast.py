@@ -38,10 +38,10 @@ from pathlib import Path
 import struct
 from typing import Any, Iterator
 
-from numba import njit
 import numpy as np
 
 from .blocks import RawRows
+from ..physics.jit import njit
 
 #: one batch of rows: (bag connection ids int64, record times ns int64, payloads: a list of
 #: bytes (sqlite3) or a RawRows on the decompressed chunk (MCAP))

@@ -46,7 +46,7 @@ import apsw
 import numpy as np
 
 from .bag_fast import mcap_records
-from .blocks import RawRows, row_lens
+from .blocks import RawRows, readonly, row_lens
 
 #: commit bound: a chunk is committed after this many messages …
 COMMIT_ROWS = 100_000
@@ -386,7 +386,7 @@ def storage_classes():
             for seg in segs:
                 m = len(seg)
                 if isinstance(seg, RawRows):     # one piece, built from the buffer the payloads lie in
-                    parts.append(mcap_records(hdr[a:a + m].view(np.uint8).reshape(m, 31), seg.buf, seg.beg,
+                    parts.append(mcap_records(hdr[a:a + m].view(np.uint8).reshape(m, 31), readonly(seg.buf), seg.beg,
                                               seg.end))
                     a += m
                     continue

@@ -81,6 +81,17 @@ class RawRows:
         return cls(np.concatenate(bufs), np.concatenate(begs), np.concatenate(ends))
 
 
+def readonly(buf: np.ndarray) -> np.ndarray:
+    """``buf`` as a read-only array (a view if it is writable): the byte buffers handed to the
+    compiled kernels are always read-only, so that each kernel compiles for one signature
+    (``np.frombuffer(bytes)`` is read-only, a decompressed chunk writable)."""
+    if not buf.flags.writeable:
+        return buf
+    v = buf.view()
+    v.flags.writeable = False
+    return v
+
+
 def row_lens(raws) -> np.ndarray:
     """Payload sizes (bytes, int64) of a list of bytes or a :class:`RawRows`."""
     return raws.lens() if isinstance(raws, RawRows) else np.fromiter(map(len, raws), np.int64, len(raws))

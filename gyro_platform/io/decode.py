@@ -37,12 +37,12 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-from numba import njit
 import numpy as np
 
-from .blocks import bad_stamp_detail, RateBlock, Raw, RawRows, row_lens
+from .blocks import bad_stamp_detail, RateBlock, Raw, RawRows, readonly, row_lens
 from .messages import IMU, jazzy_typestore, Mounting, Reading, reading_from_msg, TWIST, TWIST_STAMPED
 from .typedefs import core_typestore, has_type
+from ..physics.jit import njit
 
 #: detail of an Imu row whose rate is not reported (the text of ``reading_from_msg``)
 NO_RATE_DETAIL = "angular_velocity_covariance[0] = -1 (rate not reported)"
@@ -91,7 +91,7 @@ def _decode_fast(msgtype: str, raws: Sequence[Raw], rb: RateBlock) -> np.ndarray
         beg = np.zeros(n, np.int64)
         np.cumsum(lens[:-1], out=beg[1:])
     kind = _KINDS[msgtype]
-    ok, code, first, nsec, no_rate = _decode_rows(buf, beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
+    ok, code, first, nsec, no_rate = _decode_rows(readonly(buf), beg, lens, kind, rb.stamp_ns, rb.has_header, rb.omega,
                                                   rb.force, rb.has_force)
     if kind != _KIND_TWIST:
         names = []

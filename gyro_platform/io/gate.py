@@ -70,13 +70,13 @@ from enum import Enum
 import math
 from typing import Any, TYPE_CHECKING
 
-from numba import njit
 import numpy as np
 
 from .blocks import REJECT_REASONS
 from .messages import Reading, Rejected
 from ..engine.inputs import RateSample
 from ..errors import check_number
+from ..physics.jit import njit
 
 if TYPE_CHECKING:
     from .blocks import RateBlock

@@ -28,9 +28,9 @@ unless ``mass_unbalance``/``anisoelastic`` is on; the platform pivot does not tr
 """
 from __future__ import annotations
 
-from numba import njit
 import numpy as np
 
+from .jit import njit
 from .options import EFFECTS
 
 #: index of each effect in the flag array handed to the kernels

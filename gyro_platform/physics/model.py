@@ -39,9 +39,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from numba import njit
 import numpy as np
 
+from .jit import njit
 from .options import ModelOptions
 from .params import PlatformParams
 from .tree import BodyTree, generalised, kinematics, mass_matrix, newton_euler, REVOLUTE, ROOT, TreeWork

@@ -26,9 +26,8 @@ for ω_B. May import the physics room's kernels only.
 """
 from __future__ import annotations
 
-from numba import njit
-
 from . import effects as fx
+from .jit import njit
 from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z
 from .rotations import quat_matrix_elems, quat_rate_at
 
@@ -68,7 +67,7 @@ def _row8(m, k, i, f0, f1, f2, f3, f4, f5, f6, f7):
             + m[k, i, 4] * f4 + m[k, i, 5] * f5 + m[k, i, 6] * f6 + m[k, i, 7] * f7)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     """ẏ of the linear stabilised model into ``yd`` (state layout of ``I[0]``; ``P`` packed
     coefficients, whose first block is the effect vector ``k``; ``seg`` the input interval;

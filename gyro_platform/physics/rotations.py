@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 import numpy as np
+
+from .jit import njit
 
 
 @njit(cache=True)

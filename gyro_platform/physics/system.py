@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 import numpy as np
 
 from . import effects as fx
+from .jit import njit
 from .model import (check_precession_valid, LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z,
                     linear_coefficients, linear_gimbal_accel, LOCK_COS, platform_tree, precession_rates, rest_matrices,
                     spin_momentum, StateLayout)
@@ -272,7 +272,7 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
             za[i] = 0.0
         veh = on[fx.VEHICLE_ACC] and not stab
         newton_euler(parent, jtype, axis, vidx, inertia, stab, rhost, raxis, L, vv, za,
-                     V[V_OMD] if veh else V[V_ZERO], R, w, on[fx.CORIOLIS], on[fx.GYRO], tau_ext, wd, f)
+                     V[V_OMD] if veh else V[V_ZERO], R, w, on[fx.CORIOLIS] != 0, on[fx.GYRO] != 0, tau_ext, wd, f)
         generalised(jtype, axis, vidx, stab, f, c)
         off = nv - 5
         if stab:

@@ -37,8 +37,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from numba import njit
 import numpy as np
+
+from .jit import njit
 
 ROOT, REVOLUTE, SPIN = 0, 1, 2
 

@@ -73,6 +73,7 @@ from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
 from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from ..physics.jit import compile_notices
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -249,6 +250,7 @@ def _ignore_further_interrupts() -> None:
 def main(args: list[str] | None = None) -> int:
     """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
     with one line on stderr when the parameters are invalid."""
+    compile_notices(NODE_NAME)          # kernels compiling before "ready": said on stderr (physics.jit)
     rclpy.init(args=args)
     node = None
     code = 0

@@ -32,11 +32,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import sys
 import time
 from typing import Any
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..errors import BagReadError, ReplayError, SimulationError
+from ..physics.jit import compile_notices
 from ..scenes.runner import run_scene
 from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
@@ -86,8 +88,23 @@ def _figures(summary: dict[str, Any], results: list) -> dict[str, Any]:
     return f
 
 
+def in_dask_worker() -> bool:
+    """This code runs in a Dask worker (``distributed`` imported and a worker found)."""
+    if "distributed" not in sys.modules:
+        return False
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except Exception:  # noqa: BLE001 - ValueError outside a worker
+        return False
+    return True
+
+
 def execute_run(task: RunTask) -> dict[str, Any]:
     """Run one task; return its record (never raises)."""
+    if in_dask_worker():
+        compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
     rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
     rec.update({f"param:{k}": v for k, v in task.values.items()})
     cpu0, wall0 = time.process_time(), time.perf_counter()

@@ -32,11 +32,11 @@ from __future__ import annotations
 import math
 from typing import Hashable
 
-from numba import njit
 import numpy as np
 
 from .base import Controlled, is_rejected
 from .jacobian import jacobian_of
+from ...physics.jit import njit
 
 __all__ = ["ETD2", "ETD4", "ExpRosenbrock", "TAYLOR_MAX", "TAYLOR_TOL", "TAIL_MIN", "TAIL_ULP"]
 

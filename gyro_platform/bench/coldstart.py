@@ -1,0 +1,298 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Cold start beside warm (``gyro-platform bench coldstart``; issue 31 item 1): whole commands in
+subprocesses, each first on an empty kernel cache, then again on the cache it filled.
+
+Rows (``--quick``: 5 s of the scene, the husky recording's first 30 s):
+
+* ``run default`` (the README's first command: CSV, JSON and plot written);
+* ``replay`` of the shared husky recording, default options (bag, summary and plot written;
+  "not found" when the recording is absent);
+* the DDS node (``node --transport dds``, loopback config): wall time to its ``ready:`` line,
+  then stopped by SIGTERM (the rclpy node warms up the same kernels; it needs a ROS install);
+* a Dask worker's first run: ``sweep`` of one default-scene run on a fresh one-worker local
+  cluster; the figure is the run's own ``wall_s`` in the fresh worker (its kernels compiled or
+  loaded), the whole command beside it.
+
+"Cold" is a fresh ``NUMBA_CACHE_DIR`` (nothing compiled: what a fresh install, CI runner,
+container or new worker host pays); "warm" the same folder afterwards (median of ``repeats``).
+Each command's stderr on the cold run has to say that kernels compile (``compile notice``
+column). Wall clock, interpreter start-up included; the machine may be shared (load average
+in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import asdict, dataclass, field
+import json
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Any
+
+import numpy as np
+
+from .bags import husky_bag, short_copy
+
+__all__ = ["ColdRow", "coldstart", "table", "TARGET_RATIO"]
+
+#: the issue's bar: cold within this factor of warm
+TARGET_RATIO = 3.0
+ROOT = Path(__file__).resolve().parents[2]
+LOOPBACK_XML = ROOT / "config" / "cyclonedds_loopback.xml"
+NOTICE = "compiling the simulation kernels"
+READY_TIMEOUT_S = 900.0
+SWEEP_SPEC = """scene: default
+duration: {duration}
+seed: 2026
+runs: 1
+vary:
+  bias_torque[4]: {{dist: normal, mean: 1.0e-7, std: 2.0e-8}}
+"""
+
+
+@dataclass
+class ColdRow:
+    """One command: ``cold_s`` (empty kernel cache) and ``warm_s`` (median, cache filled)."""
+
+    name: str
+    what: str
+    status: str = "ok"                  # ok | not found | failed: …
+    cold_s: float | None = None
+    warm_s: float | None = None
+    notice: bool | None = None          # the cold run said on stderr that kernels compile
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ratio(self) -> float | None:
+        if self.cold_s is None or not self.warm_s:
+            return None
+        return self.cold_s / self.warm_s
+
+
+def _env(cache: Path) -> dict[str, str]:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONUNBUFFERED="1")
+    env.pop("GYRO_PLATFORM_IN_TREE_CACHE", None)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def _cli() -> list[str]:
+    return [sys.executable, "-m", "gyro_platform"]
+
+
+def timed(cmd: list[str], cache: Path, timeout: float = 1800.0) -> tuple[float, str]:
+    """(wall s, stderr) of a command run to its end; RuntimeError on a non-zero exit."""
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, cwd=str(ROOT), env=_env(cache), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       text=True, timeout=timeout)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise RuntimeError(f"exit {r.returncode}: {r.stderr.strip().splitlines()[-1:] or ''}")
+    return wall, r.stderr
+
+
+def time_to_line(cmd: list[str], cache: Path, line: str, timeout: float = READY_TIMEOUT_S) -> tuple[float, str]:
+    """(wall s until a stderr/stdout line containing ``line``, the output so far); the process is
+    then stopped by SIGTERM (killed if it does not end within 20 s)."""
+    env = _env(cache)
+    env.setdefault("CYCLONEDDS_URI", LOOPBACK_XML.as_uri())
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, cwd=str(ROOT), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         stdin=subprocess.DEVNULL)
+    seen: list[str] = []
+    wall = None
+    try:
+        assert p.stdout is not None
+        for text in p.stdout:
+            seen.append(text)
+            if line in text:
+                wall = time.perf_counter() - t0
+                break
+            if time.perf_counter() - t0 > timeout:
+                break
+    finally:
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+            try:
+                p.wait(20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+    if wall is None:
+        raise RuntimeError(f"no {line!r} line (exit {p.returncode}): {''.join(seen[-3:]).strip()}")
+    return wall, "".join(seen)
+
+
+def _measure(row: ColdRow, run, repeats: int, work: Path) -> ColdRow:
+    """``run(cache, i)`` -> (wall s, stderr, extra): once on an empty cache, then ``repeats``
+    times on the filled one."""
+    cache = Path(tempfile.mkdtemp(prefix="numba_cold_", dir=work))
+    try:
+        cold, err, extra = run(cache, 0)
+        row.cold_s, row.notice = cold, NOTICE in err
+        row.extra.update({f"cold_{k}": v for k, v in extra.items()})
+        warm, warm_extra = [], []
+        for i in range(repeats):
+            w, err_w, ex = run(cache, i + 1)
+            warm.append(w)
+            warm_extra.append(ex)
+            row.extra["warm_notice"] = NOTICE in err_w      # a warm run compiles nothing
+        row.warm_s = float(np.median(warm))
+        for k in (warm_extra[0] if warm_extra else {}):
+            row.extra[f"warm_{k}"] = float(np.median([e[k] for e in warm_extra]))
+    except KeyboardInterrupt:
+        raise
+    except Exception as e:                  # noqa: BLE001 - one row fails, the others go on
+        row.status = f"failed: {type(e).__name__}: {str(e)[:160]}"
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    return row
+
+
+def _sweep_first_run(duration: float, work: Path):
+    spec = work / "coldstart_sweep.yaml"
+    spec.write_text(SWEEP_SPEC.format(duration=duration))
+
+    def run(cache: Path, i: int):
+        out = work / f"sweep_{cache.name}_{i}"
+        wall, err = timed([*_cli(), "sweep", str(spec), "--workers", "1", "--out", str(out), "--no-plots"], cache)
+        with open(out / "results.csv", newline="") as f:
+            rec = next(csv.DictReader(f))
+        shutil.rmtree(out, ignore_errors=True)
+        return float(rec["wall_s"]), err, {"command_s": wall}
+    return run
+
+
+def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[ColdRow]:
+    """Every row cold then warm; print the table, write JSON, Markdown and PNG."""
+    duration = 5.0 if quick else None
+    rows: list[ColdRow] = []
+    work = Path(tempfile.mkdtemp(prefix="gyro_bench_coldstart_"))
+    print(f"cold start: each command on an empty kernel cache, then warm (median of {repeats}); "
+          "several minutes", flush=True)
+    try:
+        extra_d = ["--duration", f"{duration:g}"] if duration else []
+
+        def run_default(cache: Path, i: int):
+            out = work / f"run_{cache.name}_{i}"
+            wall, err = timed([*_cli(), "run", "default", "--out", str(out), *extra_d], cache)
+            shutil.rmtree(out, ignore_errors=True)
+            return wall, err, {}
+        rows.append(_measure(ColdRow("run_default", "run default" + (" --duration 5" if quick else "")),
+                             run_default, repeats, work))
+        print(_line(rows[-1]), flush=True)
+
+        path, why = husky_bag()
+        what = "replay husky (30 Hz Imu, mcap), default options" + (", first 30 s" if quick else "")
+        if path is None:
+            rows.append(ColdRow("replay_husky", what, status=why))
+        else:
+            bag = short_copy(path, 30.0) if quick else path
+
+            def replay(cache: Path, i: int):
+                out = work / f"husky_{cache.name}_{i}"
+                wall, err = timed([*_cli(), "replay", str(bag), "--out", str(out)], cache)
+                shutil.rmtree(out, ignore_errors=True)
+                for f in out.parent.glob(out.name + ".*"):      # OUT.summary.json, OUT.png
+                    f.unlink()
+                return wall, err, {}
+            rows.append(_measure(ColdRow("replay_husky", what), replay, repeats, work))
+        print(_line(rows[-1]), flush=True)
+
+        def node(cache: Path, i: int):
+            wall, err = time_to_line([*_cli(), "node", "--transport", "dds", "--cyclonedds-config", str(LOOPBACK_XML),
+                                      "--domain-id", str(90 + i % 10)], cache, "ready:")
+            return wall, err, {}
+        rows.append(_measure(ColdRow("node_dds_ready", "node --transport dds: time to its ready: line"),
+                             node, repeats, work))
+        print(_line(rows[-1]), flush=True)
+
+        rows.append(_measure(ColdRow("sweep_worker_first_run",
+                                     f"Dask worker's first run (default scene{', 5 s' if quick else ''}, 1 worker)"),
+                             _sweep_first_run(duration or 60.0, work), repeats, work))
+        print(_line(rows[-1]), flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    write_outputs(rows, out_dir, quick=quick, repeats=repeats)
+    return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# output
+
+def _line(r: ColdRow) -> str:
+    if r.status != "ok":
+        return f"  {r.what}: {r.status}"
+    return (f"  {r.what}: cold {r.cold_s:.2f} s, warm {r.warm_s:.2f} s, ×{r.ratio:.1f}"
+            f"{'' if r.notice else ' (no compile notice on the cold run!)'}")
+
+
+def table(rows: list[ColdRow]) -> str:
+    """The Markdown table: one line per command."""
+    lines = ["| command | cold s (empty kernel cache) | warm s | cold ÷ warm | target | compile notice |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        if r.status != "ok":
+            lines.append(f"| {r.what} | {r.status} | | | ≤ ×{TARGET_RATIO:g} | |")
+            continue
+        ok = "✓" if r.ratio is not None and r.ratio <= TARGET_RATIO else "✗"
+        cmd = ""
+        if "cold_command_s" in r.extra:
+            cmd = f" (whole command {r.extra['cold_command_s']:.1f} / {r.extra['warm_command_s']:.1f} s)"
+        lines.append(f"| {r.what}{cmd} | {r.cold_s:.2f} | {r.warm_s:.2f} | ×{r.ratio:.1f} | ≤ ×{TARGET_RATIO:g} {ok} "
+                     f"| {'yes' if r.notice else 'no'} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(rows: list[ColdRow], out_dir: Path, **meta: Any) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    text = table(rows)
+    print("\n" + text, end="")
+    doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
+                    "cpus": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
+           "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
+    (out_dir / "coldstart.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    (out_dir / "coldstart.md").write_text(text)
+    plot(rows, out_dir / "coldstart.png")
+    print(f"wrote {out_dir / 'coldstart.json'}, {out_dir / 'coldstart.md'}, {out_dir / 'coldstart.png'}")
+
+
+def plot(rows: list[ColdRow], path: Path) -> None:
+    """Horizontal bars, seconds: cold beside warm per command, the ratio written beside."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rows if r.status == "ok"]
+    fig, ax = plt.subplots(figsize=(10, 0.7 * max(len(ok), 1) + 1.6))
+    y = np.arange(len(ok))
+    ax.barh(y - 0.2, [r.cold_s for r in ok], 0.4, label="cold (empty kernel cache)", color="tab:orange")
+    ax.barh(y + 0.2, [r.warm_s for r in ok], 0.4, label="warm", color="tab:blue")
+    for yi, r in zip(y, ok):
+        ax.text(r.cold_s * 1.02, yi - 0.2, f"×{r.ratio:.1f}", va="center", fontsize=8)
+    ax.set_yticks(y, [r.what for r in ok], fontsize=7)
+    ax.set_xlabel("wall seconds, whole command (lower is better)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"cold start beside warm (target: cold within ×{TARGET_RATIO:g} of warm)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,222 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""How the numba kernels are compiled and cached (imports numba and ``errors`` only).
+
+Every kernel module takes ``njit`` from here, so that importing any of them installs
+:class:`PackageCacheLocator` first: the package's kernels are cached under
+``$NUMBA_CACHE_DIR/gyro_platform`` if that is set, else ``$XDG_CACHE_HOME/gyro_platform/numba``
+(``~/.cache/…``), in a folder named by a digest of the package's kernel sources (the ``.py``
+files that take ``njit`` from here) and the numba version. A fresh clone, a reinstall, a colcon
+workspace or a container sharing that folder reuses what any of them compiled from the same
+sources; a change to any kernel file gives a new folder (numba's own in-tree cache misses a
+change in a callee's file). ``GYRO_PLATFORM_IN_TREE_CACHE=1`` restores numba's in-tree cache.
+
+:func:`compile_notices` (command-line processes, Dask workers, the rclpy node): while kernels
+compile, one line on stderr, then one line per compiled kernel; and a compile asked for on the
+main thread runs on a helper thread while the main thread waits, so that SIGINT/SIGTERM
+(``errors.StopSignals``) stop the command at once instead of after the compile (LLVM runs for
+seconds without returning to the interpreter); :func:`abandon_compiles_when` does the same for
+a worker thread (the replay's bag reader) whose consumer stops. :func:`cache_dir` is the folder
+in use.
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+import hashlib
+import os
+from pathlib import Path
+import sys
+import threading
+import time
+
+import numba
+from numba import njit  # noqa: F401  (re-exported: the kernel modules' decorator)
+from numba.core import caching, config, event
+from numba.core.dispatcher import Dispatcher
+
+from ..errors import StopSignals
+
+__all__ = ["njit", "cache_dir", "compile_notices", "abandon_compiles_when", "CompileAbandoned", "PackageCacheLocator",
+           "source_digest"]
+
+#: the package folder (the kernel sources below it get the locator)
+PACKAGE = Path(__file__).resolve().parents[1]
+
+
+def source_digest() -> str:
+    """Digest (16 hex) of every package source that compiles kernels (the files taking ``njit``
+    from this module, read as bytes) and of the numba version: the cache folder's name."""
+    global _DIGEST
+    if _DIGEST is None:
+        h = hashlib.sha256(numba.__version__.encode())
+        for p in sorted(PACKAGE.rglob("*.py")):
+            data = p.read_bytes()
+            if b"jit import njit" in data and p.name != "jit.py":     # the kernel modules
+                h.update(str(p.relative_to(PACKAGE)).encode())
+                h.update(data)
+        _DIGEST = h.hexdigest()[:16]
+    return _DIGEST
+
+
+_DIGEST: str | None = None
+
+
+def cache_dir() -> Path:
+    """The folder the package's compiled kernels are cached in (see module doc)."""
+    if config.CACHE_DIR:
+        base = Path(config.CACHE_DIR) / "gyro_platform"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "gyro_platform" / "numba"
+    return base / source_digest()
+
+
+class PackageCacheLocator(caching._CacheLocator):
+    """numba cache locator of the package's kernels: :func:`cache_dir`/<module folder>; the
+    source stamp is the digest of the package's kernel sources (not the file's path or mtime)."""
+
+    def __init__(self, py_func, py_file):
+        self._lineno = py_func.__code__.co_firstlineno
+        rel = Path(py_file).resolve().relative_to(PACKAGE)
+        self._cache_path = str(cache_dir() / rel.parent)
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    def get_source_stamp(self):
+        return source_digest()
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if os.environ.get("GYRO_PLATFORM_IN_TREE_CACHE") == "1":
+            return None
+        try:
+            Path(py_file).resolve().relative_to(PACKAGE)
+        except ValueError:
+            return None                     # not one of ours: numba's own locators
+        self = cls(py_func, py_file)
+        try:
+            self.ensure_cache_path()
+        except OSError:
+            return None                     # not writable: numba's own locators
+        return self
+
+
+if PackageCacheLocator not in caching.CacheImpl._locator_classes:
+    caching.CacheImpl._locator_classes.insert(0, PackageCacheLocator)
+
+
+# ---- compile notices and interruptible compiles ------------------------------------------------
+class _Notices(event.Listener):
+    """stderr lines while kernels compile: one line first, then one per compiled kernel."""
+
+    def __init__(self, prog: str, stream=None):
+        self.prog = prog
+        self.stream = stream
+        self.depth = 0
+        self.started: float | None = None
+        self.t0 = 0.0
+        self.count = 0
+
+    def _print(self, text: str) -> None:
+        try:
+            print(text, file=self.stream or sys.stderr, flush=True)
+        except (OSError, ValueError):
+            pass
+
+    def on_start(self, ev) -> None:
+        if self.depth == 0:
+            self.t0 = time.monotonic()
+            if self.started is None:
+                self.started = self.t0
+                self._print(f"{self.prog}: compiling the simulation kernels (first run of this version on this "
+                            f"machine; cached in {cache_dir()} for later runs) …")
+        self.depth += 1
+
+    def on_end(self, ev) -> None:
+        self.depth -= 1
+        if self.depth == 0:
+            self.count += 1
+            disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            name = getattr(getattr(disp, "py_func", None), "__qualname__", "kernel")
+            now = time.monotonic()
+            self._print(f"  compiled {name} in {now - self.t0:.1f} s ({now - self.started:.0f} s so far)")
+
+
+_original_compile = Dispatcher.compile
+_local = threading.local()
+_notices: _Notices | None = None
+
+
+class CompileAbandoned(Exception):
+    """A thread stopped waiting for a kernel compile (:func:`abandon_compiles_when`)."""
+
+
+@contextmanager
+def abandon_compiles_when(stop: threading.Event):
+    """In this (non-main) thread, for the block: a kernel compile runs on a helper thread and
+    the wait for it ends with :class:`CompileAbandoned` once ``stop`` is set (a reader thread
+    whose consumer stopped need not finish a compile of seconds first). Needs
+    :func:`compile_notices` installed; otherwise the block just runs."""
+    old = getattr(_local, "abandon", None)
+    _local.abandon = stop
+    try:
+        yield
+    finally:
+        _local.abandon = old
+
+
+def _compile_off_main(self, sig):
+    """``Dispatcher.compile`` of a main-thread call run on a helper thread: the main thread
+    waits in short, interruptible waits, so a signal handler raising there (StopSignals) ends
+    the wait at once; the helper is a daemon and dies with the process. The same for a thread
+    inside :func:`abandon_compiles_when`, whose wait ends when its event is set."""
+    main = threading.current_thread() is threading.main_thread()
+    abandon = getattr(_local, "abandon", None)
+    if (not main and abandon is None) or getattr(_local, "busy", False):
+        return _original_compile(self, sig)
+    result: list = []
+
+    def work() -> None:
+        _local.busy = True
+        try:
+            result.append((True, _original_compile(self, sig)))
+        except BaseException as e:          # noqa: BLE001 - handed to the main thread
+            result.append((False, e))
+
+    th = threading.Thread(target=work, name="gyro-compile", daemon=True)
+    th.start()
+    while th.is_alive():
+        th.join(0.05)
+        if main:
+            StopSignals.raise_held()        # a signal inside a deferred block: the compile has changed nothing
+        elif abandon.is_set():
+            raise CompileAbandoned(f"compile of {self.py_func.__qualname__} abandoned: the consumer stopped")
+    ok, value = result[0]
+    if ok:
+        return value
+    raise value
+
+
+def compile_notices(prog: str, stream=None) -> None:
+    """From now on in this process: compile notices on stderr (``prog``: the command's name)
+    and interruptible compiles (see module doc). Idempotent (the first ``prog`` stays)."""
+    global _notices
+    if _notices is None:
+        _notices = _Notices(prog, stream)
+        event.register("numba:compile", _notices)
+        Dispatcher.compile = _compile_off_main

@@ -1,0 +1,128 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Cold start (issue 31, item 1): on an empty kernel cache a command says on stderr that it
+compiles (one line, then a line per kernel) and a signal during the compile stops it with its
+documented exit code; the package's kernels are cached by content under the user cache folder
+(``physics.jit``). Behaviour only: how long a cold start takes is the bench's (``bench
+coldstart``), not a test's."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from gyro_platform.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
+from gyro_platform.physics import jit
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cold_env(tmp_path: Path) -> dict:
+    env = dict(os.environ)
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")     # empty: every kernel compiles
+    env.pop("GYRO_PLATFORM_IN_TREE_CACHE", None)
+    return env
+
+
+HUSKY = ROOT.parent / "shared" / "data" / "bags" / "robot_localization_husky_test1"
+
+
+@pytest.mark.parametrize("what, sig, code", [("run", signal.SIGINT, EXIT_INTERRUPTED),
+                                             ("run", signal.SIGTERM, EXIT_TERMINATED),
+                                             ("replay", signal.SIGTERM, EXIT_TERMINATED)])
+def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig, code):
+    if what == "run":
+        args = ["run", "default", "--no-files", "--duration", "1"]
+    else:                       # the bag is read and decoded on a reader thread: its compile is abandoned
+        if not HUSKY.exists():
+            pytest.skip("the shared husky recording is not here")
+        args = ["replay", str(HUSKY), "--out", str(tmp_path / "out"), "--no-plot"]
+    p = subprocess.Popen([sys.executable, "-m", "gyro_platform", *args],
+                         cwd=ROOT, env=_cold_env(tmp_path), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         text=True)
+    lines: list[str] = []
+    try:
+        for line in p.stderr:            # the notice, then a line per compiled kernel
+            lines.append(line)
+            if "  compiled " in line:
+                break
+        assert any("compiling the simulation kernels" in x for x in lines), "".join(lines)
+        assert sum("compiling" in x for x in lines) == 1
+        p.send_signal(sig)              # still compiling: the rest of the kernels
+        t0 = time.monotonic()
+        rest = p.communicate(timeout=60)[1]
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == code, "".join(lines) + rest
+    assert ("terminated" if sig == signal.SIGTERM else "interrupted") in rest
+    assert time.monotonic() - t0 < 30          # not after the compile (a generous bound, not a timing test)
+
+
+def test_package_kernels_cached_by_content_under_the_cache_dir(tmp_path, monkeypatch):
+    from numba.core import config
+
+    from gyro_platform.engine import batch
+    from gyro_platform.physics import system
+
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    d = jit.cache_dir()
+    assert d == tmp_path / "gyro_platform" / jit.source_digest()
+    loc = jit.PackageCacheLocator.from_function(system.platform_rhs.py_func, system.__file__)
+    assert loc is not None and Path(loc.get_cache_path()) == d / "physics"
+    assert loc.get_source_stamp() == jit.source_digest()       # content, not path or mtime
+    assert jit.PackageCacheLocator.from_function(pytest.approx, pytest.__file__) is None   # not ours
+    assert isinstance(batch.block_kernel._cache._impl.locator, jit.PackageCacheLocator)
+    monkeypatch.setattr(config, "CACHE_DIR", "")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert jit.cache_dir() == tmp_path / "xdg" / "gyro_platform" / "numba" / jit.source_digest()
+
+
+def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch):
+    """The bench row logic without running the commands: the first run of each on its fresh cache
+    folder is cold (and says so), the later ones warm; ratio, table, JSON, Markdown, PNG."""
+    import json
+
+    from gyro_platform.bench import coldstart as cs
+
+    seen: dict[str, int] = {}
+
+    def fake(cache):
+        n = seen.get(str(cache), 0)
+        seen[str(cache)] = n + 1
+        return (10.0, cs.NOTICE) if n == 0 else (2.0 + 0.1 * n, "")
+
+    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
+    monkeypatch.setattr(cs, "husky_bag", lambda: (None, "not found"))
+    rows = cs.coldstart(tmp_path / "out", repeats=3)
+    by = {r.name: r for r in rows}
+    assert set(by) == {"run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run"}
+    assert by["replay_husky"].status == "not found"
+    r = by["run_default"]
+    assert r.cold_s == 10.0 and r.warm_s == pytest.approx(2.2) and r.ratio == pytest.approx(10 / 2.2)
+    assert r.notice and r.extra["warm_notice"] is False
+    text = (tmp_path / "out" / "coldstart.md").read_text()
+    assert "| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes |" in text
+    doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())
+    assert [x["name"] for x in doc["rows"]] == [r.name for r in rows] and doc["meta"]["repeats"] == 3
+    assert (tmp_path / "out" / "coldstart.png").stat().st_size > 0
