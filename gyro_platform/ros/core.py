@@ -212,8 +212,7 @@ class NodeCore:
             outcome = step.outcome
             if outcome == "pushed":
                 if step.source == "header":   # the gate's time source; receive times say nothing about loss
-                    self.loss.on_stamp(step.stamp_ns, rx if rx is not None else self._last_rx_ns,
-                                       self.gate.config.max_gap)
+                    self.loss.on_stamp(step.stamp_ns, rx, self.gate.config.max_gap, self._last_rx_ns)
             elif outcome in ("reset", "restarted"):
                 self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
                                   step.decision.stamp_ns, rx)
@@ -239,9 +238,13 @@ class NodeCore:
     def _fresh_start(self, reason: str, stamp_ns: int, rx: int | None) -> None:
         """Bookkeeping of a reset the pipeline already applied (simulator reset, grid restarted,
         time origin moved to this sample by the gate's ``rebase_on_reset``)."""
-        self.loss.restart()
-        if self.gate.time_source == "header":      # as the first sample of a fresh core
-            self.loss.on_stamp(stamp_ns, rx, self.config["gate.max_gap"])
+        if self.gate.time_source == "header":
+            if reason != "gap":                    # a new time base: as the first sample of a fresh core
+                self.loss.restart()
+            # after a gap the loss count decides: a pause, or samples lost (a replay faster than its stamps)
+            self.loss.on_stamp(stamp_ns, rx, self.config["gate.max_gap"], self._last_rx_ns)
+        else:
+            self.loss.restart()
         self.resets[reason] += 1
         self.last_reset_reason = reason
         if reason == "integration_failed":
