@@ -160,8 +160,10 @@ def main(spec):
         storm.finish(spin_for)
         report["storm"] = storm.results()
     until = spec.get("until", {})
-    spin_for(float(spec.get("timeout", 30.0)) if until else float(spec.get("settle", 1.0)),
-             lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
+    if until:
+        spin_for(float(spec.get("timeout", 30.0)), lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
+    else:           # settle: the whole time (all() of no condition would end it at once)
+        spin_for(float(spec.get("settle", 1.0)))
     report.update({"published": published, "tf": {},
                    "topics": {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms]
                               for t, ms in got.items()}})
