@@ -44,6 +44,8 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 GIMBAL_LOCK_WARN = 0.1
 #: real-time margin (1 − callback time / input period) below which diagnostics WARN
 MARGIN_WARN = 0.2
+#: input frame_ids counted by name in the diagnostics (more are counted together as 'other')
+MAX_FRAMES = 16
 #: how long (s of the caller's clock) a rejected sample or an internal error keeps the status raised
 RECENT_S = 10.0
 
@@ -154,6 +156,7 @@ class NodeCore:
         self.published = 0                          # output instants published
         self.internal_errors = 0
         self.identity_frames: set[str] = set()      # input frames without mounting, taken as base_link
+        self.frames: dict[str, int] = {}            # input frame_id -> samples (MAX_FRAMES names, then 'other')
         self.notices: list[str] = []                # one-time INFO lines for the transport to log
         self.parameter_changes = 0
         self.last_error: str | None = None
@@ -206,8 +209,14 @@ class NodeCore:
         try:
             pipe = self.pipe
             reading = msgs.reading_from_msg(msg, pipe.mounting)
-            if reading.__class__ is Reading and reading.identity_assumed:
-                self._identity_notice(reading.frame_id)
+            if reading.__class__ is Reading:
+                frames, frame = self.frames, reading.frame_id
+                if frame in frames:
+                    frames[frame] += 1
+                else:
+                    self._new_frame(frame)
+                if reading.identity_assumed:
+                    self._identity_notice(frame)
             step = pipe.offer(reading, rx)
             outcome = step.outcome
             if outcome == "pushed":
@@ -228,6 +237,12 @@ class NodeCore:
         finally:
             self.timing.add(self._clock_ns() - t0)
         return result
+
+    def _new_frame(self, frame: str) -> None:
+        """First sample of an input frame_id: counted under its name (the first ``MAX_FRAMES``
+        names; later ones together under ``other``)."""
+        key = frame if len(self.frames) < MAX_FRAMES else "other"
+        self.frames[key] = self.frames.get(key, 0) + 1
 
     def _identity_notice(self, frame: str) -> None:
         if frame not in self.identity_frames:
@@ -359,6 +374,8 @@ class NodeCore:
             "accepted": g["accepted"],
             "dropped": g["dropped"],
             "dropped_by_reason": g["dropped_by_reason"],
+            "input_frames": dict(self.frames),
+            "frames_taken_as_base_link": ", ".join(sorted(self.identity_frames)),
             "stamp_anomalies": stamp_anomalies,
             "input_lost": self.loss.total,
             "input_lost_transport": self.loss.transport,

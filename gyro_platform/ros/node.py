@@ -40,7 +40,7 @@ from typing import Any
 try:
     import rclpy
     from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-    from rclpy.clock import JumpThreshold
+    from rclpy.clock import Clock, ClockType, JumpThreshold
     from rclpy.duration import Duration
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.executors import ExternalShutdownException
@@ -103,7 +103,11 @@ class PlatformNode(Node):
         self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
                       for topic, typ in self.core.output_topics().items()}
         self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], DIAGNOSTICS_TOPIC, OUTPUT_QOS)
-        self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics)
+        # a steady clock: with use_sim_time and no /clock the node clock stands at 0 and a timer
+        # on it never fires — /diagnostics must still say what is going on
+        self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._clock_state = ""                  # "", "waiting", "running": what was logged about /clock
         self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
@@ -210,17 +214,41 @@ class PlatformNode(Node):
 
     # ---- diagnostics --------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
-        """The core's DiagnosticArray (input, platform, node) plus ``gyro_platform: transport``."""
-        now = self.get_clock().now().nanoseconds
+        """The core's DiagnosticArray (input, platform, node) plus ``gyro_platform: transport``;
+        on a steady timer. With ``use_sim_time`` and no /clock yet the node status is raised to
+        WARN 'waiting for /clock …' (and that is logged once)."""
+        clock = self.get_clock()
+        now = clock.now().nanoseconds
+        sim = clock.ros_time_is_active
+        waiting = sim and now == 0
         with self._lock:
             arr = self.core.diagnostics(now)
             topic = self.resolve_topic_name(self.core.input_topic)
             values = {"transport": "rclpy", "input_topic": topic,
                       "input_publishers_matched": self.count_publishers(topic),
                       "samples_lost_reported_by_rmw": self.lost_events, "processed": self.processed,
-                      "published": self.published}
+                      "published": self.published,
+                      "clock": "waiting for /clock (use_sim_time)" if waiting else ("sim (/clock)" if sim else "system")}
+        if waiting:
+            node = next(st for st in arr.status if st.name.endswith(": node"))
+            node.message = f"waiting for /clock (use_sim_time is true; none received); {node.message}"
+            if node.level == node.OK:
+                node.level = node.WARN
         arr.status.append(transport_status(self.core.types, values))
         self._diag_pub.publish(arr)
+        self._log_clock_state("waiting" if waiting else ("running" if self._clock_state else ""))
+
+    def _log_clock_state(self, state: str) -> None:
+        """One line when the node starts waiting for /clock, one when it comes."""
+        if state == self._clock_state or not state:
+            return
+        if state == "waiting":
+            self.get_logger().warning(
+                "use_sim_time is true and no /clock is published: waiting for /clock (inputs are taken on their "
+                "header stamps; receive times and the /diagnostics stamp stay 0 until it comes)")
+        else:
+            self.get_logger().info("/clock received: the node clock runs on sim time")
+        self._clock_state = state
 
 
 def _ignore_further_interrupts() -> None:
