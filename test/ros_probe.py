@@ -11,6 +11,7 @@ node under test: ``python3 ros_probe.py SPEC_JSON``. SPEC (all keys optional)::
                  "frames": ["base_link", "imu_link"]},   # frame_id by equal parts of count
      "collect": {"/gimbal/joint_states": "sensor_msgs/msg/JointState", ...},
      "latched": {"/robot_description": "std_msgs/msg/String"},   # transient local readers
+     "best_effort": {"/clock": "rosgraph_msgs/msg/Clock"},      # best-effort readers
      "settle": 1.0,                          # s to keep collecting after the last input
      "until": {"/diagnostics": 2},           # or collect until these counts (≤ timeout)
      "timeout": 30.0,
@@ -39,6 +40,7 @@ import tf2_ros
 COLLECT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+BEST_EFFORT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT)
 INPUT_TYPES = {"imu": "sensor_msgs/msg/Imu", "twist": "geometry_msgs/msg/Twist",
                "twist_stamped": "geometry_msgs/msg/TwistStamped"}
 
@@ -107,7 +109,8 @@ def main(spec):
     rclpy.init()
     node = rclpy.create_node("ros_probe")
     got = {}
-    for table, qos in ((spec.get("collect", {}), COLLECT), (spec.get("latched", {}), LATCHED)):
+    for table, qos in ((spec.get("collect", {}), COLLECT), (spec.get("latched", {}), LATCHED),
+                       (spec.get("best_effort", {}), BEST_EFFORT)):
         for topic, typ in table.items():
             got[topic] = []
             node.create_subscription(msg_type(typ), topic, got[topic].append, qos)

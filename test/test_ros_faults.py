@@ -170,20 +170,23 @@ def test_looped_bag_with_clock_resets_once_per_loop(ros_ws, domain, tmp_path):
     proc = launch(ros_ws, domain, "use_sim_time:=true")
     try:
         report = ros_ws.ros.probe(
-            {"collect": {**DIAG, "/clock": "rosgraph_msgs/msg/Clock"}, "pre": 2.0, "settle": 3.0,
+            {"collect": DIAG, "best_effort": {"/clock": "rosgraph_msgs/msg/Clock"}, "pre": 2.0, "settle": 3.0,
              "command": ["timeout", "-s", "INT", "9", "ros2", "bag", "play", "--loop", "--clock", "50",
                          str(tmp_path / "loop")]}, domain=domain, timeout=300)
     finally:
         proc.stop(signal.SIGINT)
     clock = [c["clock"]["sec"] + c["clock"]["nanosec"] * 1e-9 for c in report["topics"]["/clock"]]
     loops = sum(1 for a, b in zip(clock, clock[1:]) if b < a - 0.5)
-    assert loops >= 2, f"{loops} loop restarts seen on /clock"
+    assert loops >= 2, (f"{loops} loop restarts seen on /clock", len(clock), clock[:3], clock[-3:], report["command"])
     values = node_statuses(report)[-1][2]
     resets = int(values["resets"])
-    logged = len(re.findall(r"clock jumped back", proc.output))
+    logged = len(re.findall(r"simulation restarted", proc.output))
     by_reason = {k: v for k, v in values.items() if k.startswith("resets_by_reason.")}
-    assert resets in (loops, loops + 1) and logged == resets, (loops, resets, logged, by_reason)
-    assert int(values.get("clock_jumps.back", 0)) >= loops
+    jumps = int(values.get("clock_jumps.back", 0))
+    print("loops", loops, "resets", resets, "logged", logged, by_reason, "clock jumps back", jumps)
+    # the node's last loop may end after the probe stopped looking (or before): ±1 of /clock's count
+    assert abs(jumps - loops) <= 1, (loops, jumps)
+    assert resets == jumps and logged == resets, (loops, jumps, resets, logged, by_reason)
     assert "Traceback" not in proc.output
 
 

@@ -164,6 +164,7 @@ class NodeCore:
         self._last_row: tuple[Any, bool] | None = None     # (output row, stabilised) of the last instant
         self._last_out = None
         self._last_rx_ns: int | None = None
+        self._stamp_jump_at: int | None = None    # stamp of the last input jump-back reset (see on_clock_jump)
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
         self.loss = InputLoss()
@@ -262,6 +263,11 @@ class NodeCore:
             self.loss.restart()
         self.resets[reason] += 1
         self.last_reset_reason = reason
+        self._stamp_jump_at = None
+        if reason == "jump_back":               # a looped bag: said once per loop, as a clock jump is
+            self._stamp_jump_at = stamp_ns
+            detail = getattr(getattr(self.gate, "last", None), "detail", "") or "time jumped back"
+            self.notices.append(f"input stamps: {detail}; simulation restarted")
         if reason == "integration_failed":
             self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
 
@@ -304,13 +310,24 @@ class NodeCore:
         self.pipe.slot = None
         self.resets[reason] += 1
         self.last_reset_reason = reason
+        self._stamp_jump_at = None
 
-    def on_clock_jump(self, backward: bool, delta_ns: int | None = None) -> None:
+    def on_clock_jump(self, backward: bool, delta_ns: int | None = None) -> str:
         """The node clock jumped (``delta_ns`` if known). Backward: reset (reason
-        ``clock_jump_back``) when ``reset_on_clock_jump`` is true."""
+        ``clock_jump_back``) when ``reset_on_clock_jump`` is true — unless the input stamps
+        jumped back just before (a looped ``ros2 bag play --clock``: the stamps' reset, at most
+        ``max_gap`` of stamps ago, was the same loop's, and a second one would throw away the
+        samples taken since). Returns ``"reset"``, ``"same_loop"`` or ``""`` (nothing done)."""
         self.clock_jumps["back" if backward else "forward"] += 1
-        if backward and self.config["reset_on_clock_jump"]:
-            self.reset("clock_jump_back")
+        if not (backward and self.config["reset_on_clock_jump"]):
+            return ""
+        at, last = self._stamp_jump_at, self.gate.last_stamp_ns
+        self._stamp_jump_at = None
+        if at is not None and last is not None and 0 <= last - at <= self.config["gate.max_gap"] * NS:
+            self.clock_jumps["back_same_loop"] += 1
+            return "same_loop"
+        self.reset("clock_jump_back")
+        return "reset"
 
     def set_parameters(self, changes: Mapping[str, Any]) -> tuple[bool, str]:
         """Validate and apply ``changes`` (name → value) atomically. Returns ``(True, "")`` or

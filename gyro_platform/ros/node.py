@@ -207,10 +207,11 @@ class PlatformNode(Node):
     def _on_clock_jump(self, jump: Any) -> None:
         delta = jump.delta.nanoseconds
         with self._lock:
-            self.core.on_clock_jump(delta < 0, delta)
+            done = self.core.on_clock_jump(delta < 0, delta)
         if delta < 0:
-            self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s"
-                                   + ("; simulation restarted" if self.core.config["reset_on_clock_jump"] else ""))
+            self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s" + {
+                "reset": "; simulation restarted",
+                "same_loop": " with the input stamps (one loop of a replay): already restarted"}.get(done, ""))
 
     # ---- diagnostics --------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
