@@ -71,7 +71,9 @@ class Storm:
     def __init__(self, node, spec):
         from rcl_interfaces.srv import SetParameters
         self.srv, self.node = SetParameters, node
-        self.client = node.create_client(SetParameters, spec["node"] + "/set_parameters")
+        from rclpy.qos import qos_profile_parameters     # keep last 1000: no response overwritten
+        self.client = node.create_client(SetParameters, spec["node"] + "/set_parameters",
+                                         qos_profile=qos_profile_parameters)
         if not self.client.wait_for_service(timeout_sec=float(spec.get("discovery", 20.0))):
             raise SystemExit(f'no service {spec["node"]}/set_parameters')
         self.params = [tuple(p) for p in spec["params"]]

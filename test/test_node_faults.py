@@ -93,3 +93,21 @@ def test_input_frames_are_counted_by_name():
         core.on_message(imu(t, f"f{k}"), t)
     counted = core.snapshot()["input_frames"]
     assert len(counted) == MAX_FRAMES + 1 and sum(counted.values()) == 12 + MAX_FRAMES + 10
+
+
+def test_samples_dropped_for_their_values_are_no_stamp_gap():
+    """A sample the gate drops (over max_rate) was received: between two taken samples its
+    stamp is no loss. taken + dropped + lost = sent, with some samples lost for real."""
+    core = make_core(**{"gate.max_rate": 1.0})
+    rng = np.random.default_rng(4)
+    sent = 3000
+    for k in range(sent):
+        if k % 7 == 3:
+            continue                                           # lost
+        t = BASE + k * MS
+        m = imu(t)
+        m.angular_velocity.z = 2.0 if rng.random() < 0.4 else 0.05     # 40 % over max_rate
+        core.on_message(m, t)
+    snap = core.snapshot()
+    assert snap["dropped_by_reason"]["over_rate"] > 800
+    assert snap["accepted"] + snap["dropped"] + snap["input_lost"] == sent - 1   # the last one (k = 2999) is lost

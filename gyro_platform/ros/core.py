@@ -226,6 +226,11 @@ class NodeCore:
             elif outcome in ("reset", "restarted"):
                 self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
                                   step.decision.stamp_ns, rx)
+            elif outcome == "dropped":
+                # received, not lost: its stamp is no gap (a sample dropped for its values)
+                st = getattr(reading, "stamp_ns", None)
+                if st and self.gate.time_source == "header":
+                    self.loss.on_stamp(st, rx, self.gate.config.max_gap, self._last_rx_ns)
             elif outcome == "rejected":
                 self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
             if step.emit:
