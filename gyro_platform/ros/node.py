@@ -15,16 +15,19 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
 * input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
-  ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps) is
-  counted by ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
+  ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps; Cyclone
+  DDS reports neither keep-last overwrites nor publication sequence numbers) is counted by
+  ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
   ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
   come from ``robot_state_publisher`` (started by the launch file with the URDF of
   :mod:`gyro_platform.io.urdf`) fed by ``gimbal/joint_states``;
-* ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a timer —
-  the same status names as the plain-DDS transport;
+* ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a steady
+  timer (it runs with ``use_sim_time`` and no /clock: then WARN "waiting for /clock", logged
+  once) — the same status names as the plain-DDS transport;
 * ``~/reset`` (``std_srvs/srv/Trigger``) and a backward jump of the node clock (looped
-  ``ros2 bag play --clock --loop``) restart the simulation.
+  ``ros2 bag play --clock --loop``) restart the simulation (once per loop: see
+  ``NodeCore.on_clock_jump``).
 
 Run: ``ros2 run gyro_platform platform_node --ros-args --params-file config/platform.yaml``.
 Ctrl-C (also the second SIGINT ``ros2 launch`` sends) ends it quietly with exit code 0.
