@@ -172,7 +172,7 @@ def test_heavy_loss_once_the_period_is_known_with_jittered_stamps():
     sample in 3..7: counted within 1 % although no step of the window is single."""
     rng = np.random.default_rng(7)
     ks = list(range(300)) + keep_last_taken(20_000, 3, 7, rng, drain=0)[1:]
-    ks = sorted(set(k + 300 for k in ks[300:]) | set(ks[:300]))
+    ks = sorted({k + 300 for k in ks[300:]} | set(ks[:300]))
     stamps = [BASE + k * MS + int(rng.uniform(-0.1, 0.1) * MS) for k in ks]
     loss = feed(InputLoss(), stamps)
     missing = ks[-1] - ks[0] + 1 - len(ks)

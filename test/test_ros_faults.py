@@ -11,10 +11,10 @@ not timing (the machine is shared): every input sample sent is taken, dropped or
 """
 import json
 import os
+from pathlib import Path
 import re
 import signal
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -217,8 +217,8 @@ def test_frame_id_changes_mid_stream(ros_ws, domain, tmp_path):
     imu_link (mounted by sensor_mountings): outputs go on through all three, the diagnostics
     count the samples of each frame."""
     params = tmp_path / "params.yaml"
-    params.write_text('/**:\n  ros__parameters:\n    sensor_mountings: ["imu_link=0.0,0.0,1.5707963267948966"]\n'
-                      '    output_rate: 20.0\n')
+    params.write_text("/**:\n  ros__parameters:\n    sensor_mountings:\n      - imu_link=0.0,0.0,1.5707963267948966\n"
+                      "    output_rate: 20.0\n")
     proc = launch(ros_ws, domain, f"params_file:={params}")
     n = 600
     try:
@@ -230,7 +230,7 @@ def test_frame_id_changes_mid_stream(ros_ws, domain, tmp_path):
             domain=domain, timeout=200)
     finally:
         proc.stop(signal.SIGINT)
-    out = [m["header"]["stamp"]["sec"] + m["header"]["stamp"]["nanosec"] * 1e-9 for m in report["topics"]["/drift/angle"]]
+    out = [stamp(m) * 1e-9 for m in report["topics"]["/drift/angle"]]
     for k in range(3):                      # outputs in each third of the stream (2 s each at 20 Hz)
         inside = [t for t in out if 1000.0 + 2 * k <= t < 1000.0 + 2 * (k + 1)]
         assert len(inside) >= 20, f"phase {k}: {len(inside)} outputs"

@@ -232,7 +232,8 @@ class PlatformNode(Node):
                       "input_publishers_matched": self.count_publishers(topic),
                       "samples_lost_reported_by_rmw": self.lost_events, "processed": self.processed,
                       "published": self.published,
-                      "clock": "waiting for /clock (use_sim_time)" if waiting else ("sim (/clock)" if sim else "system")}
+                      "clock": ("waiting for /clock (use_sim_time)" if waiting
+                                else "sim (/clock)" if sim else "system")}
         if waiting:
             node = next(st for st in arr.status if st.name.endswith(": node"))
             node.message = f"waiting for /clock (use_sim_time is true; none received); {node.message}"
