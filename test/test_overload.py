@@ -212,3 +212,21 @@ def test_a_gap_longer_than_max_gap_is_a_pause_only_when_the_receive_times_pause_
     lost = feed(InputLoss(), stamps, rx=rx)
     assert lost.stamp_gaps == 2000
     assert feed(InputLoss(), stamps).stamp_gaps == 0                    # receive times unknown: a pause
+
+
+def test_exact_stamps_every_step_spanning_losses_from_the_start():
+    """No single step ever (no drain): exact stamps whose steps are 3..7 periods — the spread
+    multiples give the period (checked every WINDOW steps); the whole span is counted."""
+    rng = np.random.default_rng(8)
+    ks = np.cumsum(rng.integers(3, 8, 5000)).tolist()
+    loss = feed(InputLoss(), [BASE + round(k * 10**9 / 30) for k in ks])
+    missing = ks[-1] - ks[0] + 1 - len(ks)
+    assert loss.stamp_gaps == missing
+    assert loss.period_ns == pytest.approx(10**9 / 30, rel=1e-6)
+
+
+def test_repeated_and_backward_stamps_are_no_step():
+    loss = InputLoss()
+    for k in [0, 1, 2, 2, 1, 3, 4, 0, 5, 6]:
+        loss.on_stamp(BASE + k * MS, BASE + k * MS, 1.0)
+    assert loss.stamp_gaps == 0

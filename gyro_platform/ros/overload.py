@@ -17,7 +17,8 @@ class InputLoss:
 
     Stamp gaps, by segment: a segment is a run of stamps at one nominal period ``P``; its loss
     is ``round((last stamp − first stamp) / P) − steps`` — the samples the span holds at the
-    nominal rate minus those taken — recomputed at every stamp, so a period learnt late (a node
+    nominal rate minus those taken — recomputed at every step that is not a single (and when
+    the period changes), so a period learnt late (a node
     that never saw two consecutive samples until its queue drained) counts the whole segment.
     ``P`` is the mean of the segment's *single* steps: shorter than 1.5 × the current ``P``
     (the cluster at the window's minimum: jitter averages out, multi-period steps stay out however
@@ -87,12 +88,13 @@ class InputLoss:
         """One accepted sample's stamp (ns), its receive time (``rx_ns``, None when unknown)
         and the time that stands for it in the WARN's recency (``seen_ns``, default
         ``rx_ns``). Pure Python, no numpy."""
-        last, self._last_stamp = self._last_stamp, stamp_ns
+        last = self._last_stamp
+        if last is not None and stamp_ns <= last:
+            return                         # repeated or backward: no step (the gate's to judge)
+        self._last_stamp = stamp_ns
         last_rx, self._last_rx = self._last_rx, rx_ns
         if last is None:
             self._open(stamp_ns)
-            return
-        if stamp_ns <= last:
             return
         step = stamp_ns - last
         gap = max_gap_s * NS
@@ -105,11 +107,34 @@ class InputLoss:
             self._no_single = 0
             return
         self._seg_steps += 1
-        self._classify(step, last)
-        self._push(step)
+        ref = self._ref
+        single = ref is not None and step < self.SINGLE * ref and step * self.SINGLE >= ref and self._pending is None
+        if single:
+            self._sum += step              # a single step at a known period: the common case, inline
+            self._n += 1
+            self._ref = self._sum / self._n
+            self._no_single = 0
+        else:
+            self._classify(step, last)
+        steps, srt = self._steps, self._sorted          # the window, and sorted
+        if len(steps) == self.WINDOW:
+            old = steps.popleft()
+            if old != step:             # a steady input replaces a step by an equal one: srt stays
+                del srt[bisect_left(srt, old)]
+                insort(srt, step)
+        else:
+            insort(srt, step)
+        steps.append(step)
         if self._no_single >= self.WINDOW:
             self._slowed_down(stamp_ns)
-        self._recount(stamp_ns, rx_ns if rx_ns is not None else seen_ns)
+        elif len(self._steps) == self.WINDOW and self._seg_steps % self.WINDOW == 0:
+            self._hidden_period()
+        elif single:
+            return                         # no loss in this step: the count is redone at the next one
+        cur = int(round((stamp_ns - self._seg_start) / self._ref)) - self._seg_steps
+        if cur > self._current:
+            self.last_rx_ns = rx_ns if rx_ns is not None else seen_ns
+        self._current = cur if cur > 0 else 0
 
     # ---- segments -----------------------------------------------------------------------
     def _open(self, stamp_ns: int) -> None:
@@ -122,12 +147,6 @@ class InputLoss:
     def _count(self, span: int, steps: int) -> int:
         p = self._ref
         return max(0, int(round(span / p)) - steps) if p else 0
-
-    def _recount(self, stamp_ns: int, seen: int | None) -> None:
-        cur = self._count(stamp_ns - self._seg_start, self._seg_steps)
-        if cur > self._current:
-            self.last_rx_ns = seen
-        self._current = cur
 
     def _classify(self, step: int, last: int) -> None:
         ref = self._ref
@@ -166,6 +185,29 @@ class InputLoss:
         tol = self.MULTIPLE_TOL
         return all(abs(s / p - round(s / p)) <= tol for s in srt)
 
+    def _hidden_period(self) -> None:
+        """Every ``WINDOW`` steps: are the window's steps spread multiples of a period shorter
+        than the nominal one (exact stamps, every step spanning losses: no single ever seen)?
+        The steps grouped (within 2 %), the smallest difference between groups divided by 1…4
+        is tried; the largest that every step is a multiple of becomes the period."""
+        srt, ref = self._sorted, self._ref
+        if srt[-1] - srt[0] < 0.3 * srt[0]:
+            return                         # a tight cluster: a regular rate
+        groups = [srt[0]]
+        for x in srt:
+            if x - groups[-1] > 0.02 * srt[0]:
+                groups.append(x)
+        if len(groups) < 2:
+            return
+        d = min(b - a for a, b in zip(groups, groups[1:]))
+        for j in (1, 2, 3, 4):
+            p = d / j
+            if self._multiples(srt, p):        # the largest such period (the simplest account)
+                if p * self.SINGLE < ref:
+                    self._sum, self._n, self._ref, self._no_single = p, 1, p, 0
+                    self._pending = None
+                return
+
     def _slowed_down(self, stamp_ns: int) -> None:
         """``WINDOW`` steps without a single: a regular slower rate starts a new segment there."""
         srt, ref = self._sorted, self._ref
@@ -183,17 +225,6 @@ class InputLoss:
         self._sum, self._n, self._no_single = sum(singles), len(singles), 0
         self._ref = self._sum / self._n
         self._pending = None
-
-    def _push(self, step: int) -> None:
-        steps, srt = self._steps, self._sorted
-        if len(steps) == self.WINDOW:
-            old = steps.popleft()
-            if old != step:             # a steady input replaces a step by an equal one: srt stays
-                del srt[bisect_left(srt, old)]
-                insort(srt, step)
-        else:
-            insort(srt, step)
-        steps.append(step)
 
     def restart(self) -> None:
         """A new time base (reset): stamp steps across it are not gaps; the period is learnt
