@@ -31,6 +31,10 @@ class InputLoss:
     * else the publisher sped up: the segment closes where the new rate began, counted at the
       old period, and a new one starts there.
 
+    Exact stamps whose every step spans losses (no single ever, no drain): every ``WINDOW``
+    steps, when the window's steps are spread, the largest step they are all multiples of (the
+    smallest difference between their groups, divided by 1…4) becomes ``P`` if shorter.
+
     A publisher that slows down: ``WINDOW`` steps in a row without a single, ¾ of them within
     half a period of the window's minimum (a regular rate, not the spread of an overload) — the
     segment closes where those steps began and they start a new one at their period. An exact
