@@ -20,7 +20,9 @@ use): ``reading_from_msg`` → gate → ``apply_decision`` → output grid. Outp
 at output instants, into message objects built once and refilled (the transports publish
 synchronously): the pairs :meth:`NodeCore.on_message` returns are valid until its next call.
 A reset (``~/reset``, a clock jump back, a gap or a jump back in the stamps) is a fresh start:
-new simulator state, time origin and output grid at the next sample, input-loss window cleared.
+new simulator state, time origin and output grid at the next sample, input-loss window cleared
+(after a gap the loss count keeps its period and judges the gap itself: a pause, or samples
+lost when the receive times show none — :class:`~gyro_platform.ros.overload.InputLoss`).
 """
 from __future__ import annotations
 
