@@ -265,9 +265,25 @@ def _ignore_further_interrupts() -> None:
         pass
 
 
+def _interrupt_once() -> None:
+    """Ctrl-C raises KeyboardInterrupt once: the handler itself ignores every later SIGINT.
+    ``ros2 launch`` sends its own SIGINT right after the terminal's (process group), and a busy
+    node (a parameter storm) may still be unwinding the first when it comes: a second
+    KeyboardInterrupt there escaped ``main`` with a traceback (exit −2)."""
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGINT, handler)
+    except (ValueError, OSError):  # pragma: no cover - not the main thread
+        pass
+
+
 def main(args: list[str] | None = None) -> int:
     """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
     with one line on stderr when the parameters are invalid."""
+    _interrupt_once()            # before rclpy.init: rclpy's handler calls it after its own
     rclpy.init(args=args)
     node = None
     code = 0
@@ -281,6 +297,11 @@ def main(args: list[str] | None = None) -> int:
         # bad parameters or a model that cannot be built: one clear line, no traceback
         print(f"gyro_platform_node: cannot start: {e}", file=sys.stderr)
         code = 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Ctrl-C between 'ready' and spin: rclpy's handler shut the context down under the
+        # executor being made (RCLError) — a stop like any other
     finally:
         _ignore_further_interrupts()
         try:
