@@ -21,21 +21,29 @@ node under test: ``python3 ros_probe.py SPEC_JSON``. SPEC (all keys optional)::
      "discovery": 20.0,
      "publish": {"topic": "/imu", "type": "imu" | "twist" | "twist_stamped", "rate": 100.0,
                  "count": 200, "w": [wx, wy, wz], "f": [fx, fy, fz], "frame_id": "base_link",
-                 "stamp": "now" | "zero" | <t0 in s>},
+                 "stamp": "now" | "zero" | <t0 in s>,
+                 "frames": ["base_link", "imu_link"]},   # frame_id by equal parts of count
      "collect": {"/gimbal/joint_states": "sensor_msgs/msg/JointState", ...},
      "latched": {"/robot_description": "std_msgs/msg/String"},   # transient local readers
+     "best_effort": {"/clock": "rosgraph_msgs/msg/Clock"},      # best-effort readers
      "settle": 1.0,                          # s to keep collecting after the last input
      "until": {"/diagnostics": 2},           # or collect until these counts (≤ timeout)
      "timeout": 30.0,
-     "tf": [["platform", "gyro_frame4"], ...]}   # looked up in a tf2_ros.Buffer at the end
+     "tf": [["platform", "gyro_frame4"], ...],   # looked up in a tf2_ros.Buffer at the end
+     "command": ["ros2", "bag", "play", ...],   # run while collecting (after "pre"); then settle
+     "storm": {"node": "/gyro_platform_node", "rate": 300.0,   # SetParameters requests, one
+               "params": [["gate.max_rate", 30.0], ...]}}      # parameter each, during "publish"
 
 The report (last stdout line): ``{"published": n, "topics": {topic: [message dicts]},
 "tf": {"target|source": {"stamp": s, "rotation": [x, y, z, w], "translation": [...]}
-| {"error": "..."}}}``.
+| {"error": "..."}}, "command": {"returncode": n, "output": tail} (with "command"),
+"storm": [{"name", "value", "successful", "reason"} in request order] (with "storm")}``.
 """
 import importlib
 import json
+import subprocess
 import sys
+import threading
 import time
 
 import rclpy
@@ -46,6 +54,7 @@ import tf2_ros
 COLLECT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+BEST_EFFORT = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT)
 INPUT_TYPES = {"imu": "sensor_msgs/msg/Imu", "twist": "geometry_msgs/msg/Twist",
                "twist_stamped": "geometry_msgs/msg/TwistStamped"}
 
@@ -69,12 +78,55 @@ def make_input(kind, t_ns, w, f, frame_id):
     return m
 
 
+class Storm:
+    """SetParameters requests (one parameter each) at ``rate`` per second, sent from the probe's
+    publish loop; responses collected in request order."""
+
+    def __init__(self, node, spec):
+        from rcl_interfaces.srv import SetParameters
+        self.srv, self.node = SetParameters, node
+        from rclpy.qos import qos_profile_parameters  # keep last 1000: no response overwritten
+        self.client = node.create_client(SetParameters, spec["node"] + "/set_parameters",
+                                         qos_profile=qos_profile_parameters)
+        if not self.client.wait_for_service(timeout_sec=float(spec.get("discovery", 20.0))):
+            raise SystemExit(f'no service {spec["node"]}/set_parameters')
+        self.params = [tuple(p) for p in spec["params"]]
+        self.period = 1.0 / float(spec.get("rate", 200.0))
+        self.futures = []
+        self.start = None
+
+    def send_due(self):
+        from rclpy.parameter import Parameter
+        now = time.monotonic()
+        if self.start is None:
+            self.start = now
+        while len(self.futures) < len(self.params) and self.start + len(self.futures) * self.period <= now:
+            name, value = self.params[len(self.futures)]
+            req = self.srv.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+            self.futures.append(self.client.call_async(req))
+
+    def finish(self, spin_for, timeout=60.0):
+        while len(self.futures) < len(self.params):
+            self.send_due()
+            spin_for(0.001)
+        spin_for(timeout, lambda: all(f.done() for f in self.futures))
+
+    def results(self):
+        out = []
+        for (name, value), f in zip(self.params, self.futures):
+            r = f.result().results[0] if f.done() and f.result() is not None else None
+            out.append({"name": name, "value": value, "successful": None if r is None else bool(r.successful),
+                        "reason": None if r is None else r.reason})
+        return out
+
+
 def main(spec):
     """Run the probe of ``spec``; the report as a dict."""
     rclpy.init()
     node = rclpy.create_node("ros_probe")
     got = {}
-    for table, qos in ((spec.get("collect", {}), COLLECT), (spec.get("latched", {}), LATCHED)):
+    for table, qos in ((spec.get("collect", {}), COLLECT), (spec.get("latched", {}), LATCHED),
+                       (spec.get("best_effort", {}), BEST_EFFORT)):
         for topic, typ in table.items():
             got[topic] = []
             node.create_subscription(msg_type(typ), topic, got[topic].append, qos)
@@ -92,6 +144,17 @@ def main(spec):
         if node.count_subscribers(spec["wait_subscriber"]) == 0:
             raise SystemExit(f'no subscriber on {spec["wait_subscriber"]} after {discovery} s')
     spin_for(float(spec.get("pre", 0.5)))       # let the node's publishers match our readers
+    report = {}
+    if spec.get("command"):
+        cmd = subprocess.Popen(spec["command"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        out = []
+        reader = threading.Thread(target=lambda: out.extend(cmd.stdout), daemon=True)
+        reader.start()
+        while cmd.poll() is None:
+            spin_for(0.05)
+        reader.join(5.0)
+        report["command"] = {"returncode": cmd.returncode, "output": "".join(out)[-3000:]}
+    storm = Storm(node, spec["storm"]) if spec.get("storm") else None
     published = 0
     pub_spec = spec.get("publish")
     if pub_spec:
@@ -105,18 +168,27 @@ def main(spec):
         else:
             t0 = 0 if stamp == "zero" else int(float(stamp) * 1e9)
         start = time.monotonic()
-        for k in range(int(pub_spec.get("count", 100))):
+        count, frames = int(pub_spec.get("count", 100)), pub_spec.get("frames")
+        for k in range(count):
             t_ns = 0 if stamp == "zero" else t0 + int(round(k * period * 1e9))
+            frame = frames[k * len(frames) // count] if frames else pub_spec.get("frame_id", "base_link")
             pub.publish(make_input(kind, t_ns, pub_spec.get("w", (0.0, 0.0, 0.0)),
-                                   pub_spec.get("f", (0.0, 0.0, 9.81)), pub_spec.get("frame_id", "base_link")))
+                                   pub_spec.get("f", (0.0, 0.0, 9.81)), frame))
             published += 1
+            if storm is not None:
+                storm.send_due()
             spin_for(max(0.0, start + (k + 1) * period - time.monotonic()))
+    if storm is not None:
+        storm.finish(spin_for)
+        report["storm"] = storm.results()
     until = spec.get("until", {})
-    spin_for(float(spec.get("timeout", 30.0)) if until else float(spec.get("settle", 1.0)),
-             lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
-    report = {"published": published,
-              "topics": {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms] for t, ms in got.items()},
-              "tf": {}}
+    if until:
+        spin_for(float(spec.get("timeout", 30.0)), lambda: all(len(got.get(t, ())) >= n for t, n in until.items()))
+    else:           # settle: the whole time (all() of no condition would end it at once)
+        spin_for(float(spec.get("settle", 1.0)))
+    report.update({"published": published, "tf": {},
+                   "topics": {t: [json.loads(json.dumps(message_to_ordereddict(m))) for m in ms]
+                              for t, ms in got.items()}})
     for target, source in spec.get("tf", []):
         key = f"{target}|{source}"
         try:

@@ -71,9 +71,9 @@ def test_missing_stamps_are_counted_once_the_period_is_known(pattern):
         ks = [k for k in range(n) if k < 2 or rng.random() > 0.35]
     core = make_core()
     now = run(core, ks)
-    # oracle: the stamps missing after the window that fixes the nominal period (8 steps)
-    first_counted = ks[8]
-    missing = sum(1 for k in range(first_counted, ks[-1]) if k not in set(ks))
+    # oracle: every stamp missing between the first and the last (a period learnt from a few
+    # steps also counts the gaps before it: the count is of the whole span)
+    missing = sum(1 for k in range(ks[0], ks[-1]) if k not in set(ks))
     snap = core.snapshot(now)
     assert snap["input_lost_stamp_gaps"] == missing
     assert snap["input_lost"] == missing and snap["input_lost_transport"] == 0
@@ -145,3 +145,102 @@ def test_the_stamp_window_stays_sorted_through_steady_and_changing_steps():
         loss.on_stamp(t, t, 1.0)
         assert loss._sorted == sorted(loss._steps)
         assert len(loss._steps) <= InputLoss.WINDOW
+
+
+# ---- heavy loss (issue 33): a node that takes one sample in five or fifty ----------------------
+def feed(loss: InputLoss, stamps, rx=None, max_gap=1.0):
+    for i, t in enumerate(stamps):
+        loss.on_stamp(int(t), None if rx is None else int(rx[i]), max_gap)
+    return loss
+
+
+def keep_last_taken(n: int, ratio_lo: int, ratio_hi: int, rng, drain: int = 5) -> list[int]:
+    """Indices a node behind a keep-last queue takes: steps of ratio_lo..ratio_hi samples, then
+    the queue's last ``drain`` samples one by one (the queue drains when the input stops)."""
+    ks, k = [0], 0
+    while k < n - drain - ratio_hi:
+        k += int(rng.integers(ratio_lo, ratio_hi + 1))
+        ks.append(k)
+    ks += list(range(n - drain, n))
+    return ks
+
+
+@pytest.mark.parametrize("ratio", [(3, 7), (40, 70)])
+def test_heavy_loss_without_a_single_step_until_the_queue_drains(ratio):
+    """``ros2 bag play --rate 200`` of 30 Hz stamps: the node never sees two consecutive samples
+    until its queue drains at the end; the period learnt then counts the whole span — also when
+    the steps are longer than max_gap (the receive times show no pause)."""
+    rng = np.random.default_rng(3)
+    n, period = 4500, 10**9 / 30
+    ks = keep_last_taken(n, *ratio, rng)
+    stamps = [1000 * 10**9 + round(k * period) for k in ks]
+    rx = [5 * 10**9 + k * 166_000 for k in ks]                 # 6 kHz arrivals
+    loss = feed(InputLoss(), stamps, rx)
+    missing = ks[-1] - ks[0] + 1 - len(ks)
+    assert loss.stamp_gaps == missing
+    assert loss.period_ns == pytest.approx(period, rel=1e-6)
+
+
+def test_heavy_loss_once_the_period_is_known_with_jittered_stamps():
+    """A steady 1 kHz input (stamps jittered ±10 % around the grid), then the node takes one
+    sample in 3..7: counted within 1 % although no step of the window is single."""
+    rng = np.random.default_rng(7)
+    ks = list(range(300)) + keep_last_taken(20_000, 3, 7, rng, drain=0)[1:]
+    ks = sorted({k + 300 for k in ks[300:]} | set(ks[:300]))
+    stamps = [BASE + k * MS + int(rng.uniform(-0.1, 0.1) * MS) for k in ks]
+    loss = feed(InputLoss(), stamps)
+    missing = ks[-1] - ks[0] + 1 - len(ks)
+    assert abs(loss.stamp_gaps - missing) <= 0.01 * missing, (loss.stamp_gaps, missing)
+
+
+@pytest.mark.parametrize("new_period_ms", [3.3, 7.1])
+def test_a_publisher_that_slows_down_is_no_loss(new_period_ms):
+    """1 kHz, then a regular slower rate (jittered ±5 %): after one window the new period is
+    the nominal one and the steps of that window are recounted — no loss left."""
+    rng = np.random.default_rng(2)
+    t, stamps = BASE, []
+    for _ in range(300):
+        t += MS
+        stamps.append(t)
+    for _ in range(400):
+        t += int(new_period_ms * MS * (1 + rng.uniform(-0.05, 0.05)))
+        stamps.append(t)
+    loss = feed(InputLoss(), stamps)
+    assert loss.stamp_gaps == 0
+    assert loss.period_ns == pytest.approx(new_period_ms * MS, rel=0.02)
+
+
+def test_a_publisher_that_speeds_up_is_no_loss():
+    """100 Hz then 1 kHz (regular): the faster period starts a new segment; nothing lost."""
+    stamps = [BASE + k * 10 * MS for k in range(200)]
+    stamps += [stamps[-1] + k * MS for k in range(1, 500)]
+    loss = feed(InputLoss(), stamps)
+    assert loss.stamp_gaps == 0 and loss.period_ns == MS
+
+
+def test_a_gap_longer_than_max_gap_is_a_pause_only_when_the_receive_times_pause_too():
+    stamps = [BASE + k * MS for k in range(100)] + [BASE + (2100 + k) * MS for k in range(100)]
+    paused = feed(InputLoss(), stamps, rx=stamps)                       # 2 s without input
+    assert paused.stamp_gaps == 0
+    rx = [BASE + k * MS // 10 for k in range(200)]                   # a replay 10× faster than its stamps
+    lost = feed(InputLoss(), stamps, rx=rx)
+    assert lost.stamp_gaps == 2000
+    assert feed(InputLoss(), stamps).stamp_gaps == 0                    # receive times unknown: a pause
+
+
+def test_exact_stamps_every_step_spanning_losses_from_the_start():
+    """No single step ever (no drain): exact stamps whose steps are 3..7 periods — the spread
+    multiples give the period (checked every WINDOW steps); the whole span is counted."""
+    rng = np.random.default_rng(8)
+    ks = np.cumsum(rng.integers(3, 8, 5000)).tolist()
+    loss = feed(InputLoss(), [BASE + round(k * 10**9 / 30) for k in ks])
+    missing = ks[-1] - ks[0] + 1 - len(ks)
+    assert loss.stamp_gaps == missing
+    assert loss.period_ns == pytest.approx(10**9 / 30, rel=1e-6)
+
+
+def test_repeated_and_backward_stamps_are_no_step():
+    loss = InputLoss()
+    for k in [0, 1, 2, 2, 1, 3, 4, 0, 5, 6]:
+        loss.on_stamp(BASE + k * MS, BASE + k * MS, 1.0)
+    assert loss.stamp_gaps == 0

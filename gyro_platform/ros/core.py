@@ -34,7 +34,9 @@ use): ``reading_from_msg`` → gate → ``apply_decision`` → output grid. Outp
 at output instants, into message objects built once and refilled (the transports publish
 synchronously): the pairs :meth:`NodeCore.on_message` returns are valid until its next call.
 A reset (``~/reset``, a clock jump back, a gap or a jump back in the stamps) is a fresh start:
-new simulator state, time origin and output grid at the next sample, input-loss window cleared.
+new simulator state, time origin and output grid at the next sample, input-loss window cleared
+(after a gap the loss count keeps its period and judges the gap itself: a pause, or samples
+lost when the receive times show none — :class:`~gyro_platform.ros.overload.InputLoss`).
 """
 from __future__ import annotations
 
@@ -58,6 +60,8 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 GIMBAL_LOCK_WARN = 0.1
 #: real-time margin (1 − callback time / input period) below which diagnostics WARN
 MARGIN_WARN = 0.2
+#: input frame_ids counted by name in the diagnostics (more are counted together as 'other')
+MAX_FRAMES = 16
 #: how long (s of the caller's clock) a rejected sample or an internal error keeps the status raised
 RECENT_S = 10.0
 
@@ -167,6 +171,7 @@ class NodeCore:
         self.published = 0                          # output instants published
         self.internal_errors = 0
         self.identity_frames: set[str] = set()      # input frames without mounting, taken as base_link
+        self.frames: dict[str, int] = {}            # input frame_id -> samples (MAX_FRAMES names, then 'other')
         self.notices: list[str] = []                # one-time INFO lines for the transport to log
         self.parameter_changes = 0
         self.last_error: str | None = None
@@ -174,6 +179,7 @@ class NodeCore:
         self._last_row: tuple[Any, bool] | None = None     # (output row, stabilised) of the last instant
         self._last_out = None
         self._last_rx_ns: int | None = None
+        self._stamp_jump_at: int | None = None    # stamp of the last input jump-back reset (see on_clock_jump)
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
         self.loss = InputLoss()
@@ -219,17 +225,27 @@ class NodeCore:
         try:
             pipe = self.pipe
             reading = msgs.reading_from_msg(msg, pipe.mounting)
-            if reading.__class__ is Reading and reading.identity_assumed:
-                self._identity_notice(reading.frame_id)
+            if reading.__class__ is Reading:
+                frames, frame = self.frames, reading.frame_id
+                if frame in frames:
+                    frames[frame] += 1
+                else:
+                    self._new_frame(frame)
+                if reading.identity_assumed:
+                    self._identity_notice(frame)
             step = pipe.offer(reading, rx)
             outcome = step.outcome
             if outcome == "pushed":
                 if step.source == "header":   # the gate's time source; receive times say nothing about loss
-                    self.loss.on_stamp(step.stamp_ns, rx if rx is not None else self._last_rx_ns,
-                                       self.gate.config.max_gap)
+                    self.loss.on_stamp(step.stamp_ns, rx, self.gate.config.max_gap, self._last_rx_ns)
             elif outcome in ("reset", "restarted"):
                 self._fresh_start("integration_failed" if outcome == "restarted" else step.decision.reason,
                                   step.decision.stamp_ns, rx)
+            elif outcome == "dropped":
+                # received, not lost: its stamp is no gap (a sample dropped for its values)
+                st = getattr(reading, "stamp_ns", None)
+                if st and self.gate.time_source == "header":
+                    self.loss.on_stamp(st, rx, self.gate.config.max_gap, self._last_rx_ns)
             elif outcome == "rejected":
                 self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
             if step.emit:
@@ -243,6 +259,12 @@ class NodeCore:
             self.timing.add(self._clock_ns() - t0)
         return result
 
+    def _new_frame(self, frame: str) -> None:
+        """First sample of an input frame_id: counted under its name (the first ``MAX_FRAMES``
+        names; later ones together under ``other``)."""
+        key = frame if len(self.frames) < MAX_FRAMES else "other"
+        self.frames[key] = self.frames.get(key, 0) + 1
+
     def _identity_notice(self, frame: str) -> None:
         if frame not in self.identity_frames:
             self.identity_frames.add(frame)
@@ -252,11 +274,20 @@ class NodeCore:
     def _fresh_start(self, reason: str, stamp_ns: int, rx: int | None) -> None:
         """Bookkeeping of a reset the pipeline already applied (simulator reset, grid restarted,
         time origin moved to this sample by the gate's ``rebase_on_reset``)."""
-        self.loss.restart()
-        if self.gate.time_source == "header":      # as the first sample of a fresh core
-            self.loss.on_stamp(stamp_ns, rx, self.config["gate.max_gap"])
+        if self.gate.time_source == "header":
+            if reason != "gap":                    # a new time base: as the first sample of a fresh core
+                self.loss.restart()
+            # after a gap the loss count decides: a pause, or samples lost (a replay faster than its stamps)
+            self.loss.on_stamp(stamp_ns, rx, self.config["gate.max_gap"], self._last_rx_ns)
+        else:
+            self.loss.restart()
         self.resets[reason] += 1
         self.last_reset_reason = reason
+        self._stamp_jump_at = None
+        if reason == "jump_back":               # a looped bag: said once per loop, as a clock jump is
+            self._stamp_jump_at = stamp_ns
+            detail = getattr(getattr(self.gate, "last", None), "detail", "") or "time jumped back"
+            self.notices.append(f"input stamps: {detail}; simulation restarted")
         if reason == "integration_failed":
             self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
 
@@ -299,13 +330,24 @@ class NodeCore:
         self.pipe.slot = None
         self.resets[reason] += 1
         self.last_reset_reason = reason
+        self._stamp_jump_at = None
 
-    def on_clock_jump(self, backward: bool, delta_ns: int | None = None) -> None:
+    def on_clock_jump(self, backward: bool, delta_ns: int | None = None) -> str:
         """The node clock jumped (``delta_ns`` if known). Backward: reset (reason
-        ``clock_jump_back``) when ``reset_on_clock_jump`` is true."""
+        ``clock_jump_back``) when ``reset_on_clock_jump`` is true — unless the input stamps
+        jumped back just before (a looped ``ros2 bag play --clock``: the stamps' reset, at most
+        ``max_gap`` of stamps ago, was the same loop's, and a second one would throw away the
+        samples taken since). Returns ``"reset"``, ``"same_loop"`` or ``""`` (nothing done)."""
         self.clock_jumps["back" if backward else "forward"] += 1
-        if backward and self.config["reset_on_clock_jump"]:
-            self.reset("clock_jump_back")
+        if not (backward and self.config["reset_on_clock_jump"]):
+            return ""
+        at, last = self._stamp_jump_at, self.gate.last_stamp_ns
+        self._stamp_jump_at = None
+        if at is not None and last is not None and 0 <= last - at <= self.config["gate.max_gap"] * NS:
+            self.clock_jumps["back_same_loop"] += 1
+            return "same_loop"
+        self.reset("clock_jump_back")
+        return "reset"
 
     def set_parameters(self, changes: Mapping[str, Any]) -> tuple[bool, str]:
         """Validate and apply ``changes`` (name → value) atomically. Returns ``(True, "")`` or
@@ -369,6 +411,8 @@ class NodeCore:
             "accepted": g["accepted"],
             "dropped": g["dropped"],
             "dropped_by_reason": g["dropped_by_reason"],
+            "input_frames": dict(self.frames),
+            "frames_taken_as_base_link": ", ".join(sorted(self.identity_frames)),
             "stamp_anomalies": stamp_anomalies,
             "input_lost": self.loss.total,
             "input_lost_transport": self.loss.transport,

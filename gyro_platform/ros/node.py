@@ -29,16 +29,19 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
 * input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
-  ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps) is
-  counted by ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
+  ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps; Cyclone
+  DDS reports neither keep-last overwrites nor publication sequence numbers) is counted by
+  ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
   ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
   come from ``robot_state_publisher`` (started by the launch file with the URDF of
   :mod:`gyro_platform.io.urdf`) fed by ``gimbal/joint_states``;
-* ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a timer —
-  the same status names as the plain-DDS transport;
+* ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a steady
+  timer (it runs with ``use_sim_time`` and no /clock: then WARN "waiting for /clock", logged
+  once) — the same status names as the plain-DDS transport;
 * ``~/reset`` (``std_srvs/srv/Trigger``) and a backward jump of the node clock (looped
-  ``ros2 bag play --clock --loop``) restart the simulation.
+  ``ros2 bag play --clock --loop``) restart the simulation (once per loop: see
+  ``NodeCore.on_clock_jump``).
 
 Run: ``ros2 run gyro_platform platform_node --ros-args --params-file config/platform.yaml``.
 Ctrl-C (also the second SIGINT ``ros2 launch`` sends) ends it quietly with exit code 0.
@@ -54,7 +57,7 @@ from typing import Any
 try:
     from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
     import rclpy
-    from rclpy.clock import JumpThreshold
+    from rclpy.clock import Clock, ClockType, JumpThreshold
     from rclpy.duration import Duration
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.executors import ExternalShutdownException
@@ -118,7 +121,11 @@ class PlatformNode(Node):
         self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
                       for topic, typ in self.core.output_topics().items()}
         self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], DIAGNOSTICS_TOPIC, OUTPUT_QOS)
-        self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics)
+        # a steady clock: with use_sim_time and no /clock the node clock stands at 0 and a timer
+        # on it never fires — /diagnostics must still say what is going on
+        self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._clock_state = ""                  # "", "waiting", "running": what was logged about /clock
         self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
@@ -218,24 +225,50 @@ class PlatformNode(Node):
     def _on_clock_jump(self, jump: Any) -> None:
         delta = jump.delta.nanoseconds
         with self._lock:
-            self.core.on_clock_jump(delta < 0, delta)
+            done = self.core.on_clock_jump(delta < 0, delta)
         if delta < 0:
-            self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s"
-                                   + ("; simulation restarted" if self.core.config["reset_on_clock_jump"] else ""))
+            self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s" + {
+                "reset": "; simulation restarted",
+                "same_loop": " with the input stamps (one loop of a replay): already restarted"}.get(done, ""))
 
     # ---- diagnostics --------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
-        """The core's DiagnosticArray (input, platform, node) plus ``gyro_platform: transport``."""
-        now = self.get_clock().now().nanoseconds
+        """The core's DiagnosticArray (input, platform, node) plus ``gyro_platform: transport``;
+        on a steady timer. With ``use_sim_time`` and no /clock yet the node status is raised to
+        WARN 'waiting for /clock …' (and that is logged once)."""
+        clock = self.get_clock()
+        now = clock.now().nanoseconds
+        sim = clock.ros_time_is_active
+        waiting = sim and now == 0
         with self._lock:
             arr = self.core.diagnostics(now)
             topic = self.resolve_topic_name(self.core.input_topic)
             values = {"transport": "rclpy", "input_topic": topic,
                       "input_publishers_matched": self.count_publishers(topic),
                       "samples_lost_reported_by_rmw": self.lost_events, "processed": self.processed,
-                      "published": self.published}
+                      "published": self.published,
+                      "clock": ("waiting for /clock (use_sim_time)" if waiting
+                                else "sim (/clock)" if sim else "system")}
+        if waiting:
+            node = next(st for st in arr.status if st.name.endswith(": node"))
+            node.message = f"waiting for /clock (use_sim_time is true; none received); {node.message}"
+            if node.level == node.OK:
+                node.level = node.WARN
         arr.status.append(transport_status(self.core.types, values))
         self._diag_pub.publish(arr)
+        self._log_clock_state("waiting" if waiting else ("running" if self._clock_state else ""))
+
+    def _log_clock_state(self, state: str) -> None:
+        """One line when the node starts waiting for /clock, one when it comes."""
+        if state == self._clock_state or not state:
+            return
+        if state == "waiting":
+            self.get_logger().warning(
+                "use_sim_time is true and no /clock is published: waiting for /clock (inputs are taken on their "
+                "header stamps; receive times and the /diagnostics stamp stay 0 until it comes)")
+        else:
+            self.get_logger().info("/clock received: the node clock runs on sim time")
+        self._clock_state = state
 
 
 def _ignore_further_interrupts() -> None:
@@ -247,10 +280,26 @@ def _ignore_further_interrupts() -> None:
         pass
 
 
+def _interrupt_once() -> None:
+    """Ctrl-C raises KeyboardInterrupt once: the handler itself ignores every later SIGINT.
+    ``ros2 launch`` sends its own SIGINT right after the terminal's (process group), and a busy
+    node (a parameter storm) may still be unwinding the first when it comes: a second
+    KeyboardInterrupt there escaped ``main`` with a traceback (exit −2)."""
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGINT, handler)
+    except (ValueError, OSError):  # pragma: no cover - not the main thread
+        pass
+
+
 def main(args: list[str] | None = None) -> int:
     """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
     with one line on stderr when the parameters are invalid."""
     compile_notices(NODE_NAME)          # kernels compiling before "ready": said on stderr (physics.jit)
+    _interrupt_once()            # before rclpy.init: rclpy's handler calls it after its own
     rclpy.init(args=args)
     node = None
     code = 0
@@ -264,6 +313,11 @@ def main(args: list[str] | None = None) -> int:
         # bad parameters or a model that cannot be built: one clear line, no traceback
         print(f"gyro_platform_node: cannot start: {e}", file=sys.stderr)
         code = 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Ctrl-C between 'ready' and spin: rclpy's handler shut the context down under the
+        # executor being made (RCLError) — a stop like any other
     finally:
         _ignore_further_interrupts()
         try:

@@ -25,23 +25,73 @@ __all__ = ["InputLoss"]
 
 class InputLoss:
     """Input samples lost before the node took them: reported by the transport (rclpy QoS
-    message-lost events, DDS queue overwrites) and inferred from gaps in the input stamps.
+    message-lost events, DDS queue overwrites) and inferred from the header stamps of the
+    accepted samples (a keep-last queue that overwrites samples raises no event on Cyclone DDS,
+    and it gives no publication sequence numbers).
 
-    Stamp gaps: the nominal input period is the mean of the single steps among the last
-    ``WINDOW`` stamp steps of accepted samples, single = shorter than 1.5 × their lower quartile
-    (robust while fewer than ~3/4 of the steps span a loss, and unbiased by jitter); a step of
-    ``k`` nominal periods (``k`` ≥ 2, rounded) counts ``k − 1`` missing samples. Longer gaps than ``max_gap`` are the
-    gate's (a pause, not an overload) and are not counted."""
+    Stamp gaps, by segment: a segment is a run of stamps at one nominal period ``P``; its loss
+    is ``round((last stamp − first stamp) / P) − steps`` — the samples the span holds at the
+    nominal rate minus those taken — recomputed at every step that is not a single (and when
+    the period changes), so a period learnt late (a node
+    that never saw two consecutive samples until its queue drained) counts the whole segment.
+    ``P`` is the mean of the segment's *single* steps: shorter than 1.5 × the current ``P``
+    (the cluster at the window's minimum: jitter averages out, multi-period steps stay out however
+    many there are). A step shorter than ``P`` / 1.5 makes it the period at once (the segment is
+    counted at it); once ``CONFIRM`` singles confirm it, the steps of the window before it tell
+    why it appeared:
+
+    * they are its multiples and differ by one or more of it: the period was hidden by losses —
+      the segment stays, counted at the new period from its first stamp;
+    * else the publisher sped up: the segment closes where the new rate began, counted at the
+      old period, and a new one starts there.
+
+    Exact stamps whose every step spans losses (no single ever, no drain): every ``WINDOW``
+    steps, when the window's steps are spread, the largest step they are all multiples of (the
+    smallest difference between their groups, divided by 1…4) becomes ``P`` if shorter.
+
+    A publisher that slows down: ``WINDOW`` steps in a row without a single, ¾ of them within
+    half a period of the window's minimum (a regular rate, not the spread of an overload) — the
+    segment closes where those steps began and they start a new one at their period. An exact
+    integer slow-down (100 → 50 Hz) cannot be told from every other sample lost and counts as loss
+    until the rest of the window spreads. A step longer than ``max_gap`` is a pause (the gate's,
+    not counted; the segment closes, the period is kept) unless the receive times say the samples
+    came without one (receive step ≤ ``max_gap``: a replay faster than its stamps loses them).
+    Per sample: O(1) and an insertion into the sorted window of ``WINDOW`` steps."""
 
     WINDOW = 64
+    SINGLE = 1.5
+    CONFIRM = 8
+    #: steps within this many periods of an integer multiple are "multiples" (jitter tolerance)
+    MULTIPLE_TOL = 0.15
 
     def __init__(self) -> None:
         self.transport = 0                 # samples the transport says it lost
-        self.stamp_gaps = 0                # samples missing between consecutive stamps
+        self.closed = 0                    # stamp-gap losses of closed segments
         self.last_rx_ns: int | None = None  # receive time of the last loss (node clock)
         self._steps: deque[int] = deque()  # the last WINDOW steps (ns), oldest first
         self._sorted: list[int] = []       # the same steps, sorted
         self._last_stamp: int | None = None
+        self._last_rx: int | None = None
+        self._forget_period()
+        self._seg_start: int | None = None
+        self._seg_steps = 0
+        self._current = 0                  # stamp-gap loss of the open segment
+
+    def _forget_period(self) -> None:
+        self._sum = 0                      # singles of the nominal period: sum (ns) and count
+        self._n = 0
+        self._ref: float | None = None     # the nominal period (ns) steps are classified against
+        self._no_single = 0                # steps in a row without a single
+        self._pending: tuple | None = None  # a shorter period not yet confirmed (see _decide)
+
+    @property
+    def period_ns(self) -> float | None:
+        """The nominal input period (ns) of the open segment; None before a step."""
+        return self._ref
+
+    @property
+    def stamp_gaps(self) -> int:
+        return self.closed + self._current
 
     @property
     def total(self) -> int:
@@ -52,24 +102,39 @@ class InputLoss:
             self.transport += int(count)
             self.last_rx_ns = rx_ns
 
-    def on_stamp(self, stamp_ns: int, rx_ns: int | None, max_gap_s: float) -> None:
-        """One accepted sample's stamp (ns). Pure Python on a sorted window (no numpy per
-        call): the quartile is numpy's default (linear) percentile, the mean is exact."""
-        last, self._last_stamp = self._last_stamp, stamp_ns
-        if last is None or stamp_ns <= last:
+    def on_stamp(self, stamp_ns: int, rx_ns: int | None, max_gap_s: float, seen_ns: int | None = None) -> None:
+        """One accepted sample's stamp (ns), its receive time (``rx_ns``, None when unknown)
+        and the time that stands for it in the WARN's recency (``seen_ns``, default
+        ``rx_ns``). Pure Python, no numpy."""
+        last = self._last_stamp
+        if last is not None and stamp_ns <= last:
+            return                         # repeated or backward: no step (the gate's to judge)
+        self._last_stamp = stamp_ns
+        last_rx, self._last_rx = self._last_rx, rx_ns
+        if last is None:
+            self._open(stamp_ns)
             return
         step = stamp_ns - last
-        srt = self._sorted
-        # a loss needs step ≥ 1.5 period ≥ 1.5 min(window): below that nothing to compute
-        if len(srt) >= 8 and step <= max_gap_s * NS and step >= 1.5 * srt[0]:
-            q = _quartile(srt)
-            single = srt[:bisect_left(srt, 1.5 * q)]         # steps < 1.5 q (q > 0: never empty)
-            period = sum(single) / len(single)              # mean of the single steps
-            k = int(round(step / period)) if period > 0 else 1
-            if k >= 2:
-                self.stamp_gaps += k - 1
-                self.last_rx_ns = rx_ns
-        steps = self._steps
+        gap = max_gap_s * NS
+        if step > gap and (rx_ns is None or last_rx is None or not 0 <= rx_ns - last_rx <= gap):
+            self._close()                  # a pause (the gate's): not lost samples
+            self._open(stamp_ns)
+            self._pending = None
+            self._steps.clear()
+            self._sorted.clear()
+            self._no_single = 0
+            return
+        self._seg_steps += 1
+        ref = self._ref
+        single = ref is not None and step < self.SINGLE * ref and step * self.SINGLE >= ref and self._pending is None
+        if single:
+            self._sum += step              # a single step at a known period: the common case, inline
+            self._n += 1
+            self._ref = self._sum / self._n
+            self._no_single = 0
+        else:
+            self._classify(step, last)
+        steps, srt = self._steps, self._sorted          # the window, and sorted
         if len(steps) == self.WINDOW:
             old = steps.popleft()
             if old != step:             # a steady input replaces a step by an equal one: srt stays
@@ -78,21 +143,114 @@ class InputLoss:
         else:
             insort(srt, step)
         steps.append(step)
+        if self._no_single >= self.WINDOW:
+            self._slowed_down(stamp_ns)
+        elif len(self._steps) == self.WINDOW and self._seg_steps % self.WINDOW == 0:
+            self._hidden_period()
+        elif single:
+            return                         # no loss in this step: the count is redone at the next one
+        cur = int(round((stamp_ns - self._seg_start) / self._ref)) - self._seg_steps
+        if cur > self._current:
+            self.last_rx_ns = rx_ns if rx_ns is not None else seen_ns
+        self._current = cur if cur > 0 else 0
+
+    # ---- segments -----------------------------------------------------------------------
+    def _open(self, stamp_ns: int) -> None:
+        self._seg_start, self._seg_steps, self._current = stamp_ns, 0, 0
+
+    def _close(self) -> None:
+        self.closed += self._current
+        self._current = 0
+
+    def _count(self, span: int, steps: int) -> int:
+        p = self._ref
+        return max(0, int(round(span / p)) - steps) if p else 0
+
+    def _classify(self, step: int, last: int) -> None:
+        ref = self._ref
+        if ref is None:
+            self._sum, self._n, self._ref, self._no_single = step, 1, float(step), 0
+        elif step * self.SINGLE < ref:                  # shorter than the nominal period
+            if self._n >= self.CONFIRM and self._pending is None:
+                # sped up, or the period was hidden by losses: decided once the new one is
+                # confirmed; meanwhile the segment is counted at the new period
+                self._pending = (last, self._seg_steps - 1, self._current, list(self._sorted))
+            self._sum, self._n, self._ref, self._no_single = step, 1, float(step), 0
+        elif step < self.SINGLE * ref:
+            self._sum += step
+            self._n += 1
+            self._ref = self._sum / self._n
+            self._no_single = 0
+            if self._pending is not None and self._n >= self.CONFIRM:
+                self._decide()
+        else:
+            self._no_single += 1
+
+    def _decide(self) -> None:
+        """The shorter period is confirmed: were the steps before it its multiples (losses hid
+        it: the segment stays, counted at it) or a regular slower rate (the publisher sped up:
+        the segment closes where the new rate began, with its count at the old period)?"""
+        at, steps_before, count_before, window = self._pending
+        self._pending = None
+        if not self._multiples(window, self._ref):
+            self.closed += count_before
+            self._seg_start, self._seg_steps = at, self._seg_steps - steps_before
+
+    def _multiples(self, srt: list[int], p: float) -> bool:
+        """Are the sorted steps ``srt`` multiples of ``p`` that differ (losses hid ``p``)?"""
+        if not srt or srt[-1] - srt[0] < (1.0 - self.MULTIPLE_TOL) * p:
+            return False
+        tol = self.MULTIPLE_TOL
+        return all(abs(s / p - round(s / p)) <= tol for s in srt)
+
+    def _hidden_period(self) -> None:
+        """Every ``WINDOW`` steps: are the window's steps spread multiples of a period shorter
+        than the nominal one (exact stamps, every step spanning losses: no single ever seen)?
+        The steps grouped (within 2 %), the smallest difference between groups divided by 1…4
+        is tried; the largest that every step is a multiple of becomes the period."""
+        srt, ref = self._sorted, self._ref
+        if srt[-1] - srt[0] < 0.3 * srt[0]:
+            return                         # a tight cluster: a regular rate
+        groups = [srt[0]]
+        for x in srt:
+            if x - groups[-1] > 0.02 * srt[0]:
+                groups.append(x)
+        if len(groups) < 2:
+            return
+        d = min(b - a for a, b in zip(groups, groups[1:]))
+        for j in (1, 2, 3, 4):
+            p = d / j
+            if self._multiples(srt, p):        # the largest such period (the simplest account)
+                if p * self.SINGLE < ref:
+                    self._sum, self._n, self._ref, self._no_single = p, 1, p, 0
+                    self._pending = None
+                return
+
+    def _slowed_down(self, stamp_ns: int) -> None:
+        """``WINDOW`` steps without a single: a regular slower rate starts a new segment there."""
+        srt, ref = self._sorted, self._ref
+        m = srt[0]
+        near = bisect_left(srt, m + 0.5 * ref)
+        if near * 4 < 3 * len(srt):
+            self._no_single = 0            # spread: an overload, not a slower publisher
+            return
+        span = sum(self._steps)
+        self._current = self._count(stamp_ns - span - self._seg_start, self._seg_steps - len(self._steps))
+        self._close()
+        self._seg_start, self._seg_steps = stamp_ns - span, len(self._steps)
+        p0 = sum(srt[:near]) / near
+        singles = srt[:bisect_left(srt, self.SINGLE * p0)]      # the cluster's jitter in full
+        self._sum, self._n, self._no_single = sum(singles), len(singles), 0
+        self._ref = self._sum / self._n
+        self._pending = None
 
     def restart(self) -> None:
-        """A new time base (reset): stamp steps across it are not gaps."""
+        """A new time base (reset): stamp steps across it are not gaps; the period is learnt
+        again."""
+        self._close()
         self._steps.clear()
         self._sorted.clear()
         self._last_stamp = None
-
-
-def _quartile(srt: list[int]) -> float:
-    """25th percentile of sorted values, as ``numpy.percentile(..., 25)`` (linear interpolation)."""
-    pos = 0.25 * (len(srt) - 1)
-    lo = int(pos)
-    frac = pos - lo
-    if frac == 0.0:
-        return float(srt[lo])
-    a, b = srt[lo], srt[lo + 1]
-    diff = b - a
-    return b - diff * (1.0 - frac) if frac >= 0.5 else a + diff * frac
+        self._last_rx = None
+        self._seg_start, self._seg_steps = None, 0
+        self._forget_period()
