@@ -27,36 +27,19 @@ import time
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import Writer
 from rosbags.typesys import get_typestore, Stores
 
+from imubag import write_imu_bag
 import rosenv
 
-T0_NS = 1000 * 10**9
 RATE = 200.0
 SECONDS = 3.0
-
-
-def write_input_bag(path):
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    Imu, Header, Time, Vec3, Quat = (ts.types[n] for n in (
-        "sensor_msgs/msg/Imu", "std_msgs/msg/Header", "builtin_interfaces/msg/Time",
-        "geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"))
-    cov = np.zeros(9)
-    with Writer(path, version=8) as w:
-        conn = w.add_connection("/imu", Imu.__msgtype__, typestore=ts)
-        for k in range(int(RATE * SECONDS)):
-            m = Imu(header=Header(stamp=Time(sec=0, nanosec=0), frame_id="base_link"),
-                    orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=cov,
-                    angular_velocity=Vec3(x=0.02, y=0.0, z=0.1), angular_velocity_covariance=cov,
-                    linear_acceleration=Vec3(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=cov)
-            w.write(conn, T0_NS + int(k * 1e9 / RATE), ts.serialize_cdr(m, Imu.__msgtype__))
 
 
 @pytest.fixture(scope="module")
 def replayed(ros_ws, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("bags")
-    write_input_bag(tmp / "input")
+    write_imu_bag(tmp / "input", int(RATE * SECONDS), RATE, w=(0.02, 0.0, 0.1), stamped=False)
     with rosenv.domain_lock() as domain:
         launch = ros_ws.start("ros2 launch gyro_platform platform.launch.py use_sim_time:=true output_rate:=20.0",
                               domain=domain)

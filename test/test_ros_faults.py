@@ -32,38 +32,18 @@ import time
 
 import numpy as np
 import pytest
-from rosbags.rosbag2 import Writer
-from rosbags.typesys import get_typestore, Stores
 
+from imubag import T0_NS, write_imu_bag
 import rosenv
 
 LAUNCH = "ros2 launch gyro_platform platform.launch.py"
 NODE = "/gyro_platform_node"
 DIAG = {"/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"}
-T0_NS = 1000 * 10**9
 #: taken + dropped + lost may differ from sent by this fraction (the loss estimate's error)
 TOLERANCE = 0.03
 
 
 # ---- helpers -------------------------------------------------------------------------------
-def write_imu_bag(path: Path, n: int, rate_hz: float, w=(0.02, 0.0, 0.1)) -> None:
-    """``n`` Imu on /imu, header stamps and bag times ``T0 + k / rate_hz``."""
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    Imu, Header, Time, Vec3, Quat = (ts.types[t] for t in (
-        "sensor_msgs/msg/Imu", "std_msgs/msg/Header", "builtin_interfaces/msg/Time",
-        "geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"))
-    cov = np.zeros(9)
-    with Writer(path, version=8) as writer:
-        conn = writer.add_connection("/imu", Imu.__msgtype__, typestore=ts)
-        for k in range(n):
-            t = T0_NS + int(round(k * 1e9 / rate_hz))
-            m = Imu(header=Header(stamp=Time(sec=t // 10**9, nanosec=t % 10**9), frame_id="base_link"),
-                    orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=cov,
-                    angular_velocity=Vec3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=cov,
-                    linear_acceleration=Vec3(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=cov)
-            writer.write(conn, t, ts.serialize_cdr(m, Imu.__msgtype__))
-
-
 def statuses(report: dict, name: str) -> list[tuple[int, str, dict]]:
     """(level, message, key → value) of every ``name`` status in the collected /diagnostics."""
     out = []

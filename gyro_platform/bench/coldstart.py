@@ -35,8 +35,7 @@ in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` 
 from __future__ import annotations
 
 import csv
-from dataclasses import asdict, dataclass, field
-import json
+from dataclasses import dataclass, field
 import os
 from pathlib import Path
 import shutil
@@ -50,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from .bags import husky_bag, short_copy
+from .report import write_report
 
 __all__ = ["ColdRow", "coldstart", "table", "TARGET_RATIO"]
 
@@ -263,16 +263,7 @@ def table(rows: list[ColdRow]) -> str:
 
 
 def write_outputs(rows: list[ColdRow], out_dir: Path, **meta: Any) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    text = table(rows)
-    print("\n" + text, end="")
-    doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
-                    "cpus": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
-           "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
-    (out_dir / "coldstart.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
-    (out_dir / "coldstart.md").write_text(text)
-    plot(rows, out_dir / "coldstart.png")
-    print(f"wrote {out_dir / 'coldstart.json'}, {out_dir / 'coldstart.md'}, {out_dir / 'coldstart.png'}")
+    write_report("coldstart", rows, table(rows), out_dir, plot, **meta)
 
 
 def plot(rows: list[ColdRow], path: Path) -> None:

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 import io
 import json
 import os
@@ -56,6 +56,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .bags import cache_dir, cached_imu_bag, husky_bag, IMU_TOPIC, short_copy, vehicle_imu
+from .report import write_report
 
 __all__ = ["Row", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
 
@@ -454,16 +455,7 @@ def table(rows: list[Row]) -> str:
 
 
 def write_outputs(rows: list[Row], out_dir: Path, **meta: Any) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    text = table(rows)
-    print("\n" + text, end="")
-    doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
-                    "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
-           "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
-    (out_dir / "consumer.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
-    (out_dir / "consumer.md").write_text(text)
-    plot(rows, out_dir / "consumer.png")
-    print(f"wrote {out_dir / 'consumer.json'}, {out_dir / 'consumer.md'}, {out_dir / 'consumer.png'}")
+    write_report("consumer", rows, table(rows), out_dir, plot, **meta)
 
 
 def plot(rows: list[Row], path: Path) -> None:

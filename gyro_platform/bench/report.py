@@ -1,0 +1,40 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""What a benchmark section writes: its Markdown table printed and saved, its rows as JSON with
+the machine's context (Python, load, CPUs, UTC date), and its plot. Standard library only."""
+from __future__ import annotations
+
+from dataclasses import asdict
+import json
+import os
+from pathlib import Path
+import sys
+import time
+from typing import Any, Callable, Sequence
+
+
+def write_report(stem: str, rows: Sequence[Any], text: str, out_dir: Path,
+                 plot: Callable[[Sequence[Any], Path], None], **meta: Any) -> None:
+    """``out_dir/{stem}.json``, ``{stem}.md`` and ``{stem}.png``; ``rows`` are dataclasses with a
+    ``ratio``; the table is printed first."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    print("\n" + text, end="")
+    doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
+                    "cpus": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
+           "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
+    (out_dir / f"{stem}.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    (out_dir / f"{stem}.md").write_text(text)
+    plot(rows, out_dir / f"{stem}.png")
+    print(f"wrote {out_dir / f'{stem}.json'}, {out_dir / f'{stem}.md'}, {out_dir / f'{stem}.png'}")
