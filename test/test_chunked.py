@@ -202,6 +202,14 @@ def test_simulation_error_restarts_like_per_message(tmp_path):
     assert_same(res)
 
 
+def unbounded_force_gate() -> GateConfig:
+    """A gate that lets every specific force through: no finite bound can (the norm of 1e200 m/s²
+    overflows), and GateConfig refuses a bound of inf, so it is set after the check."""
+    gate = GateConfig()
+    object.__setattr__(gate, "max_specific_force", math.inf)
+    return gate
+
+
 def test_failed_outputs_like_per_message(tmp_path):
     """A finite but absurd specific force (1e200 m/s², anisoelastic on; let through the gate's
     ``max_specific_force``, which drops it by default): the outputs of that instant are not
@@ -218,7 +226,7 @@ def test_failed_outputs_like_per_message(tmp_path):
     bag = write_bag(tmp_path / "in", rows, "mcap")
     opts = ModelOptions(effects=frozenset(ModelOptions().effects) | {"anisoelastic"}, fidelity="full")
     res = both(bag, tmp_path, output_rate=None, chunk_rows=64, options=opts,
-               gate=GateConfig(max_specific_force=math.inf))
+               gate=unbounded_force_gate())
     sim = res["chunked"][0]["counts"]["simulator"]
     assert sim["output_failed"] == 4 and sim["restarted"] > 0 and sim["reset"] == 1, sim
     assert_same(res)

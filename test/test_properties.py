@@ -80,8 +80,8 @@ RATE_FLAGS = {
     "--output-rate": lambda x: x is not None and math.isfinite(x) and 0 <= x <= MAX_GRID_RATE,
     "--diagnostics-rate": lambda x: x is not None and math.isfinite(x) and 0 < x <= MAX_GRID_RATE,
     "--max-gap": lambda x: x is not None and math.isfinite(x) and x > 0,
-    "--reset-on-jump-back": lambda x: x is not None and x >= 0,
-    "--max-rate": lambda x: x is not None and x > 0,
+    "--reset-on-jump-back": lambda x: x is not None and math.isfinite(x) and x >= 0,
+    "--max-rate": lambda x: x is not None and math.isfinite(x) and x > 0,
 }
 
 
