@@ -233,6 +233,7 @@ def test_copy_chunk_skips_uncopied_connections(tmp_path):
 # ---- faults --------------------------------------------------------------------------------------
 CHILD = textwrap.dedent("""
     import os, signal, sys, resource, time
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # Ctrl-C even when started from a job that ignores it
     import numpy as np
     sys.path.insert(0, {root!r})
     from gyro_platform.io import bag_writer as bw
