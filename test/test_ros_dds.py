@@ -21,7 +21,6 @@ and TF through a ``tf2_ros.Buffer``: the wire format, QoS and names must be what
 """
 import math
 import os
-from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -35,15 +34,14 @@ from tfcheck import assert_tf_matches_joint_states, tf_pairs
 
 pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedds' package (pip install .[dds])")
 
-GYRO = Path(sys.executable).with_name("gyro-platform")
-
 
 @pytest.fixture(scope="module")
 def dds_session(ros):
     with rosenv.domain_lock() as domain:
         env = dict(os.environ, ROS_DOMAIN_ID=str(domain), CYCLONEDDS_URI=rosenv.LOOPBACK_XML.as_uri(),
                    PYTHONUNBUFFERED="1")
-        cmd = [str(GYRO), "node", "--transport", "dds", "--params-file", str(rosenv.REPO / "config" / "platform.yaml")]
+        params = str(rosenv.REPO / "config" / "platform.yaml")
+        cmd = [sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--params-file", params]
         proc = Proc(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      start_new_session=True))
         try:
