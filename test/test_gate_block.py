@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 
-from hypothesis import given, HealthCheck, settings
+from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
@@ -103,8 +103,20 @@ CONFIGS = st.builds(GateConfig, max_gap=st.sampled_from([1.0, 0.5, 2.5, 1e7]),  
                     require_specific_force=st.booleans(), rebase_on_reset=st.booleans())
 
 
+def _row(stamp: int, rx: int) -> dict:
+    return {"stamp": stamp, "has_header": True, "omega": [0.1, 0.2, 0.3], "force": [0.0, 0.0, 9.81],
+            "has_force": True, "reject": 0, "identity": False, "rx": rx}
+
+
+#: found by hypothesis under ROS's python: a zero stamp locks the receive time; a receive-time gap resets
+#: and (rebase_on_reset, auto) the reset chooses header stamps again; the next row repeats that stamp
+REBASED = [_row(0, T0), _row(T0 + NS // 1000, T0 + NS // 1000), _row(T0 + 3 * NS, T0 + 3 * NS),
+           _row(T0 + 3 * NS, T0 + 3 * NS + NS // 1000), _row(T0 + 3 * NS + NS // 1000, T0 + 3 * NS + NS // 500)]
+
+
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rs=rows(), cfg=CONFIGS, cuts=st.lists(st.integers(0, 60), max_size=4), with_rx=st.booleans())
+@example(rs=REBASED, cfg=GateConfig(rebase_on_reset=True), cuts=[], with_rx=True)
 def test_offer_block_equals_one_offer_per_row(rs, cfg, cuts, with_rx):
     ref, blk = TimeGate(cfg), TimeGate(cfg)
     decisions = [ref.offer(reading_of(r, i), r["rx"] if with_rx else None) for i, r in enumerate(rs)]

@@ -621,10 +621,11 @@ class TimeGate:
                               float(cfg.max_specific_force), bool(cfg.require_specific_force))
         gap_ns = _ns_floor(cfg.max_gap)
 
-        tn = plain_next = intrinsic = stops = None
+        tn = plain_next = intrinsic = stops = tn_source = None
         i = 0
         while i < n:
-            if s.source is not None and tn is None:
+            if s.source is not None and s.source != tn_source:    # (a reset may choose the source again)
+                tn_source = s.source
                 if s.source == "header":
                     tn, valid = rb.stamp_ns, rb.has_header & (rb.stamp_ns != 0)
                 elif rx is not None:
