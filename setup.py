@@ -40,7 +40,7 @@ setup(
         "rosbags>=0.10",
         "ruamel.yaml.clib>=0.2.7",  # rosbags reads metadata.yaml with ruamel: its C parser, 5x faster
         "apsw>=3.40",       # the sqlite3 output bag's writer (rosbags reads with it too)
-        "mcap>=1.1",        # damaged-bag salvage: io/bag_salvage.py reads MCAP records in file order
+        "mcap>=1.1",        # damaged-bag salvage: bags/salvage.py reads MCAP records in file order
         "tqdm>=4.60",       # replay progress bar
         "threadpoolctl>=3.1",  # one BLAS thread per process (engine/blas.py)
     ],

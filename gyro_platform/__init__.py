@@ -15,10 +15,11 @@
 """gyro_platform — K. Magnus's gyro-stabilised three-gyro platform, simulated.
 
 Rooms, imports pointing down only (README "Architecture"): ``physics`` (what the platform is
-and how it moves) ← ``engine`` (integrators, simulator) ← ``io`` (ROS messages, input gate,
-bags, recordings) ← ``pipeline`` (messages → gate → engine → outputs) ← ``scenes``, ``replay``
-← ``sweep``, ``bench``, ``ros`` (node core, rclpy node, DDS transport) ← ``cli``. The physics
-and the engine know nothing of ROS. Units are SI and radians; frames follow REP-103/105.
+and how it moves) ← ``engine`` (integrators, simulator) ← ``messages`` (ROS messages, ROS-free), ``reports``
+(recordings, plots) ← ``bags`` (rosbag2 in and out) ← ``pipeline`` (input gate → engine → output
+grid) ← ``scenes``, ``replay`` ← ``sweep``, ``bench``, ``ros`` (node core, rclpy node, DDS
+transport) ← ``cli``. ``errors``, ``signals`` and ``filesystem`` are the shared leaves. The
+physics and the engine know nothing of ROS. Units are SI and radians; frames follow REP-103/105.
 
 Public API, re-exported here (imported on first use, so that ``gyro-platform --help`` stays
 fast): ``Simulator``, ``ModelOptions``, ``RateSample``, ``NAV1``, ``PlatformParams``,

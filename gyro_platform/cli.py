@@ -39,7 +39,9 @@ import sys
 
 from . import __version__
 from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
-                     EXIT_WRITE, not_finite, stop_exit_code, stop_reason, StopSignals, write_failure)
+                     EXIT_WRITE, not_finite)
+from .filesystem import write_failure
+from .signals import stop_exit_code, stop_reason, StopSignals
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
@@ -120,7 +122,7 @@ def command_of(argv: list[str]) -> str:
     return next((a for a in argv if not a.startswith("-")), "")
 
 
-#: commands that end with a plot unless told ``--no-plot`` (their helper starts first: io.plot_process)
+#: commands that end with a plot unless told ``--no-plot`` (their helper starts first: reports.plot_process)
 PLOTTING = ("run", "replay")
 
 
@@ -136,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     words = sys.argv[1:] if argv is None else argv
     if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
-        from .io import plot_process
+        from .reports import plot_process
         plot_process.start()            # matplotlib imported beside this process's start-up
     parser = build_parser(command_of(words))
     args = parser.parse_args(argv)

@@ -24,7 +24,7 @@
 keeps the file's); ``input_topic`` sets both ``imu_topic`` and ``twist_topic`` (only the one of
 the input type is used). ``frame_prefix`` defaults to ``<namespace>/`` when a namespace is given
 (``frame_prefix:=/`` for none). robot_state_publisher gets the URDF of the same parameters
-(``gyro_platform.io.urdf``) and the node's ``gimbal/joint_states``, and publishes
+(``gyro_platform.ros.urdf``) and the node's ``gimbal/joint_states``, and publishes
 ``/robot_description``, ``/tf`` and ``/tf_static``. Replaying a bag: ``ros2 bag play BAG --clock``
 with ``use_sim_time:=true``. What is started is computed by ``gyro_platform.ros.launch_setup.plan``.
 """

@@ -32,9 +32,9 @@ from rosbags.typesys import get_typestore, Stores
 import yaml
 
 from gyro_platform import cli
+from gyro_platform.bags.reader import InputBag
 from gyro_platform.errors import BagReadError
-from gyro_platform.io.bag_reader import InputBag
-from gyro_platform.io.blocks import RowChunk
+from gyro_platform.messages.blocks import RowChunk
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 SHARED = sorted(p for p in BAGS.iterdir() if p.is_dir()) if BAGS.is_dir() else []
@@ -375,7 +375,7 @@ def test_paced_chunks_have_the_asked_sizes_and_the_same_rows(tmp_path):
 def test_chunk_pacer_aims_at_its_wall_time_per_chunk():
     """Starts small, grows at most 4x a chunk up to max_rows while rows are cheap, and shrinks to
     ~target/seconds-per-row when they are slow (never below its start size)."""
-    from gyro_platform.pipeline import ChunkPacer
+    from gyro_platform.pipeline.pacing import ChunkPacer
 
     p = ChunkPacer(4096, target=0.25)
     seen = [p()]
@@ -397,7 +397,7 @@ def test_prefetched_gives_every_item_in_order_then_the_error_and_stops_its_threa
     from contextlib import closing
     import threading
 
-    from gyro_platform.pipeline import prefetched
+    from gyro_platform.pipeline.pacing import prefetched
 
     def source(n, fail):
         for i in range(n):
@@ -421,7 +421,7 @@ def test_chunks_end_at_their_payload_bound(tmp_path, storage, monkeypatch):
     """A bag with big messages on another topic (camera images beside the Imu): a chunk ends
     before it holds more than CHUNK_BYTES of payload, whatever rows were asked;
     the rows and their order are those of unbounded reading."""
-    from gyro_platform.io import bag_reader
+    from gyro_platform.bags import reader as bag_reader
 
     rows = []
     for i in range(400):

@@ -36,12 +36,14 @@ import numpy as np
 import pytest
 import yaml
 
-from gyro_platform.errors import check_output_path, deferred_signals, OutputError
-from gyro_platform.io import bag_storage as bs
-from gyro_platform.io import messages as m
-from gyro_platform.io.bag_writer import default_qos, OutputBag
-from gyro_platform.io.blocks import RowChunk
-from gyro_platform.io.encode import encode_outputs
+from gyro_platform import messages as m
+from gyro_platform.bags import storage as bs
+from gyro_platform.bags.writer import default_qos, OutputBag
+from gyro_platform.errors import OutputError
+from gyro_platform.filesystem import check_output_path
+from gyro_platform.messages.blocks import RowChunk
+from gyro_platform.messages.encode import encode_outputs
+from gyro_platform.signals import deferred_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 TYPES = m.MessageTypes.rosbags()
@@ -54,9 +56,9 @@ def imu_raws(n: int, start: int = 0) -> list[bytes]:
     """n Imu messages whose header stamp is their index (ns): a readable prefix is checkable."""
     msg = TYPES[m.IMU](header=m.header(TYPES, 0, "imu_link"),
                        orientation=TYPES["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-                       orientation_covariance=np.zeros(9), angular_velocity=m._vector3(TYPES, (0.1, 0.2, 0.3)),
+                       orientation_covariance=np.zeros(9), angular_velocity=m.vector3(TYPES, (0.1, 0.2, 0.3)),
                        angular_velocity_covariance=np.zeros(9),
-                       linear_acceleration=m._vector3(TYPES, (0.0, 0.0, 9.81)),
+                       linear_acceleration=m.vector3(TYPES, (0.0, 0.0, 9.81)),
                        linear_acceleration_covariance=np.zeros(9))
     tpl = bytes(STORE.serialize_cdr(msg, m.IMU))
     return [tpl[:4] + struct.pack("<iI", *divmod(i, 10**9)) + tpl[12:] for i in range(start, start + n)]
@@ -236,12 +238,12 @@ CHILD = textwrap.dedent("""
     signal.signal(signal.SIGINT, signal.default_int_handler)   # Ctrl-C even when started from a job that ignores it
     import numpy as np
     sys.path.insert(0, {root!r})
-    from gyro_platform.io import bag_writer as bw
+    from gyro_platform.bags import writer as bw
     from gyro_platform.errors import OutputError
     sys.path.insert(0, {test!r})
     from test_bag_writer import imu_raws
     from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
-    from gyro_platform.io import bag_storage as bs
+    from gyro_platform.bags import storage as bs
     bs.COMMIT_ROWS = {commit_rows}
     storage, path, mode = sys.argv[1], sys.argv[2], sys.argv[3]
     bag = bw.OutputBag(bw.Path(path), storage)
@@ -296,8 +298,8 @@ def wait_for(proc: subprocess.Popen, n: int) -> int:
 def readable_prefix(path: Path) -> int:
     """Messages InputBag reads from a bag (a salvaged one ends in BagReadError): they must be
     the first n written, in order; returns n."""
+    from gyro_platform.bags.reader import InputBag
     from gyro_platform.errors import BagReadError
-    from gyro_platform.io.bag_reader import InputBag
 
     got = []
     with InputBag(path) as bag:
@@ -474,8 +476,8 @@ def test_yaml_memo_keeps_texts_apart():
 
     from rosbags.rosbag2.metadata import dump_qos_v9
 
-    from gyro_platform.io.bag_storage import _LibYaml
-    from gyro_platform.io.bag_writer import default_qos
+    from gyro_platform.bags.storage import _LibYaml
+    from gyro_platform.bags.writer import default_qos
 
     def text(value):
         s = _io.StringIO()
@@ -502,7 +504,7 @@ _YAML_DATA = st.recursive(_SCALARS, lambda kids: st.one_of(st.lists(kids, max_si
 @given(data=st.dictionaries(_NAMES, _YAML_DATA, min_size=1, max_size=6))
 def test_block_yaml_is_pyyamls_text_or_declines(data):
     """The fast metadata text equals PyYAML's wherever it is given (None: PyYAML dumps it)."""
-    from gyro_platform.io.bag_storage import block_yaml
+    from gyro_platform.bags.storage import block_yaml
 
     text = block_yaml(data)
     if text is not None:
@@ -514,7 +516,7 @@ def test_block_yaml_takes_a_written_bags_metadata(tmp_path, storage):
     """The metadata of a bag written here (mappings, lists of mappings, QoS, '' and null) takes
     the fast path, with PyYAML's text; the shared recordings' (QoS as text blocks) are dumped
     as PyYAML would."""
-    from gyro_platform.io.bag_storage import block_yaml
+    from gyro_platform.bags.storage import block_yaml
 
     plan, groups, enc, stamps = make_plan(5)
     write_fast(tmp_path / "out", storage, groups, enc, stamps, by_chunk=True)
@@ -532,7 +534,7 @@ def test_block_yaml_takes_a_written_bags_metadata(tmp_path, storage):
 def test_mcap_records_are_each_header_then_its_payload(sizes, gaps, seed):
     """The compiled record builder (copying MCAP input rows to the output bag) against the
     plain concatenation, for payloads of any size (0 too) anywhere in their buffer."""
-    from gyro_platform.io.bag_fast import mcap_records
+    from gyro_platform.bags.fast import mcap_records
 
     rng = np.random.default_rng(seed)
     beg, pos = [], 0

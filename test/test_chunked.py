@@ -34,11 +34,11 @@ import pytest
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from gyro_platform import messages as m
 from gyro_platform import replay as rp
-from gyro_platform.io import messages as m
-from gyro_platform.io.gate import GateConfig
 from gyro_platform.physics.options import ModelOptions
-from gyro_platform.pipeline import grid_index, grid_indices, new_slots
+from gyro_platform.pipeline.gate import GateConfig
+from gyro_platform.pipeline.grid import grid_index, grid_indices, new_slots
 from gyro_platform.replay.stats import LineFit, PlotSeries, Stats
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -349,7 +349,7 @@ def test_plot_series_summary_is_the_recorders_over_every_output():
     ``Recorder.summary`` over all outputs (maxima, final values; the drift rate of the
     replay's own least-squares fit), and the plot strokes span every output's range."""
     from gyro_platform.engine.outputs import OutputBlock
-    from gyro_platform.io.recording import Recorder
+    from gyro_platform.reports.recording import Recorder
 
     outs = _outputs(500)
     ps, stats, rec = PlotSeries(8), Stats(), Recorder()

@@ -35,8 +35,8 @@ from test_replay import CABRILLO, HUSKY, imu_msg, need, S, write_bag
 
 from gyro_platform import __version__, cli
 from gyro_platform import replay as rp
-from gyro_platform.io.bag_paths import ROS1_MAGIC
-from gyro_platform.io.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
+from gyro_platform.bags.paths import ROS1_MAGIC
+from gyro_platform.reports.recording import COLUMN_PLACEHOLDERS, CSV_COLUMNS
 
 REPO = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -358,7 +358,7 @@ def test_every_csv_column_has_a_unit_and_is_documented_once(tmp_path, capsys):
 
 def test_csv_round_trips_the_outputs_exactly(tmp_path):
     """Values in outputs.csv equal the simulator's outputs bit for bit (repr of floats)."""
-    from gyro_platform.io.recording import csv_row
+    from gyro_platform.reports.recording import csv_row
     from gyro_platform.scenes.runner import run_scene
     from gyro_platform.scenes.schema import load_scene
 
@@ -714,7 +714,7 @@ def test_signals_inside_a_deferred_block_arrive_after_it():
     import signal as sg
     import threading
 
-    from gyro_platform.errors import deferred_signals, StopSignals, Terminated
+    from gyro_platform.signals import deferred_signals, StopSignals, Terminated
 
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers live in the main thread only")

@@ -38,7 +38,7 @@ pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedd
 
 from rosbags.typesys.base import Nodetype  # noqa: E402
 
-from gyro_platform.io import messages as m  # noqa: E402
+from gyro_platform import messages as m  # noqa: E402
 from gyro_platform.ros import dds, dds_discovery, dds_names, dds_types  # noqa: E402
 from gyro_platform.physics.params import NAV1  # noqa: E402
 
@@ -959,7 +959,7 @@ def test_robot_description_and_tf_from_the_dds_node(start_node, driver_factory):
     from urdf_parser_py.urdf import URDF
 
     from gyro_platform.physics.params import NAV1
-    from gyro_platform.io.urdf import platform_model
+    from gyro_platform.ros.urdf import platform_model
 
     mounting = (0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8))      # 45° about z
     node = start_node({"mode": "carried", "output_rate": 0.0, "frame_prefix": "robot1/",

@@ -27,10 +27,10 @@ import numpy as np
 import pytest
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
-from gyro_platform.io import messages as m
-from gyro_platform.io.bag_reader import InputBag
-from gyro_platform.io.blocks import concat_rows, RateBlock, RawRows, REJECT_REASONS
-from gyro_platform.io.decode import decode_rates, standard_layout
+from gyro_platform import messages as m
+from gyro_platform.bags.reader import InputBag
+from gyro_platform.messages.blocks import concat_rows, RateBlock, RawRows, REJECT_REASONS
+from gyro_platform.messages.decode import decode_rates, standard_layout
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 SHARED = sorted(p for p in BAGS.iterdir() if p.is_dir()) if BAGS.is_dir() else []

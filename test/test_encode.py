@@ -23,9 +23,9 @@ import zlib
 import numpy as np
 import pytest
 
+from gyro_platform import messages as m
 from gyro_platform.engine.outputs import BEARING_NAMES, Outputs
-from gyro_platform.io import messages as m
-from gyro_platform.io.encode import encode_outputs, stamp_columns
+from gyro_platform.messages.encode import encode_outputs, stamp_columns
 from gyro_platform.physics.rotations import euler_xyz_axes
 
 TYPES = m.MessageTypes.rosbags()

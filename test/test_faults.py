@@ -98,7 +98,7 @@ def read_bag(out: Path) -> dict[str, int]:
     """Messages per topic, read with rosbags' Reader and with our InputBag (they must agree)."""
     from rosbags.rosbag2 import Reader
 
-    from gyro_platform.io.bag_reader import InputBag
+    from gyro_platform.bags.reader import InputBag
 
     with Reader(out) as r:
         by_rosbags: dict[str, int] = {}
@@ -178,7 +178,7 @@ def test_a_signal_in_any_window_keeps_the_summary_and_plot(where, sig, tmp_path,
     """A signal arriving outside the chunk loop (found by an audit: the summary and the plot were
     lost, with exit 130/143) still leaves a closed bag, a summary saying why and a plot. The
     signal is real (os.kill of this process inside the window), the stop the command's own."""
-    from gyro_platform.io.bag_writer import OutputBag
+    from gyro_platform.bags.writer import OutputBag
     from gyro_platform.replay import loop
 
     target = {
@@ -247,7 +247,7 @@ def test_sigkill_loses_at_most_the_last_commit_chunk(big, tmp_path):
     wait_running(proc, out, settle=8.0)
     proc.kill()
     proc.communicate(timeout=60)
-    from gyro_platform.io.bag_reader import InputBag
+    from gyro_platform.bags.reader import InputBag
 
     with InputBag(out, "/imu") as b:
         n = sum(1 for c, _, _ in b.messages() if c.topic == "/imu")

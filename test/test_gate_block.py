@@ -29,9 +29,9 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-from gyro_platform.io.blocks import RateBlock, REJECT_REASONS
-from gyro_platform.io.gate import ACCEPT, Action, DROP, GateConfig, plain_decision, REASONS, RESET, TimeGate
-from gyro_platform.io.messages import jazzy_typestore, Mounting, Reading, reading_from_msg, Rejected
+from gyro_platform.messages import jazzy_typestore, Mounting, Reading, reading_from_msg, Rejected
+from gyro_platform.messages.blocks import RateBlock, REJECT_REASONS
+from gyro_platform.pipeline.gate import ACCEPT, Action, DROP, GateConfig, plain_decision, REASONS, RESET, TimeGate
 
 NS = 1_000_000_000
 T0 = 1_700_000_000 * NS

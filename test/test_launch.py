@@ -21,9 +21,9 @@ from pathlib import Path
 
 import pytest
 
-from gyro_platform.io.urdf import config_urdf
 from gyro_platform.ros import launch_setup as L
 from gyro_platform.ros.config import load_params_file, NodeConfig
+from gyro_platform.ros.urdf import config_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH = ROOT / "launch" / "platform.launch.py"

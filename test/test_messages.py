@@ -24,8 +24,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gyro_platform import messages as m
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
-from gyro_platform.io import messages as m
+from gyro_platform.messages import names
 from gyro_platform.physics.rotations import euler_xyz_axes
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
@@ -224,9 +225,9 @@ def test_topic_table_lists_every_topic():
     assert "/diagnostics" in m.output_topics("robot1")          # absolute name stays
     for spec in m.TOPICS:
         name = "bearing/<name>/torque" if spec.name.startswith("bearing/") else spec.name
-        assert f"`{name}`" in m.__doc__ and f"`{spec.type}`" in m.__doc__
+        assert f"`{name}`" in names.__doc__ and f"`{spec.type}`" in names.__doc__
     for b, f in BEARING_FRAMES.items():
-        assert b in m.__doc__ and f in m.__doc__
+        assert b in names.__doc__ and f in names.__doc__
 
 
 def test_rclpy_namespace_uses_array_d():

@@ -34,7 +34,7 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-from gyro_platform.io.messages import jazzy_typestore, MessageTypes, stamp_ns
+from gyro_platform.messages import jazzy_typestore, MessageTypes, stamp_ns
 from gyro_platform.physics.params import NAV1, PlatformParams
 from gyro_platform.ros import parameters as P
 from gyro_platform.ros.config import NodeConfig, parameter_defaults
@@ -300,9 +300,9 @@ def test_a_sample_the_simulator_refuses_rolls_the_gate_back():
     refuses it; the pipeline rolls the gate back (``refused``), so the next sample at the same
     stamp is not dropped as repeated_stamp and the run does not diverge."""
     from gyro_platform.engine.simulator import Simulator
-    from gyro_platform.io.gate import GateConfig, TimeGate
-    from gyro_platform.io.messages import reading_from_msg
-    from gyro_platform.pipeline import Pipeline
+    from gyro_platform.messages import reading_from_msg
+    from gyro_platform.pipeline.gate import GateConfig, TimeGate
+    from gyro_platform.pipeline.stream import Pipeline
 
     cfg = NodeConfig.from_ros_params({"effects": ["defaults", "mass_unbalance"]})
     pipe = Pipeline(Simulator(cfg.params, cfg.options), TimeGate(GateConfig()), 0.0)
@@ -331,10 +331,10 @@ def test_pipeline_offer_through_the_plain_lane_equals_the_general_path(draws, ne
     rates that a tight rk4 budget cannot integrate (``restarted``/``rejected``), samples without
     the specific force a model needs (the simulator refuses: ``rejected``, gate rolled back)."""
     from gyro_platform.engine.simulator import Simulator
-    from gyro_platform.io.gate import GateConfig, TimeGate
-    from gyro_platform.io.messages import Reading
+    from gyro_platform.messages import Reading
     from gyro_platform.physics.options import ModelOptions
-    from gyro_platform.pipeline import Pipeline
+    from gyro_platform.pipeline.gate import GateConfig, TimeGate
+    from gyro_platform.pipeline.stream import Pipeline
 
     opts = ModelOptions(effects=ModelOptions().effects | ({"mass_unbalance"} if needs_f else set()),
                         **({"integrator": "rk4", "rtol": 1e-8, "atol": 1e-11, "max_substeps": 4} if tight else {}))
@@ -567,7 +567,7 @@ def test_reused_output_messages_equal_freshly_built_ones_at_every_instant():
     """The core refills one set of message objects; at every instant they carry exactly what
     ``messages.output_messages`` builds from the same outputs (also across a live change of
     the effects, and with a frame prefix)."""
-    from gyro_platform.io.messages import output_messages
+    from gyro_platform.messages import output_messages
 
     core = make_core(output_rate=0.0, frame_prefix="r1/", effects=["rotor_gyroscopic", "coriolis"])
     rng = np.random.default_rng(7)
@@ -759,7 +759,7 @@ def test_docs_carry_the_current_parameter_and_topic_tables():
 
 
 def test_importing_the_package_and_core_does_not_import_rclpy():
-    code = ("import sys, gyro_platform, gyro_platform.ros.core, gyro_platform.io.messages; "
+    code = ("import sys, gyro_platform, gyro_platform.ros.core, gyro_platform.messages; "
             "assert 'rclpy' not in sys.modules; print('ok')")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert res.returncode == 0 and "ok" in res.stdout, res.stderr

@@ -44,7 +44,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import initialize, invariant, rule, RuleBasedStateMachine
 from test_node_core import _published, BASE, imu, MS, STABILISED_BIAS
 
-from gyro_platform.io.messages import MessageTypes
+from gyro_platform.messages import MessageTypes
 from gyro_platform.ros.config import NodeConfig
 from gyro_platform.ros.core import NodeCore
 

@@ -248,7 +248,7 @@ def test_every_parameter_has_a_value_for_param_dump(harness):
 
 
 def test_joint_state_is_finite_and_matches_the_urdf(harness):
-    from gyro_platform.io.urdf import config_model
+    from gyro_platform.ros.urdf import config_model
 
     h = harness()
     for k in range(3):

@@ -430,7 +430,7 @@ def test_precession_gimbal_lock_in_a_block_raises_the_model_error_with_the_block
 
 
 finite_big = st.floats(min_value=-1e300, max_value=1e300, allow_nan=False)
-gate_rate = st.floats(min_value=-35.0, max_value=35.0)     # io.gate max_rate: 35 rad/s
+gate_rate = st.floats(min_value=-35.0, max_value=35.0)     # pipeline.gate max_rate: 35 rad/s
 
 
 def _assert_all_finite(out: Outputs) -> None:

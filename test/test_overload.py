@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyro_platform.io.messages import jazzy_typestore, MessageTypes
+from gyro_platform.messages import jazzy_typestore, MessageTypes
 from gyro_platform.ros.config import NodeConfig
 from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.overload import InputLoss

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The plot helper process (io.plot_process): the PNG it draws is byte for byte the one this
+"""The plot helper process (reports.plot_process): the PNG it draws is byte for byte the one this
 process would draw, matplotlib is then never imported here, and whatever happens to the helper
 (killed, hung, interrupted, unused) the plot is still drawn or the helper goes away on its own."""
 from __future__ import annotations
@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = textwrap.dedent("""
     import sys, signal, time
     sys.path.insert(0, {root!r})
-    from gyro_platform.io import plot_process
+    from gyro_platform.reports import plot_process
     plot_process.start()                       # first, as the command line does
     from gyro_platform.scenes.runner import run_scene
     from gyro_platform.scenes.schema import load_scene
@@ -76,7 +76,7 @@ def test_a_killed_or_hung_helper_leaves_the_plot_to_this_process(tmp_path, what)
 
 def test_an_unused_helper_exits_at_the_end_of_its_input():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "gyro_platform.io.plot_process"], stdin=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "gyro_platform.reports.plot_process"], stdin=subprocess.PIPE,
                          stdout=subprocess.PIPE, env=env)
     p.stdin.close()                             # the command ended without a plot
     assert p.wait(timeout=600) == 0 and p.stdout.read() == b""

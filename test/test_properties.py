@@ -37,7 +37,7 @@ import yaml
 from gyro_platform import cli
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.errors import InputError
-from gyro_platform.pipeline import MAX_GRID_RATE
+from gyro_platform.pipeline.grid import MAX_GRID_RATE
 from gyro_platform.replay.command import config_from_args
 from gyro_platform.ros.dds_names import expand_topic_name, NameError_, normalize_namespace
 from gyro_platform.scenes.schema import ScenarioError, scene_from_dict
@@ -122,7 +122,7 @@ NAME_CHARS = st.one_of(st.text(alphabet="abcAB_09/ -!.~{}é", max_size=12),
 def test_accepted_namespaces_give_valid_ros_topic_names(bag, tmp_path, capsys, ns):
     """Accepted: every output topic passes rcl's topic name rules (an independent
     implementation: ``ros.dds_names``) and their length limit; refused: exit 2 naming the flag."""
-    from gyro_platform.io.messages import output_topics
+    from gyro_platform.messages import output_topics
 
     argv = ["replay", str(bag), "--out", str(tmp_path / "o"), "--quiet", "--no-plot", f"--namespace={ns}"]
     try:

@@ -33,11 +33,11 @@ from rosbags.rosbag2 import Reader, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from gyro_platform import cli
+from gyro_platform import messages as m
 from gyro_platform import replay as rp
+from gyro_platform.bags.paths import read_metadata
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
-from gyro_platform.io import messages as m
-from gyro_platform.io.bag_paths import read_metadata
-from gyro_platform.io.gate import Action, GateConfig, TimeGate
+from gyro_platform.pipeline.gate import Action, GateConfig, TimeGate
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"

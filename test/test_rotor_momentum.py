@@ -16,7 +16,7 @@
 
 Physics (spec 3.2, 4): a rotor's relative spin momentum is ``L_r = C_r φ̇_r``; without polar
 inertia a rotor has none at any speed, so the platform is no gyro (no precession, no
-stabilisation) and its URDF has no rotor cylinder (``io.urdf.equivalent_cylinder`` divides by
+stabilisation) and its URDF has no rotor cylinder (``ros.urdf.equivalent_cylinder`` divides by
 C). ``physics.params.validate`` refuses it with one line naming the parameter and the reason;
 the node config, ``run``, ``replay``, the URDF and sweep draws all go through it. Before, the
 DDS node crashed (ZeroDivisionError) and ``run`` exited 0 without a word. A rotor at rest
@@ -51,7 +51,7 @@ def test_the_reason_is_one_line_naming_the_parameter():
 
 
 def test_urdf_never_sees_a_rotor_without_polar_inertia():
-    from gyro_platform.io.urdf import equivalent_cylinder, platform_urdf
+    from gyro_platform.ros.urdf import equivalent_cylinder, platform_urdf
 
     assert "gyro_rotor6" in platform_urdf(NAV1, stabilised=True)
     with pytest.raises(ParameterError, match=REASON):

@@ -20,9 +20,9 @@ import math
 import numpy as np
 import pytest
 
-import gyro_platform.io.gate as timebase  # isort: skip (flake8-import-order: import before from)
-from gyro_platform.io.gate import ACCEPT_REASONS, Action, DROP_REASONS, GateConfig, NOTES, RESET_REASONS, TimeGate
-from gyro_platform.io.messages import Reading, Rejected
+from gyro_platform.messages import Reading, Rejected
+from gyro_platform.pipeline import gate as timebase
+from gyro_platform.pipeline.gate import ACCEPT_REASONS, Action, DROP_REASONS, GateConfig, NOTES, RESET_REASONS, TimeGate
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S

@@ -12,15 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The small typestore of the types the package reads and writes (``io.typedefs``) is rosbags'
+"""The small typestore of the types the package reads and writes (``messages.typedefs``) is rosbags'
 Jazzy store for those types: the same message definitions, RIHS01 hashes, fields and CDR bytes."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from gyro_platform.io import messages as m
-from gyro_platform.io.typedefs import core_typestore, DEFINITIONS, has_type
+from gyro_platform import messages as m
+from gyro_platform.messages.typedefs import core_typestore, DEFINITIONS, has_type
 
 JAZZY = m.jazzy_typestore()
 CORE = core_typestore()
@@ -69,8 +69,8 @@ def test_a_bag_with_rosbags_definitions_decodes_with_the_core_store(tmp_path):
 
     from rosbags.interfaces import MessageDefinition, MessageDefinitionFormat
 
-    from gyro_platform.io.bag_reader import typestore_for
-    from gyro_platform.io.typedefs import core_msgdef
+    from gyro_platform.bags.reader import typestore_for
+    from gyro_platform.messages.typedefs import core_msgdef
 
     text = JAZZY.generate_msgdef(m.IMU, ros_version=2)[0]
     assert core_msgdef(m.IMU) == text

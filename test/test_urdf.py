@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""URDF and TF of the platform against the model's own kinematics (gyro_platform.io.urdf).
+"""URDF and TF of the platform against the model's own kinematics (gyro_platform.ros.urdf).
 
 The URDF is parsed with urdf_parser_py (urdfdom-py, what ROS tools use) and its forward
 kinematics is computed here from the parsed origins and axes (independently of urdf.py);
@@ -28,15 +28,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gyro_platform import messages as m
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
 from gyro_platform.engine.simulator import Simulator
-from gyro_platform.io import messages as m
-from gyro_platform.io import urdf as U
 from gyro_platform.physics.model import GIMBAL_AXES, platform_tree, SPIN_AXES
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import PlatformParams
 from gyro_platform.physics.tree import kinematics
+from gyro_platform.ros import urdf as U
 
 urdf_parser = pytest.importorskip("urdf_parser_py.urdf", reason="urdf_parser_py (pip install urdf-parser-py)")
 

@@ -39,7 +39,7 @@ from gyro_platform.physics import tree
 from gyro_platform.ros.config import NodeConfig
 from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.dds_types import zero_message
-from gyro_platform.io.messages import MessageTypes, jazzy_typestore
+from gyro_platform.messages import MessageTypes, jazzy_typestore
 from gyro_platform.ros.command import warm_up
 
 def signatures():

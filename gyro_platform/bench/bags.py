@@ -31,7 +31,7 @@ import tempfile
 
 import numpy as np
 
-from ..io.messages import jazzy_typestore
+from ..messages import jazzy_typestore
 from ..scenes.motions import RandomMotion
 
 __all__ = ["VehicleImu", "vehicle_imu", "write_imu_bag", "cached_imu_bag", "husky_bag", "short_copy",
@@ -182,7 +182,7 @@ def short_copy(src: Path, seconds: float) -> Path:
     """A cached copy of bag ``src`` holding its first ``seconds`` s (every topic), same storage."""
     from rosbags.rosbag2 import Reader, Writer
 
-    from ..io.bag_paths import storage_of
+    from ..bags.paths import storage_of
 
     src = Path(src)
     storage = storage_of(src)

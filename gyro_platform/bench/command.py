@@ -38,7 +38,8 @@ from .accuracy import accuracy
 from .consumer import consumer
 from .hard import hard
 from .hotpath import effects_cost, hotpath
-from ..errors import check_output_path, EXIT_USAGE, OutputError
+from ..errors import EXIT_USAGE, OutputError
+from ..filesystem import check_output_path
 
 __all__ = ["add_arguments", "run"]
 

@@ -16,7 +16,7 @@
 
 Rows, all in one process run (medians of ``repeats``):
 
-* ``replay`` of a 1 kHz ``sensor_msgs/Imu`` bag of the benchmark's own making (:mod:`.bags`;
+* ``replay`` of a 1 kHz ``sensor_msgs/Imu`` bag of the benchmark's own making (:mod:`gyro_platform.bench.bags`;
   120 s, ``--quick`` 10 s), ``--output-rate 100``, sqlite3 and mcap, and of a second one it was
   not tuned on (another vehicle, stamps jittered ±5 % of the period), through the real command
   (:mod:`gyro_platform.replay.command` in-process, after one untimed run that loads the compiled
@@ -117,7 +117,7 @@ def kernel_us(t: np.ndarray, omega: np.ndarray, force: np.ndarray | None, repeat
 def bag_samples(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The accepted samples of a bag's input topic as the replay's gate yields them (the first
     run of increasing times): t (s since the origin), omega (rad/s), force (m/s², 0 if absent)."""
-    from ..pipeline import read_samples
+    from ..pipeline.stream import read_samples
 
     t, w, f = [], [], []
     for item in read_samples(path):
@@ -213,7 +213,7 @@ def _discard(out: Path) -> None:
 def node_us(msgs: list, repeats: int) -> dict[str, float]:
     """µs per ``NodeCore.on_message`` call (default node configuration, rosbags messages,
     receive time = header stamp): median and p99 over the messages, medians over repeats."""
-    from ..io.messages import MessageTypes, stamp_ns
+    from ..messages import MessageTypes, stamp_ns
     from ..ros.core import NodeConfig, NodeCore
 
     types = MessageTypes.rosbags()
@@ -243,7 +243,7 @@ def _imu_objects(bag: Path, n: int) -> list:
     """The first ``n`` messages of the bag's Imu topic as rosbags objects."""
     from rosbags.rosbag2 import Reader
 
-    from ..io.messages import jazzy_typestore
+    from ..messages import jazzy_typestore
 
     store = jazzy_typestore()
     out = []
@@ -345,7 +345,7 @@ def sqlite_floor(bag: Path, repeats: int) -> tuple[float, int]:
 
     import apsw
 
-    from ..io.bag_storage import insert_rows, SQLITE_PAGE_SIZE
+    from ..bags.storage import insert_rows, SQLITE_PAGE_SIZE
 
     db3 = next(Path(bag).glob("*.db3"))
     src = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)

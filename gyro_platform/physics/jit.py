@@ -46,7 +46,7 @@ from numba import njit  # noqa: F401  (re-exported: the kernel modules' decorato
 from numba.core import caching, config, event
 from numba.core.dispatcher import Dispatcher
 
-from ..errors import StopSignals
+from ..signals import StopSignals
 
 __all__ = ["njit", "cache_dir", "compile_notices", "abandon_compiles_when", "CompileAbandoned", "PackageCacheLocator",
            "source_digest"]

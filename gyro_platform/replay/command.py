@@ -40,11 +40,13 @@ import sys
 from typing import Any
 
 from .loop import DEFAULT_DIAGNOSTICS_RATE, DEFAULT_OUTPUT_RATE, replay, ReplayConfig, sidecar_paths
-from ..errors import (BagPathError, BagReadError, check_output_path, EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK,
-                      EXIT_TERMINATED, EXIT_USAGE, EXIT_WRITE, OutputError, ReplayError, write_failure)
-from ..io.gate import GateConfig
-from ..io.messages import Mounting
-from ..pipeline import check_grid_rate, no_sample_hint
+from ..errors import (BagPathError, BagReadError, EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
+                      EXIT_WRITE, OutputError, ReplayError)
+from ..filesystem import check_output_path, write_failure
+from ..messages import Mounting
+from ..pipeline.gate import GateConfig
+from ..pipeline.grid import check_grid_rate
+from ..pipeline.outcomes import no_sample_hint
 
 #: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
 #: (rmw_validate_namespace, plus the design article's rule against repeated underscores)
@@ -148,7 +150,7 @@ def check_namespace(namespace: str) -> None:
     if not NAMESPACE_RE.fullmatch(namespace):
         raise ReplayError(f"--namespace {namespace!r}: not a ROS namespace (tokens of letters, digits and "
                           f"'_' separated by '/', not starting with a digit, no '__')")
-    from ..io.messages import output_topics
+    from ..messages import output_topics
 
     longest = max(output_topics(namespace), key=len)
     if len(longest) > TOPIC_MAX_NAME_LENGTH:

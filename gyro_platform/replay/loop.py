@@ -38,17 +38,20 @@ from typing import Any
 import numpy as np
 
 from .stats import PlotSeries, Stats
+from .. import messages as msgs
+from ..bags.reader import InputBag
+from ..bags.writer import OutputBag
 from ..engine.outputs import OutputBlock
-from ..errors import BagReadError, deferred_signals, ReplayError, SimulationError, stop_reason
-from ..io import messages as msgs
-from ..io.bag_reader import InputBag
-from ..io.bag_writer import OutputBag
-from ..io.encode import encode_outputs
-from ..io.gate import GateConfig, TimeGate
-from ..io.messages import MessageTypes, Mounting
-from ..io.typedefs import core_typestore
-from ..pipeline import (ADVANCED, bag_chunks, ChunkPacer, copy_chunk, DROP, grid_index, grid_indices, judge, new_slots,
-                        no_sample_hint, NS, Pipeline, prefetched)
+from ..errors import BagReadError, ReplayError, SimulationError
+from ..messages import MessageTypes, Mounting
+from ..messages.encode import encode_outputs
+from ..messages.typedefs import core_typestore
+from ..pipeline.gate import DROP, GateConfig, NS, TimeGate
+from ..pipeline.grid import grid_index, grid_indices, new_slots
+from ..pipeline.outcomes import ADVANCED, no_sample_hint
+from ..pipeline.pacing import ChunkPacer, prefetched
+from ..pipeline.stream import judge, Pipeline
+from ..signals import deferred_signals, stop_reason
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
 DEFAULT_DIAGNOSTICS_RATE = 1.0  # Hz
@@ -225,7 +228,7 @@ class _Run:
                     progress.update()
             else:
                 pace = ChunkPacer(self.cfg.chunk_rows)     # ~0.25 s a chunk, however slow the model
-                chunks = bag_chunks(self.bag, self.cfg.chunk_rows, pace=pace)
+                chunks = self.bag.chunks(self.cfg.chunk_rows, pace=pace)
                 # the next chunk read and decoded on a reader thread while this one is simulated,
                 # the one before written on the writer thread (_handoff)
                 with closing(prefetched(chunks, lambda c: list(self.pipeline.decode(self.bag, c)))) as feed:
@@ -288,7 +291,7 @@ class _Run:
     def _write_chunk(self, chunk: Any, done: list[tuple]) -> None:
         """(writer thread) The chunk's copies, then its outputs and diagnostics, as one write."""
         with self.out.batched():
-            copy_chunk(self.out, chunk, self.bag)
+            self.out.copy_chunk(chunk, self.bag)
             self._queue = []
             try:
                 for item in done:
@@ -514,7 +517,7 @@ class _Run:
             return None, None
         summary = self.series.summary(self.stats.drift_fit())
         try:
-            from ..io.plot_process import draw
+            from ..reports.plot_process import draw
         except ImportError as e:
             print(f"gyro-platform replay: warning: no plot ({e})", file=sys.stderr)
             return None, {**summary, "unavailable": str(e)}

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..engine.outputs import BEARING_NAMES
-from ..io.recording import unwrap_rotation_vectors
+from ..reports.recording import unwrap_rotation_vectors
 
 N_BEARINGS = len(BEARING_NAMES)
 PLOT_BUCKETS = 2000             # at most this many min/max buckets of outputs are kept for the plot
@@ -51,7 +51,7 @@ class Stats:
         self._order: list[str] = []             # their names in the order they got a finite value
 
     def add(self, out: Any, new_segment: bool) -> None:
-        from ..io.recording import csv_row
+        from ..reports.recording import csv_row
 
         self._fold()
         self.n += 1
@@ -82,7 +82,7 @@ class Stats:
         self.n += k
         idx = self._plain_columns(block)
         if idx is None:
-            from ..io.recording import block_columns
+            from ..reports.recording import block_columns
 
             cols = block_columns(block)
             names, m = tuple(cols), np.column_stack(list(cols.values()))
@@ -105,7 +105,7 @@ class Stats:
         their own column number; None when a column is not a plain column of ``rows``."""
         key = (block.stabilised, block.status_keys, tuple(block.extra_status), block.rows.shape[1])
         if key != self._key:
-            from ..io.recording import block_columns
+            from ..reports.recording import block_columns
 
             n = block.rows.shape[1]
             found = []
@@ -173,7 +173,7 @@ class Stats:
         and deg/h, per platform axis and norm; absent with fewer than 2 outputs)."""
         if self.last is None:
             return {}
-        from ..io.recording import axes_dict
+        from ..reports.recording import axes_dict
 
         res: dict[str, Any] = {"final_drift_angle_rad": axes_dict(np.asarray(self.last.drift_angle, float))}
         slope = self._fit.slope()
@@ -332,7 +332,7 @@ class PlotSeries:
         """The figure's series (``recording.PlotData``): one point per output while every
         bucket holds one, else two per bucket — its minimum at its first time, its maximum
         halfway to its last — so the line strokes each bucket's whole range."""
-        from ..io.recording import PlotData
+        from ..reports.recording import PlotData
 
         t, lo, hi = self.columns()
         if self.stride > 1:
@@ -351,7 +351,7 @@ class PlotSeries:
         output: maxima of |value| (from the buckets' minima and maxima), final values, and
         the drift rate of ``drift`` = ``(fit start time s, slope (3,) rad/s)`` (the replay's
         least-squares fit over the last segment, ``Stats.drift_fit``; the plot's legend)."""
-        from ..io.recording import AXES, axes_dict, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
+        from ..reports.recording import AXES, axes_dict, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
 
         s: dict[str, Any] = {"n_outputs": self.n}
         if self.n == 0:

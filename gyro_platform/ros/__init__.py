@@ -18,8 +18,9 @@ Holds the parameter schema (``parameters``), the validated configuration and par
 (``config``), the transport-independent node core (``core``) and its input-loss count
 (``overload``), the rclpy node (``node``, the only module that imports rclpy), the plain-DDS
 transport (``dds``; its naming ``dds_names``, discovery ``dds_discovery``, types and QoS
-``dds_types``; cyclonedds), the ``gyro-platform node`` command (``command``) and the launch
-file's argument logic (``launch_setup``). May import everything below it (``replay``,
-``pipeline``, ``scenes``, ``engine``, ``io``, ``physics``, ``errors``); nothing imports it but
-``cli`` and ``bench``.
+``dds_types``; cyclonedds), the ``gyro-platform node`` command (``command``), the launch
+file's argument logic (``launch_setup``) and the URDF generated from the parameters (``urdf``,
+for ``/robot_description`` and TF). May import everything below it (``replay``, ``pipeline``,
+``scenes``, ``bags``, ``messages``, ``reports``, ``engine``, ``physics``, ``errors``, ``signals``,
+``filesystem``); nothing imports it but ``cli`` and ``bench``.
 """

@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
     from .core import NodeCore
     from .parameters import ConfigError
-    from ..io.messages import MessageTypes
+    from ..messages import MessageTypes
 
     try:
         from .dds_types import import_cyclonedds

@@ -36,10 +36,10 @@ from typing import Any, Mapping
 
 from .dds_names import expand_topic_name, NameError_
 from .parameters import ConfigError, INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS
-from ..io.gate import GateConfig
-from ..io.messages import Mounting, output_topics
+from ..messages import flatten, Mounting, output_topics
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions, NEEDS_SPECIFIC_FORCE, OptionsError
 from ..physics.params import ParameterError, PlatformParams
+from ..pipeline.gate import GateConfig
 
 #: parameters every rclpy node (or a library it uses) declares itself; accepted and ignored here
 ROS_STANDARD_PARAMETERS = ("use_sim_time", "start_type_description_service", "diagnostic_updater.period")
@@ -102,16 +102,6 @@ def parameter_defaults(scene: str = "") -> dict[str, Any]:
 # =========================================================================================
 # configuration
 # =========================================================================================
-def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, Mapping):
-            out.update(_flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
 def _is_ros_standard(name: str) -> bool:
     return name in ROS_STANDARD_PARAMETERS or name.startswith(ROS_STANDARD_PREFIXES)
 
@@ -166,7 +156,7 @@ def load_params_file(path: str | Path, node_name: str = NODE_NAME) -> dict[str, 
         if not isinstance(values, Mapping):
             raise ConfigError("params_file", f"{path}: 'ros__parameters' of section {k!r} must be a mapping "
                                              f"of parameter names, got {type(values).__name__} {values!r}")
-        merged.update(_flatten(values))
+        merged.update(dict(flatten(values)))
     return merged
 
 
@@ -188,7 +178,7 @@ class NodeConfig:
         """Config from a ``ros__parameters`` mapping (nested or dotted keys). Keys absent take
         their default (the scene's for model keys); unknown or bad keys raise ConfigError
         naming the key. ROS's own parameters (``use_sim_time`` …) are accepted and ignored."""
-        flat = _flatten(d or {})
+        flat = dict(flatten(d or {}))
         for k in flat:
             if k not in SPECS and not _is_ros_standard(k):
                 close = difflib.get_close_matches(k, SPECS, n=1)

@@ -16,7 +16,7 @@
 
 The rclpy node (:mod:`gyro_platform.ros.node`) and a plain-DDS adapter are thin shells around
 :class:`NodeCore`: they hand it every input message with its receive time and publish what it
-returns. The core owns the input gate (:class:`~gyro_platform.io.gate.TimeGate`), the
+returns. The core owns the input gate (:class:`~gyro_platform.pipeline.gate.TimeGate`), the
 :class:`~gyro_platform.engine.simulator.Simulator`, the output-rate grid, the callback timing,
 the input-loss count (:class:`~gyro_platform.ros.overload.InputLoss`), live parameter changes
 and the diagnostics; it never raises on input data (every bad sample is counted in the
@@ -24,7 +24,7 @@ diagnostics). Its configuration is a :class:`~gyro_platform.ros.config.NodeConfi
 parameters: :mod:`gyro_platform.ros.parameters`).
 
 Topic names returned by :meth:`NodeCore.on_message` are relative to the node namespace
-(``gimbal/joint_states`` …), as in the topic table of :mod:`gyro_platform.io.messages`; rclpy
+(``gimbal/joint_states`` …), as in the topic table of :mod:`gyro_platform.messages`; rclpy
 resolves them itself, other transports with ``messages.resolve(name, namespace)``. Output
 messages are stamped with the sample time (the input header stamp, or the receive time when the
 stamps are not set); diagnostics with the ``now_ns`` the caller passes.
@@ -48,12 +48,13 @@ from typing import Any, Callable, Mapping
 from .config import NodeConfig
 from .overload import InputLoss
 from .parameters import ConfigError, SPECS
+from .. import messages as msgs
 from ..engine.outputs import C_QUAT, C_ROTOR, outputs_of_row
 from ..errors import SimulationError
-from ..io import messages as msgs
-from ..io.gate import NS, TimeGate
-from ..io.messages import MessageTypes, Reading
-from ..pipeline import grid_index, Pipeline
+from ..messages import MessageTypes, Reading
+from ..pipeline.gate import NS, TimeGate
+from ..pipeline.grid import grid_index
+from ..pipeline.stream import Pipeline
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: gimbal-lock proximity: WARN when min |cos| of the inner gimbal angles falls below this
@@ -456,9 +457,9 @@ class NodeCore:
         level, message = self._node_level(snap, now_ns)
         cls = self.types["diagnostic_msgs/msg/DiagnosticStatus"]
         lvl = {0: cls.OK, 1: cls.WARN, 2: cls.ERROR, 3: cls.STALE}[level]
-        items = [(k, "n/a" if v is None else v) for k, v in msgs._flatten(snap)]
+        items = [(k, "n/a" if v is None else v) for k, v in msgs.flatten(snap)]
         arr.status.append(cls(level=lvl, name=f"{msgs.HARDWARE_ID}: node", message=message,
-                              hardware_id=msgs.HARDWARE_ID, values=msgs._key_values(self.types, items)))
+                              hardware_id=msgs.HARDWARE_ID, values=msgs.key_values(self.types, items)))
         return arr
 
     def _node_level(self, snap: dict[str, Any], now_ns: int) -> tuple[int, str]:

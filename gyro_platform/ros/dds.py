@@ -32,7 +32,7 @@ so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
   :class:`gyro_platform.ros.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
   ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node),
   ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of
-  :mod:`gyro_platform.io.urdf`), ``~/reset``
+  :mod:`gyro_platform.ros.urdf`), ``~/reset``
   (``std_msgs/msg/Empty``) instead of the rclpy reset service, wall-clock jumps forwarded to
   the core.
 
@@ -57,7 +57,7 @@ from .dds_names import (dds_topic_name, DISCOVERY_TOPIC, DISCOVERY_TYPE, domain_
                         normalize_namespace, validate_node_name)
 from .dds_types import (dds_qos, DEFAULT, DISCOVERY_INFO, IdlTypes, LATCHED, QosProfile, SENSOR_DATA, TF,
                         type_hash_user_data, zero_message)
-from ..io.gate import NS
+from ..pipeline.gate import NS
 
 
 # =========================================================================================
@@ -344,7 +344,7 @@ class PlatformDdsNode:
     def __init__(self, core: Any, node: DdsNode, *, diagnostics_period: float = 1.0,
                  log: Callable[[str], None] | None = None, reset_topic: bool = True,
                  robot_description: bool = True):
-        from ..io.messages import DIAGNOSTIC_ARRAY
+        from ..messages import DIAGNOSTIC_ARRAY
 
         self.core = core
         self.node = node
@@ -427,8 +427,8 @@ class PlatformDdsNode:
     def _setup_robot_description(self) -> None:
         """``/robot_description`` (URDF, transient local) and ``/tf_static`` (fixed joints)
         published once, latched; ``/tf`` (moving joints) with every JointState output."""
-        from ..io.messages import STRING, string_message, TF_MESSAGE, tf_message
-        from ..io.urdf import config_model, config_urdf
+        from .urdf import config_model, config_urdf
+        from ..messages import STRING, string_message, TF_MESSAGE, tf_message
 
         self.model = config_model(self.core.config)
         self.publishers["robot_description"] = self.node.create_publisher(STRING, "robot_description", LATCHED)
@@ -440,7 +440,7 @@ class PlatformDdsNode:
             self.publishers["/tf_static"].publish(static)
 
     def _publish_tf(self, joint_state: Any) -> None:
-        from ..io.messages import stamp_ns, tf_message
+        from ..messages import stamp_ns, tf_message
 
         positions = dict(zip(joint_state.name, (float(x) for x in joint_state.position)))
         msg = tf_message(self.model, positions, self.core.types, stamp_ns(joint_state.header.stamp), self.frame_prefix)
@@ -497,7 +497,7 @@ class PlatformDdsNode:
         status names as the rclpy node): WARN after a transport error. Lost input (samples DDS
         overwrote in the keep-last queue: the node is slower than its input) is fed to the
         core's ``InputLoss`` in :meth:`poll` and makes ``gyro_platform: node`` WARN."""
-        from ..io.messages import transport_status
+        from ..messages import transport_status
 
         arr = self.core.diagnostics(time.time_ns())
         warn = f"{self.errors} transport error(s); last: {self.last_error}" if self.errors else ""

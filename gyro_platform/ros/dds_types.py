@@ -86,7 +86,7 @@ class IdlTypes:
 
     def __init__(self, typestore: Any = None):
         if typestore is None:
-            from ..io.messages import jazzy_typestore
+            from ..messages import jazzy_typestore
 
             typestore = jazzy_typestore()
         self.typestore = typestore

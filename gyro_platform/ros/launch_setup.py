@@ -25,7 +25,7 @@ The launch file only declares the arguments (:data:`ARGUMENTS`) and turns :func:
   ``robot_state_publisher``'s own ``frame_prefix`` convention and REP-105 multi-robot setups),
   else none; the same prefix goes to the node (its output frame ids) and to
   robot_state_publisher (TF), so outputs and TF agree;
-* robot_state_publisher: ``robot_description`` = the URDF of :mod:`gyro_platform.io.urdf` for the
+* robot_state_publisher: ``robot_description`` = the URDF of :mod:`gyro_platform.ros.urdf` for the
   same parameters (so it never disagrees with the node's model), ``joint_states`` remapped to
   the node's ``gimbal/joint_states``; it publishes ``/robot_description`` (transient local),
   ``/tf_static`` (fixed joints) and ``/tf`` (every moving joint, from the JointState).
@@ -38,7 +38,7 @@ from typing import Any, Mapping
 
 from .config import load_params_file, NodeConfig
 from .parameters import ConfigError, NODE_NAME, SPECS
-from ..io.urdf import config_urdf
+from .urdf import config_urdf
 
 #: (name, default, description); the launch file declares exactly these
 ARGUMENTS: tuple[tuple[str, str, str], ...] = (

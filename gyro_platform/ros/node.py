@@ -35,7 +35,7 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
   ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
   come from ``robot_state_publisher`` (started by the launch file with the URDF of
-  :mod:`gyro_platform.io.urdf`) fed by ``gimbal/joint_states``;
+  :mod:`gyro_platform.ros.urdf`) fed by ``gimbal/joint_states``;
 * ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a steady
   timer (it runs with ``use_sim_time`` and no /clock: then WARN "waiting for /clock", logged
   once) — the same status names as the plain-DDS transport;
@@ -75,7 +75,7 @@ from .command import freeze_startup_objects, warm_up
 from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
-from ..io.messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from ..messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
 from ..physics.jit import compile_notices
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)

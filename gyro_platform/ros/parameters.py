@@ -29,12 +29,12 @@ from dataclasses import fields as dc_fields
 import math
 from typing import Any
 
+from .. import messages as msgs
 from ..errors import not_finite
-from ..io import messages as msgs
-from ..io.gate import GateConfig
-from ..io.messages import IMU, Mounting, TWIST, TWIST_STAMPED
+from ..messages import IMU, Mounting, TWIST, TWIST_STAMPED
 from ..physics.options import DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES
 from ..physics.params import NAV1, PlatformParams
+from ..pipeline.gate import GateConfig
 
 NODE_NAME = "gyro_platform_node"
 #: input_type parameter value -> ROS message type
@@ -304,7 +304,7 @@ def topics_markdown() -> str:
             qos = "reliable, keep last 10, volatile"
         rows.append(f"| {name} | {t.direction} | {typ} | {t.units} | {t.frame or '-'} | {qos} |")
     rows += [  # robot_state_publisher's under rclpy (launch file), the node's own on DDS
-        "| `robot_description` | out | `std_msgs/msg/String` | URDF (gyro_platform.io.urdf) | - "
+        "| `robot_description` | out | `std_msgs/msg/String` | URDF (gyro_platform.ros.urdf) | - "
         "| reliable, keep last 1, "
         "transient local |",
         "| `/tf` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | every moving joint: parent → child link | "

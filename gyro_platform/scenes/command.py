@@ -26,9 +26,10 @@ import sys
 
 from .runner import run_scene
 from .schema import load_scene, MotionError, ScenarioError
-from ..errors import (BagPathError, BagReadError, check_output_path, EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE,
-                      EXIT_WRITE, OutputError, ReplayError, SimulationError, write_failure)
-from ..io.recording import print_summary_table
+from ..errors import (BagPathError, BagReadError, EXIT_DATA, EXIT_FAILED, EXIT_OK, EXIT_USAGE, EXIT_WRITE, OutputError,
+                      ReplayError, SimulationError)
+from ..filesystem import check_output_path, write_failure
+from ..reports.recording import print_summary_table
 
 
 def print_results(results, file=None) -> None:

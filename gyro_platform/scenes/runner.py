@@ -32,12 +32,17 @@ from typing import Any, Iterator
 import numpy as np
 
 from .schema import Check, load_scene, MotionError, ScenarioError, Scene, scene_info
-from ..errors import BagReadError, deferred_signals, SimulationError
-from ..io.bag_reader import InputBag
-from ..io.gate import TimeGate
-from ..io.plot_process import draw
-from ..io.recording import CsvWriter, Recorder
-from ..pipeline import ADVANCED, bag_chunks, ChunkPacer, new_slots, no_sample_hint, OUTCOMES, Pipeline, push_block
+from ..bags.reader import InputBag
+from ..errors import BagReadError, SimulationError
+from ..pipeline.chunked import push_block
+from ..pipeline.gate import TimeGate
+from ..pipeline.grid import new_slots
+from ..pipeline.outcomes import ADVANCED, no_sample_hint, OUTCOMES
+from ..pipeline.pacing import ChunkPacer
+from ..pipeline.stream import Pipeline
+from ..reports.plot_process import draw
+from ..reports.recording import CsvWriter, Recorder
+from ..signals import deferred_signals
 
 __all__ = ["run_scene", "evaluate", "load_scene", "synthetic_samples"]   # load_scene: for callers that load and run
 
@@ -121,7 +126,7 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
     kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
     with InputBag(scene.motion.path, **kw) as bag:
         pace = ChunkPacer(CHUNK)
-        chunks = bag_chunks(bag, CHUNK, input_only=True, pace=pace)
+        chunks = bag.chunks(CHUNK, input_only=True, pace=pace)
         while not pipe.stopped:
             try:
                 chunk = next(chunks)

@@ -118,10 +118,10 @@ from . import motions as mo
 from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, oversize, run_budget, RunBudget
 from .scene_yaml import as_float, load_yaml, SceneYAMLError
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
-from ..io.recording import ROTORS
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, ModelOptions, MODES, OptionsError
 from ..physics.params import ParameterError, PlatformParams
-from ..pipeline import MAX_GRID_RATE
+from ..pipeline.grid import MAX_GRID_RATE
+from ..reports.recording import ROTORS
 
 AXIS_KEYS = ("x", "y", "z", "norm")
 #: quantity -> (selector key or None, allowed selector values, unit)

@@ -48,8 +48,9 @@ from .plots import budget_stats, plot_budget
 from .runs import execute_run, FINISHED, lost_record
 from .spec import load_sweep, SweepSpec, SweepSpecError
 from .store import atomic_write, json_bytes, ResultStore, StoreError, SweepLock
-from ..errors import (check_output_path, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError,
-                      stop_reason, StopSignals, write_failure)
+from ..errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError
+from ..filesystem import check_output_path, write_failure
+from ..signals import stop_reason, StopSignals
 
 EXIT_RUNS_FAILED = 1
 

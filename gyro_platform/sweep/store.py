@@ -46,7 +46,8 @@ from typing import Any, Iterator
 import uuid
 
 from .runs import figure_columns, FINISHED, STATUSES
-from ..errors import OutputError, write_failure
+from ..errors import OutputError
+from ..filesystem import write_failure
 
 RECORD_NAME = re.compile(r"run_(\d+)\.json")
 

@@ -14,7 +14,7 @@
 
 """CDR bytes of the per-instant output messages for K instants at once (issue 12 fast path).
 
-:func:`encode_outputs` makes exactly the messages :func:`gyro_platform.io.messages.output_messages`
+:func:`encode_outputs` makes exactly the messages :func:`gyro_platform.messages.output_messages`
 makes (joint states, drift angle and rate, attitude, servo torque, one wrench per bearing),
 byte-identical to rosbags ``serialize_cdr`` of them, without building message objects: each
 topic has a fixed layout (its frame id and, for JointState, its joint names are constant), so
@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from . import messages as msgs
-from .messages import rows_of
+from . import names as msgs
+from .outputs import joint_columns, rows_of
 from ..engine.outputs import BEARING_FRAMES, BEARING_NAMES
 
 _HEAD = b"\x00\x01\x00\x00"      # CDR_LE encapsulation, options 0
@@ -119,7 +119,7 @@ def joint_state_layout(names: tuple[str, ...], n_vel: int) -> Layout:
 
 def stamp_columns(stamps_ns: Any) -> tuple[np.ndarray, np.ndarray]:
     """``builtin_interfaces/Time`` (sec int32, nanosec uint32) of int64 stamps (ns; negative
-    clamped to 0 as :func:`gyro_platform.io.messages.header` does). ValueError past 2038."""
+    clamped to 0 as :func:`gyro_platform.messages.header` does). ValueError past 2038."""
     ns = np.maximum(np.asarray(stamps_ns, dtype=np.int64).reshape(-1), 0)
     sec, nsec = np.divmod(ns, NS)
     if sec.size and int(sec.max()) > _INT32_MAX:
@@ -156,7 +156,7 @@ def _prefixed(prefix: str, frame_id: str) -> str:
 def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix: str = "",
                    arrays: bool = False) -> list[tuple[str, Any]]:
     """(absolute topic, CDR bytes of its K messages) for every per-instant output topic, in
-    the order of :func:`gyro_platform.io.messages.output_messages`, from an ``OutputBlock``
+    the order of :func:`gyro_platform.messages.output_messages`, from an ``OutputBlock``
     (arrays over K instants, see :mod:`gyro_platform.engine.outputs`) and the K header stamps
     (int64 ns). ``namespace`` resolves the topic names; ``frame_prefix`` is put before every
     non-empty frame id. Byte-identical to rosbags ``serialize_cdr`` of those messages.
@@ -168,7 +168,7 @@ def encode_outputs(block: Any, stamps_ns: Any, namespace: str = "", frame_prefix
     if np.asarray(block.t).reshape(-1).shape[0] != k:
         raise ValueError(f"{k} stamps for {np.asarray(block.t).size} output instants")
     res: list[tuple[str, Any]] = []
-    cols = msgs.joint_columns(block)
+    cols = joint_columns(block)
     res.append((msgs.resolve("gimbal/joint_states", namespace),
                 make(joint_state_layout(cols.names, cols.velocity.shape[1]), sec, nsec,
                      [cols.position, cols.velocity, cols.effort])))

@@ -417,7 +417,7 @@ class PlotData:
     torque magnitudes (``BEARING_NAMES`` order, the reported ones), ``servo_torque`` (N,) N m
     magnitude or None, ``vehicle_omega`` (N, 3) rad/s body axes or None. The points are the
     output instants, or (a long replay, ``replay.stats.PlotSeries``) each bucket of outputs'
-    minimum and maximum. Small to pickle (``io.plot_process``)."""
+    minimum and maximum. Small to pickle (``reports.plot_process``)."""
 
     t_rel: np.ndarray
     gimbal_angles: np.ndarray

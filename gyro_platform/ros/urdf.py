@@ -15,7 +15,7 @@
 """URDF of the platform, generated from its parameters (ROS-free), and the joint transforms for TF.
 
 Frames (REP-105, REP-103 FLU) and joints; joint names equal the ``JointState`` names the node
-publishes (:func:`gyro_platform.io.messages.joint_state`):
+publishes (:func:`gyro_platform.messages.joint_state`):
 
 * ``base_link`` (vehicle) → ``platform``: carried mode: fixed joint ``platform_mount`` with the
   ``mounting`` rotation; stabilised mode: the mount joints ``mount_roll`` (x), ``mount_pitch``

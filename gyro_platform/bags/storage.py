@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """rosbags' rosbag2 ``Writer`` with a batched, bounded, fault-aware message path (used by
-:class:`gyro_platform.io.bag_writer.OutputBag`; the files are those rosbags writes).
+:class:`gyro_platform.bags.writer.OutputBag`; the files are those rosbags writes).
 
 * sqlite3 (:class:`FastSqlite3` in :func:`storage_classes`): rosbags' schema, written through
   ``apsw`` (the SQLite binding rosbags reads with) with ``SQLITE_PAGE_SIZE`` pages, its timestamp
@@ -45,8 +45,8 @@ from typing import Any, Iterator, Sequence
 import apsw
 import numpy as np
 
-from .bag_fast import mcap_records
-from .blocks import RawRows, readonly, row_lens
+from .fast import mcap_records
+from ..messages.blocks import RawRows, readonly, row_lens
 
 #: commit bound: a chunk is committed after this many messages …
 COMMIT_ROWS = 100_000
@@ -74,7 +74,7 @@ SQLITE_ERRORS = (sqlite3.Error, apsw.Error)
 
 class Rows:
     """Message payloads of a batch in segments, in order: each a 2-D uint8 array (one message
-    per row, all of its width: what :func:`gyro_platform.io.encode.encode_outputs` makes with
+    per row, all of its width: what :func:`gyro_platform.messages.encode.encode_outputs` makes with
     ``arrays=True``) or a sequence of bytes. ``len`` is the number of messages."""
 
     __slots__ = ("segments", "n")

@@ -50,11 +50,12 @@ from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
-from . import messages as msgs
-from .bag_paths import rosbags_api
-from .bag_storage import Rows, segments, SQLITE_ERRORS, writer_class
-from .typedefs import core_typestore, has_type
-from ..errors import deferred_signals, OutputError
+from .paths import rosbags_api
+from .storage import Rows, segments, SQLITE_ERRORS, writer_class
+from .. import messages as msgs
+from ..errors import OutputError
+from ..messages.typedefs import core_typestore, has_type
+from ..signals import deferred_signals
 
 
 def default_qos() -> list:
@@ -201,7 +202,7 @@ class OutputBag:
         self._write(np.full(len(ts), out_conn.id, np.int64), ts, raws)
 
     def write_outputs(self, ts: Any, encoded: Iterable[tuple[str, Sequence[bytes]]]) -> None:
-        """Write what :func:`gyro_platform.io.encode.encode_outputs` made, instant by instant
+        """Write what :func:`gyro_platform.messages.encode.encode_outputs` made, instant by instant
         (at each instant its topics in order), at record times ``ts`` (int64 (K,) ns)."""
         ts = np.asarray(ts, np.int64).reshape(-1)
         topics = list(encoded)
@@ -215,7 +216,7 @@ class OutputBag:
         self._write(cids, np.repeat(ts, n), raws)
 
     def write_topics(self, ts: Any, encoded: Iterable[tuple[str, Any]]) -> None:
-        """Write what :func:`gyro_platform.io.encode.encode_outputs` made (its K messages per
+        """Write what :func:`gyro_platform.messages.encode.encode_outputs` made (its K messages per
         topic: bytes, or one uint8 array (K, size) with ``arrays=True``) topic by topic, each
         at record times ``ts`` (int64 (K,) ns): the rows and order of one :meth:`write_many`
         per topic, in one write."""
@@ -230,7 +231,7 @@ class OutputBag:
         self._write(cids, np.tile(ts, len(topics)), Rows([rs for _, rs in topics]))
 
     def copy_chunk(self, chunk: Any, bag: Any = None) -> int:
-        """Copy every row of a :class:`~gyro_platform.io.blocks.RowChunk` whose input connection
+        """Copy every row of a :class:`~gyro_platform.messages.blocks.RowChunk` whose input connection
         is copied (byte for byte, same record time, bag order); returns the rows written.
         Connections not seen yet are added from ``bag`` (an ``InputBag``)."""
         ids = np.asarray(chunk.conn_id, np.int64)

@@ -14,11 +14,11 @@
 
 """Array blocks flowing through the fast path (issue 12 contract): one block = one chunk of rows.
 
-* :class:`RowChunk` — raw bag rows as :meth:`gyro_platform.io.bag_reader.InputBag.chunks` yields
+* :class:`RowChunk` — raw bag rows as :meth:`gyro_platform.bags.reader.InputBag.chunks` yields
   them (rosbags connection id, record time ns, CDR bytes), in bag order; the CDR bytes as a
   list of ``bytes`` or as :class:`RawRows` (payloads in place in one buffer: an MCAP chunk's).
-* :class:`RateBlock` — the input rows decoded (:func:`gyro_platform.io.decode.decode_rates`):
-  per row what :func:`gyro_platform.io.messages.reading_from_msg` gives for one message, as arrays
+* :class:`RateBlock` — the input rows decoded (:func:`gyro_platform.messages.decode.decode_rates`):
+  per row what :func:`gyro_platform.messages.reading_from_msg` gives for one message, as arrays
   (rad/s, m/s², sensor frame until ``Mounting.rotate_block`` turns them into base_link).
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ from typing import Union
 import numpy as np
 
 #: reasons of ``RateBlock.reject`` (value = 1 + index; 0 = usable reading); the names of
-#: :class:`gyro_platform.io.messages.Rejected` reasons
+#: :class:`gyro_platform.messages.Rejected` reasons
 REJECT_REASONS: tuple[str, ...] = ("no_rate", "unknown_frame", "bad_message")
 REJECT_NO_RATE, REJECT_UNKNOWN_FRAME, REJECT_BAD_MESSAGE = 1, 2, 3
 

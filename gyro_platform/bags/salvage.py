@@ -39,9 +39,9 @@ from typing import Any, BinaryIO, Iterator
 
 import numpy as np
 
-from .bag_paths import read_metadata, rosbags_api, storage_files
-from .blocks import RawRows
+from .paths import read_metadata, rosbags_api, storage_files
 from ..errors import BagReadError
+from ..messages.blocks import RawRows
 
 
 class Salvage:
@@ -281,7 +281,7 @@ def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
 def _spans(f: Path, pos: int, buf: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """(opcodes, begins, ends) of a chunk's records with ``want[op]``, and the error that ended
     the walk early ("" if none) — the records before it are kept."""
-    from .bag_fast import record_spans, WALK_ERRORS
+    from .fast import record_spans, WALK_ERRORS
 
     err, at, n, ops, beg, end = record_spans(buf, want)
     why = f"{f}: corrupt record at offset {pos}: {WALK_ERRORS[err]} at offset {at} of its records" if err else ""
@@ -359,7 +359,7 @@ def mcap_batches(f: Path, lut: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndar
     and size checked, its records walked by ``bag_fast.walk_records``, the payloads left in
     the chunk's buffer), a message outside chunks alone; the top-level records walked by hand
     (message indexes skipped unread); BagReadError at the damage, after the rows before it."""
-    from .bag_fast import WALK_ERRORS, walk_records
+    from .fast import WALK_ERRORS, walk_records
 
     sel = lut >= 0
     every = np.uint64(2 ** 64 - 1)

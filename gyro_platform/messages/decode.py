@@ -15,16 +15,16 @@
 """Vectorised CDR decoding of the input rows (issue 12 contract: the decode half of ``io.codec``).
 
 :func:`decode_rates` turns the CDR bytes of ``N`` ``sensor_msgs/Imu``, ``geometry_msgs/Twist``
-or ``geometry_msgs/TwistStamped`` messages into one :class:`~gyro_platform.io.blocks.RateBlock`
+or ``geometry_msgs/TwistStamped`` messages into one :class:`~gyro_platform.messages.blocks.RateBlock`
 in one compiled pass (numba, ``nogil``) over the rows in one buffer (joined, or in place in an
-MCAP chunk: :class:`~gyro_platform.io.blocks.RawRows`): every field is read at its byte offset
+MCAP chunk: :class:`~gyro_platform.messages.blocks.RawRows`): every field is read at its byte offset
 (the offsets after the header shift with the length of ``frame_id``; each row's are computed from
 its own string length) and each distinct ``frame_id`` is decoded once.
 Only what is sure to decode as rosbags decodes it is taken this way: a little-endian CDR
 encapsulation, a well-formed UTF-8 frame_id with its terminator, the exact size rosbags accepts
 (up to 3 bytes of padding) and the standard message layout (the Jazzy definition, or a bag's own
 definition with the same fields). Every other row goes through
-rosbags (``store.deserialize_cdr``) and :func:`gyro_platform.io.messages.reading_from_msg`, one
+rosbags (``store.deserialize_cdr``) and :func:`gyro_platform.messages.reading_from_msg`, one
 by one; a row rosbags cannot decode is rejected ``bad_message``.
 
 Semantics per row are those of ``reading_from_msg`` (before any mounting: values in the sensor
@@ -40,7 +40,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from .blocks import bad_stamp_detail, RateBlock, Raw, RawRows, readonly, row_lens
-from .messages import IMU, jazzy_typestore, Mounting, Reading, reading_from_msg, TWIST, TWIST_STAMPED
+from .inputs import Mounting, Reading, reading_from_msg
+from .names import IMU, jazzy_typestore, TWIST, TWIST_STAMPED
 from .typedefs import core_typestore, has_type
 from ..physics.jit import njit
 

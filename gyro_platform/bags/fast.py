@@ -40,7 +40,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .blocks import RawRows
+from ..messages.blocks import RawRows
 from ..physics.jit import njit
 
 #: one batch of rows: (bag connection ids int64, record times ns int64, payloads: a list of

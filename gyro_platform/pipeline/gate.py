@@ -14,7 +14,7 @@
 
 """Input gate between messages and the simulator: timing and sanity of every rate sample.
 
-:meth:`TimeGate.offer` takes what :func:`gyro_platform.io.messages.reading_from_msg` made of one
+:meth:`TimeGate.offer` takes what :func:`gyro_platform.messages.reading_from_msg` made of one
 message (a ``Reading`` or a ``Rejected``) and the message's receive time, and returns an explicit
 :class:`Decision`. The gate never touches the physics; the caller applies the decision:
 
@@ -53,7 +53,7 @@ Notes counted beside the decisions: ``receive_time`` (time taken from the receiv
 ``gap_integrated`` (a gap integrated across with ``on_gap="integrate"``), ``identity_frame``
 (unknown frame taken as base_link).
 
-Blocks: :meth:`TimeGate.offer_block` decides a whole :class:`~gyro_platform.io.blocks.RateBlock`
+Blocks: :meth:`TimeGate.offer_block` decides a whole :class:`~gyro_platform.messages.blocks.RateBlock`
 at once (:class:`GateBlock`): plain runs (usable, finite, in range, increasing, no gap) are
 vectorised, every other row goes through :meth:`TimeGate.offer`; counters, notes, the last
 decision and the rate estimates end as after one ``offer`` per row.
@@ -72,14 +72,14 @@ from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
-from .blocks import REJECT_REASONS
-from .messages import Reading, Rejected
 from ..engine.inputs import RateSample
 from ..errors import check_number
+from ..messages import Reading, Rejected
+from ..messages.blocks import REJECT_REASONS
 from ..physics.jit import njit
 
 if TYPE_CHECKING:
-    from .blocks import RateBlock
+    from ..messages.blocks import RateBlock
 
 NS = 1_000_000_000
 

@@ -26,14 +26,14 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from . import messages as msgs
-from .bag_fast import Batch, McapBag, row_batches
-from .bag_paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
-from .bag_salvage import Salvage
-from .blocks import concat_rows, row_lens, RowChunk
-from .messages import INPUT_TYPES
-from .typedefs import core_msgdef, core_typestore, has_type
+from .fast import Batch, McapBag, row_batches
+from .paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
+from .salvage import Salvage
+from .. import messages as msgs
 from ..errors import BagReadError, ReplayError
+from ..messages import INPUT_TYPES
+from ..messages.blocks import concat_rows, row_lens, RowChunk
+from ..messages.typedefs import core_msgdef, core_typestore, has_type
 
 #: a chunk of :meth:`InputBag.chunks` ends once its rows hold this much payload (bytes), however
 #: many rows were asked: a 1 kHz Imu chunk of 32 768 rows is ~11 MB, but a bag that also carries

@@ -16,7 +16,7 @@
 
 Importing matplotlib takes ~0.75 s on a 2 GHz core, about a fifth of a whole ``replay`` or
 ``run`` command. :func:`start`, called when the command begins, starts ``python -m
-gyro_platform.io.plot_process``: it imports matplotlib on another core while this process
+gyro_platform.reports.plot_process``: it imports matplotlib on another core while this process
 starts up and simulates, then waits for one job on its stdin. :func:`draw` sends it the
 figure's series (``recording.PlotData``, arrays of ~1 MB: not the recorder's objects, whose
 pickling would cost more than the import), the path, the title and the summary, and waits
@@ -51,7 +51,7 @@ def start() -> None:
     path = os.environ.get("PYTHONPATH")
     env = dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))
     try:
-        _helper = subprocess.Popen([sys.executable, "-m", "gyro_platform.io.plot_process"], stdin=subprocess.PIPE,
+        _helper = subprocess.Popen([sys.executable, "-m", "gyro_platform.reports.plot_process"], stdin=subprocess.PIPE,
                                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
     except (OSError, ValueError):
         _helper = None

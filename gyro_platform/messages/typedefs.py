@@ -15,7 +15,7 @@
 """The ROS 2 Jazzy definitions of the message types this package reads and writes, and a small
 rosbags typestore of them (:func:`core_typestore`).
 
-rosbags' full Jazzy store (:func:`gyro_platform.io.messages.jazzy_typestore`) defines some
+rosbags' full Jazzy store (:func:`gyro_platform.messages.jazzy_typestore`) defines some
 hundred types and costs ~0.1 s to build; a replay needs ~15 of them. ``DEFINITIONS`` holds
 their ``.msg`` text as rosbags' Jazzy store generates it (one level each, constants included);
 the store parsed from it gives the same message definitions, RIHS01 hashes, classes and CDR
