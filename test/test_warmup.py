@@ -40,7 +40,7 @@ from gyro_platform.ros.config import NodeConfig
 from gyro_platform.ros.core import NodeCore
 from gyro_platform.ros.dds_types import zero_message
 from gyro_platform.messages import MessageTypes, jazzy_typestore
-from gyro_platform.ros.command import warm_up
+from gyro_platform.ros.warmup import warm_up
 
 def signatures():
     res = {}

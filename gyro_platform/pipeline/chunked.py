@@ -271,7 +271,7 @@ class ChunkedRuns:
         while k is not None:
             i = int(rows[k])
             res.output_failed.append(i)
-            self._error(f"t={int(gb.stamp_ns[i])}: outputs failed: {err}")
+            self.record_error(f"t={int(gb.stamp_ns[i])}: outputs failed: {err}")
             if k + 1 == len(snaps):
                 return
             try:
@@ -299,13 +299,13 @@ class ChunkedRuns:
             if outcome in ("reset", "restarted"):
                 self.slot, self.new_segment = None, True
             if outcome == "restarted":
-                self._error(f"t={stamp}: integration failed, simulator restarted")
+                self.record_error(f"t={stamp}: integration failed, simulator restarted")
             if outcome in ADVANCED and self.due(stamp):
                 try:
                     o = self.sim.outputs()
                 except SimulationError as e:
                     res.output_failed.append(i)
-                    self._error(f"t={stamp}: outputs failed: {e}")
+                    self.record_error(f"t={stamp}: outputs failed: {e}")
                     continue
                 res.outputs.append(RunOutputs(np.array([i]), OutputBlock.stack([o]), self.new_segment))
                 self.new_segment = False
@@ -340,6 +340,7 @@ class ChunkedRuns:
             out.append(counted)
         return out
 
-    def _error(self, text: str) -> None:
+    def record_error(self, text: str) -> None:
+        """Keep ``text`` among ``errors`` (simulator failures; the first ``MAX_ERRORS`` only)."""
         if len(self.errors) < MAX_ERRORS:
             self.errors.append(text)

@@ -392,7 +392,7 @@ class _Run:
             self._identity_frame(str(msg.header.frame_id))
         step = self.pipeline.apply(decision)
         if step.outcome == "restarted":
-            self.pipeline._error(f"t={decision.stamp_ns}: integration failed, simulator restarted")
+            self.pipeline.record_error(f"t={decision.stamp_ns}: integration failed, simulator restarted")
         if step.emit:
             self._emit(decision.stamp_ns, ts)
         # diagnostics on the receive clock, like a node's timer
@@ -408,7 +408,7 @@ class _Run:
             o = self.sim.outputs()
         except SimulationError as e:
             self.outcomes["output_failed"] = self.outcomes.get("output_failed", 0) + 1
-            self.pipeline._error(f"t={stamp}: outputs failed: {e}")
+            self.pipeline.record_error(f"t={stamp}: outputs failed: {e}")
             return
         for topic, m in msgs.output_messages(o, self.types, stamp, self.cfg.namespace):
             self.out.write_msg(topic, ts, m)

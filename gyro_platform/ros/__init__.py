@@ -15,12 +15,12 @@
 """ros — the platform as a ROS 2 node, on rclpy or on plain DDS.
 
 Holds the parameter schema (``parameters``), the validated configuration and params files
-(``config``), the transport-independent node core (``core``) and its input-loss count
-(``overload``), the rclpy node (``node``, the only module that imports rclpy), the plain-DDS
-transport (``dds``; its naming ``dds_names``, discovery ``dds_discovery``, types and QoS
-``dds_types``; cyclonedds), the ``gyro-platform node`` command (``command``), the launch
-file's argument logic (``launch_setup``) and the URDF generated from the parameters (``urdf``,
-for ``/robot_description`` and TF). May import everything below it (``replay``, ``pipeline``,
+(``config``), the transport-independent node core (``core``), its warm-up (``warmup``) and its
+input-loss count (``overload``), the rclpy node (``node``, the only module that imports rclpy), the
+plain-DDS transport (``dds``; its naming ``dds_names``, discovery ``dds_discovery``, types and QoS
+``dds_types``; cyclonedds), the ``gyro-platform node`` command (``command``), the launch file's
+argument logic (``launch_setup``) and the URDF generated from the parameters (``urdf``, for
+``/robot_description`` and TF). May import everything below it (``replay``, ``pipeline``,
 ``scenes``, ``bags``, ``messages``, ``reports``, ``engine``, ``physics``, ``errors``, ``signals``,
 ``filesystem``); nothing imports it but ``cli`` and ``bench``.
 """

@@ -32,9 +32,9 @@
   ``config/cyclonedds_loopback.xml``), ``--duration`` (s: stop by itself after that long).
   Without either, on a host with no multicast-capable interface the DDS transport uses
   localhost unicast discovery and logs what the ROS side must set (``dds.default_discovery``).
-* Both transports warm up (:func:`warm_up`: the numba kernels compiled or loaded) before they
-  subscribe and log ``ready``; the process then freezes its start-up objects out of the garbage
-  collector (:func:`freeze_startup_objects`).
+* Both transports warm up (:func:`gyro_platform.ros.warmup.warm_up`: the numba kernels compiled
+  or loaded) before they subscribe and log ``ready``; the process then freezes its start-up
+  objects out of the garbage collector (:func:`gyro_platform.ros.warmup.freeze_startup_objects`).
 * SIGINT / SIGTERM stop the node cleanly (final diagnostics, DDS entities deleted); exit 0 (a
   node's normal stop). A signal during the warm-up, before the node is ready, ends it like any
   command (``errors.StopSignals``: 130 / 143, the DDS entities deleted).
@@ -43,7 +43,6 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 from pathlib import Path
 import signal
@@ -51,7 +50,7 @@ import sys
 import time
 from typing import Any, Callable
 
-from ..engine.blas import limit_blas_threads
+from .warmup import freeze_startup_objects
 from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 
 TRANSPORTS = ("auto", "ros", "dds")
@@ -73,54 +72,6 @@ def _log(name: str) -> Callable[[str], None]:
     def log(text: str) -> None:
         print(f"[{name}] {text}", file=sys.stderr, flush=True)
     return log
-
-
-# =========================================================================================
-# warm-up (both transports)
-# =========================================================================================
-WARMUP_SAMPLES = 6
-WARMUP_PERIOD_NS = 10_000_000      # 100 Hz
-
-
-def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any], None] | None = None) -> int:
-    """Run ``WARMUP_SAMPLES`` synthetic input samples (at rest, 1 g up, 100 Hz) through a
-    throwaway core of the same configuration, so that numba compiles (or loads from its cache)
-    every kernel the first real samples need, before the node subscribes and says "ready".
-    ``make_input()`` returns a zeroed input message of the binding; ``encode(topic, msg)``, if
-    given, serialises each output (the DDS encoders). Returns the number of output messages."""
-    limit_blas_threads()        # before any matrix is built (engine.blas)
-    scratch = type(core)(core.config, core.types)
-    n = 0
-    t0 = 1_000_000_000
-    for k in range(WARMUP_SAMPLES):
-        msg = make_input()
-        header = getattr(msg, "header", None)
-        if header is not None:
-            header.stamp.sec, header.stamp.nanosec = divmod(t0 + k * WARMUP_PERIOD_NS, 1_000_000_000)
-            header.frame_id = core.config["vehicle_frame"]
-        if hasattr(msg, "linear_acceleration"):
-            msg.linear_acceleration.z = 9.81
-        for topic, out in scratch.on_message(msg, t0 + k * WARMUP_PERIOD_NS) or ():
-            n += 1
-            if encode is not None:
-                encode(topic, out)
-    # the outputs at an arbitrary instant too (the grid may not have emitted after the last sample)
-    for topic, out in scratch._emit(t0 + WARMUP_SAMPLES * WARMUP_PERIOD_NS):
-        n += 1
-        if encode is not None:
-            encode(topic, out)
-    scratch.diagnostics(t0)
-    return n
-
-
-def freeze_startup_objects() -> None:
-    """After the warm-up, before the first real sample (process entry points only): one full
-    collection, then ``gc.freeze()``. The ~10⁵ objects of start-up (modules, compiled kernels,
-    the model, message classes) move to the permanent generation, so that a collection during
-    operation scans only what came after: a full collection of them takes ~40 ms, one callback
-    stalled that long at 1 kHz input (the per-message path itself allocates nothing that lives)."""
-    gc.collect()
-    gc.freeze()
 
 
 # =========================================================================================

@@ -250,7 +250,7 @@ class NodeCore:
             elif outcome == "rejected":
                 self._last_rejected_rx = rx if rx is not None else self._last_rx_ns
             if step.emit:
-                result = self._emit(step.stamp_ns)
+                result = self.emit(step.stamp_ns)
         except Exception as e:  # defensive: a message must never take the node down
             self.internal_errors += 1
             self.last_error = f"{type(e).__name__}: {e}"
@@ -300,7 +300,10 @@ class NodeCore:
     def _grid(self, stamp_ns: int) -> int:
         return grid_index(stamp_ns, self.gate.origin_ns or 0, self.config["output_rate"])
 
-    def _emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
+    def emit(self, stamp_ns: int) -> list[tuple[str, Any]]:
+        """The output messages of the simulator's current state, stamped ``stamp_ns`` (``[]`` and
+        ``outcomes['output_failed']`` counted when the outputs fail); the pairs are valid until the
+        next call. ``on_message`` calls it at output instants; the warm-up at an arbitrary one."""
         sim = self.sim
         try:
             row = sim.output_row()
@@ -316,7 +319,7 @@ class NodeCore:
     @property
     def last_out(self) -> Any:
         """The ``Outputs`` of the last published instant (None before the first), made when
-        asked (diagnostics) from the output row kept by :meth:`_emit`."""
+        asked (diagnostics) from the output row kept by :meth:`emit`."""
         if self._last_out is None and self._last_row is not None:
             self._last_out = outputs_of_row(*self._last_row)
         return self._last_out

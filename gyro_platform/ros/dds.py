@@ -73,11 +73,12 @@ class DdsPublisher:
         self.dds_topic = node._topic(topic, ros_type)
         self.writer = DataWriter(node.participant, self.dds_topic,
                                  qos=dds_qos(profile, type_hash_user_data(node.types.type_hash(ros_type))))
-        self._to = node.types.to_idl_fn(ros_type)
+        #: ROS message -> IDL sample (the warm-up serialises through it too)
+        self.to_idl = node.types.to_idl_fn(ros_type)
         self.published = 0
 
     def publish(self, msg: Any) -> None:
-        self.writer.write(self._to(msg))
+        self.writer.write(self.to_idl(msg))
         self.published += 1
 
     @property
@@ -382,13 +383,13 @@ class PlatformDdsNode:
 
     def warm_up(self) -> None:
         """Compile/load the kernels and build the CDR encoders before the first real sample
-        (:func:`gyro_platform.ros.command.warm_up`; outputs encoded, not sent), so that the
+        (:func:`gyro_platform.ros.warmup.warm_up`; outputs encoded, not sent), so that the
         first samples are not stalled (and dropped by the keep-last-5 input queue)."""
-        from .command import warm_up
+        from .warmup import warm_up
 
         def encode(topic: str, msg: Any) -> None:
             if topic in self.publishers:
-                self.publishers[topic]._to(msg).serialize(use_version_2=False)
+                self.publishers[topic].to_idl(msg).serialize(use_version_2=False)
 
         try:
             warm_up(self.core, lambda: zero_message(self.node.types.typestore, self.core.input_type), encode)

@@ -24,7 +24,7 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
   ``core.set_parameters``. An empty string array (``sensor_mountings``) is declared by type
   and then set to ``[]`` explicitly, so ``ros2 param dump`` / ``get`` see a value;
 * warm-up: before subscribing, a throwaway core runs a few synthetic samples
-  (``node_main.warm_up``), so numba compiles or loads every kernel and the first real Imu is
+  (``warmup.warm_up``), so numba compiles or loads every kernel and the first real Imu is
   answered at once; "ready" is logged after that;
 * input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
@@ -71,10 +71,10 @@ except ImportError as e:  # pragma: no cover - depends on the machine
         "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
         "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
-from .command import freeze_startup_objects, warm_up
 from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC, NodeCore
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
+from .warmup import freeze_startup_objects, warm_up
 from ..messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
 from ..physics.jit import compile_notices
 

@@ -39,12 +39,12 @@ class Auto(Integrator):
     def _advance(self, system, t0, y, t1):
         if self.sticky == 0:
             try:
-                return self.primary._advance(system, t0, y.copy(), t1)
+                return self.primary.advance(system, t0, y, t1)
             except ToleranceError:
                 self.sticky = AUTO_STICKY
         self.sticky -= 1
         self.n_fallback += 1
-        return self.fallback._advance(system, t0, y, t1)
+        return self.fallback.advance(system, t0, y, t1)
 
     def reset(self) -> None:
         self.primary.reset()
