@@ -126,3 +126,22 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())
     assert [x["name"] for x in doc["rows"]] == [r.name for r in rows] and doc["meta"]["repeats"] == 3
     assert (tmp_path / "out" / "coldstart.png").stat().st_size > 0
+
+
+def test_a_kernel_numba_cannot_cache_is_a_warning_not_a_crash():
+    """numba refuses to cache a compile result with dynamic globals (as every kernel calling another
+    is at ``NUMBA_OPT=0``) and warns naming the kernel's file: the package's locator must carry it
+    (it did not, and ``NUMBA_OPT=0 gyro-platform run`` ended in an AttributeError traceback)."""
+    from types import SimpleNamespace
+
+    from numba.core import caching
+    from numba.core.errors import NumbaWarning
+
+    from gyro_platform.physics import tree
+
+    cache = caching.FunctionCache(tree.kinematics.py_func)
+    assert isinstance(cache._impl.locator, jit.PackageCacheLocator)
+    cres = SimpleNamespace(lifted=(), library=SimpleNamespace(has_dynamic_globals=True),
+                           fndesc=SimpleNamespace(qualname="kinematics"))
+    with pytest.warns(NumbaWarning, match='Cannot cache compiled function "kinematics"'):
+        assert cache._impl.check_cachable(cres) is False

@@ -88,6 +88,7 @@ class PackageCacheLocator(caching._CacheLocator):
 
     def __init__(self, py_func, py_file):
         self._lineno = py_func.__code__.co_firstlineno
+        self._py_file = py_file             # numba's warning about an uncachable function names it
         rel = Path(py_file).resolve().relative_to(PACKAGE)
         self._cache_path = str(cache_dir() / rel.parent)
 
