@@ -60,6 +60,13 @@ decision and the rate estimates end as after one ``offer`` per row.
 
 Default ``on_gap="reset"``: across a gap the simulator would interpolate the rate linearly and
 so invent the vehicle's motion; restarting is honest, and the outputs before the gap are kept.
+
+This module holds :class:`TimeGate`. The vocabulary (:class:`Action`, :class:`Decision`, the
+reason tables, :class:`GateConfig`, :class:`GateBlock`) and the one rule for a row's values
+(:func:`~gyro_platform.pipeline.gate_rules.row_verdict`: `non_finite`, `over_rate`,
+`over_specific_force`, `no_specific_force`; every path calls it) are in
+:mod:`~gyro_platform.pipeline.gate_rules`, the compiled block passes in
+:mod:`~gyro_platform.pipeline.gate_kernels`; the names are importable from here too.
 """  # noqa: E501 (the reason table: one row a line)
 from __future__ import annotations
 
