@@ -15,11 +15,13 @@
 """pipeline — input messages → time gate → simulator → output instants: the one pipeline that
 the replay, the scene runs and the node core share.
 
-Holds the input time gate (``gate``: stamps, gaps, rates, resets), gate decisions applied to a
-simulator and their outcome names (``outcomes``), the per-message pipeline (``stream``:
-``Pipeline``, bag samples), its chunked path (``chunked``: blocks of rows), the output grid
-(``grid``) and pacing (``pacing``: read-ahead thread, chunk sizes). May import ``bags``,
-``messages``, ``engine``, ``physics``, ``errors`` and ``signals``.
+Holds the input time gate (``gate``: stamps, gaps, rates, resets; its vocabulary, settings and
+the one rule for a row's values in ``gate_rules``, its compiled block passes in
+``gate_kernels``), gate decisions applied to a simulator and their outcome names
+(``outcomes``), the per-message pipeline (``stream``: ``Pipeline``, bag samples), its chunked
+path (``chunked``: blocks of rows), the output grid (``grid``) and pacing (``pacing``:
+read-ahead thread, chunk sizes). May import ``bags``, ``messages``, ``engine``, ``physics``,
+``errors`` and ``signals``.
 """
 from .gate import GateConfig, TimeGate
 from .stream import Pipeline, read_samples

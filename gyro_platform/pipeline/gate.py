@@ -60,117 +60,40 @@ decision and the rate estimates end as after one ``offer`` per row.
 
 Default ``on_gap="reset"``: across a gap the simulator would interpolate the rate linearly and
 so invent the vehicle's motion; restarting is honest, and the outputs before the gap are kept.
+
+This module holds :class:`TimeGate`. The vocabulary (:class:`Action`, :class:`Decision`, the
+reason tables, :class:`GateConfig`, :class:`GateBlock`) and the one rule for a row's values
+(:func:`~gyro_platform.pipeline.gate_rules.row_verdict`: `non_finite`, `over_rate`,
+`over_specific_force`, `no_specific_force`; every path calls it) are in
+:mod:`~gyro_platform.pipeline.gate_rules`, the compiled block passes in
+:mod:`~gyro_platform.pipeline.gate_kernels`; the names are importable from here too.
 """  # noqa: E501 (the reason table: one row a line)
 from __future__ import annotations
 
 from collections import Counter
 import copy
 from dataclasses import dataclass
-from enum import Enum
 import math
 from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
+from .gate_kernels import accept_rows, arrival_ema, ema, ema_add, EXACT_NS, ns_floor, reading_of, usable_rows
+from .gate_rules import (ACCEPT, ACCEPT_REASONS, Action, ACTION_CODE, ALL_REASONS, Decision, DROP, DROP_REASONS,
+                         GateBlock, GateConfig, NOTES, NS, plain_decision, REASON_INDEX, REASONS, RESET, RESET_REASONS,
+                         ROW_NO_SPECIFIC_FORCE, ROW_NON_FINITE, ROW_OK, ROW_OVER_RATE, ROW_REASONS, row_verdict)
 from ..engine.inputs import RateSample
-from ..errors import check_number
 from ..messages import Reading, Rejected
-from ..messages.blocks import REJECT_REASONS
-from ..physics.jit import njit
 
 if TYPE_CHECKING:
     from ..messages.blocks import RateBlock
 
-NS = 1_000_000_000
+__all__ = ["TimeGate", "Action", "Decision", "GateConfig", "GateBlock", "plain_decision", "reading_of", "row_verdict",
+           "NS", "ACCEPT", "DROP", "RESET", "ACTION_CODE", "REASONS", "ALL_REASONS", "REASON_INDEX", "DROP_REASONS",
+           "RESET_REASONS", "ACCEPT_REASONS", "NOTES"]
 
-
-class Action(str, Enum):
-    """What the caller does with a sample."""
-
-    ACCEPT = "accept"
-    DROP = "drop"
-    RESET = "reset"   # reset the simulator, then push the sample
-
-
-DROP_REASONS = ("no_rate", "unknown_frame", "bad_message", "non_finite", "over_rate", "over_specific_force",
-                "no_specific_force", "zero_stamp", "no_time", "repeated_stamp", "backward_stamp", "refused")
-RESET_REASONS = ("jump_back", "gap")
-ACCEPT_REASONS = ("start", "ok")
-#: every decision reason; ``GateBlock.reason`` indexes this tuple
-REASONS = DROP_REASONS + RESET_REASONS + ACCEPT_REASONS
-ALL_REASONS = REASONS
-REASON_INDEX = {r: i for i, r in enumerate(REASONS)}
-NOTES = ("receive_time", "gap_integrated", "identity_frame")
-#: ``GateBlock.action`` codes
-ACCEPT, DROP, RESET = 0, 1, 2
-ACTION_CODE = {}  # filled below (Action → code)
-
-
-ACTION_CODE.update({Action.ACCEPT: ACCEPT, Action.DROP: DROP, Action.RESET: RESET})
 # the members as plain globals: an Enum attribute lookup costs ~60 ns, several per message
 _A_ACCEPT, _A_DROP, _A_RESET = Action.ACCEPT, Action.DROP, Action.RESET
-
-
-@dataclass(slots=True)
-class Decision:
-    """The gate's verdict on one message.
-
-    ``sample`` (ACCEPT/RESET only): time ``t`` s since ``origin_ns``, omega rad/s and specific
-    force m/s² in base_link. ``stamp_ns``: the chosen time in the input's time base (ns), None if
-    none could be chosen. ``source``: ``"header"`` or ``"receive"``.
-    """
-
-    action: Action
-    reason: str
-    sample: RateSample | None = None
-    stamp_ns: int | None = None
-    source: str | None = None
-    detail: str = ""
-
-    @property
-    def accepted(self) -> bool:
-        """True for ACCEPT and RESET (the sample goes to the simulator)."""
-        return self.action is not Action.DROP
-
-
-def plain_decision(p: tuple) -> Decision:
-    """The ``Decision`` of a plain reading from :attr:`TimeGate.last_plain`'s tuple ``(t,
-    omega, specific_force, stamp_ns, source)``: what :meth:`TimeGate.offer` returns for it."""
-    t, w, f, t_ns, source = p
-    return Decision(_A_ACCEPT, "ok", RateSample(t, np.array(w), None if f is None else np.array(f)), t_ns, source, "")
-
-
-@dataclass(frozen=True)
-class GateConfig:
-    """Gate settings. ``max_gap`` s; ``on_gap``: ``reset`` | ``integrate``;
-    ``reset_on_jump_back`` s; ``max_rate`` rad/s; ``max_specific_force`` m/s²; ``time_source``: ``auto`` | ``header`` |
-    ``receive``; ``rate_smoothing``: weight of a new interval in the rate estimates;
-    ``require_specific_force``: drop samples without specific force (``no_specific_force``),
-    set when the model's effects need it (the simulator would refuse them);
-    ``rebase_on_reset``: a reset (gap, jump back) also moves the origin to the reset sample
-    (its ``sample.t`` is 0, as for a fresh gate: a reset is a fresh start; the node uses this);
-    default False: one origin for the whole stream."""
-
-    max_gap: float = 1.0
-    on_gap: str = "reset"
-    reset_on_jump_back: float = 1.0
-    max_rate: float = 35.0
-    max_specific_force: float = 2000.0
-    time_source: str = "auto"
-    rate_smoothing: float = 0.05
-    require_specific_force: bool = False
-    rebase_on_reset: bool = False
-
-    def __post_init__(self) -> None:       # numbers: errors.check_number, the rule of every flag (finite)
-        check_number("max_gap", self.max_gap, "s", gt=0)
-        check_number("reset_on_jump_back", self.reset_on_jump_back, "s", ge=0)
-        check_number("max_rate", self.max_rate, "rad/s", gt=0)
-        check_number("max_specific_force", self.max_specific_force, "m/s²", gt=0)
-        check_number("rate_smoothing", self.rate_smoothing, gt=0, le=1)
-        if self.on_gap not in ("reset", "integrate"):
-            raise ValueError(f"on_gap = {self.on_gap!r}; allowed: reset, integrate")
-        if self.time_source not in ("auto", "header", "receive"):
-            raise ValueError(f"time_source = {self.time_source!r}; allowed: auto, header, receive")
 
 
 @dataclass
@@ -183,137 +106,17 @@ class _State:
     rx_dt_ema: float | None = None     # s, smoothed interval of arriving messages
 
 
-@dataclass(slots=True)
-class GateBlock:
-    """The gate's decisions on the N rows of a RateBlock (:meth:`TimeGate.offer_block`).
-
-    ``action`` int8 (N,): ``ACCEPT`` 0, ``DROP`` 1, ``RESET`` 2; ``reason`` int16 (N,): index
-    into :data:`REASONS`; ``t`` float64 (N,): sample time s since the gate's origin as valid
-    after that row's decision (NaN if dropped); ``stamp_ns`` int64 (N,): the chosen time in
-    the input's time base (-1 if none)."""
-
-    action: np.ndarray
-    reason: np.ndarray
-    t: np.ndarray
-    stamp_ns: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.action)
-
-    @property
-    def accepted(self) -> np.ndarray:
-        """bool (N,): the sample goes to the simulator (ACCEPT or RESET)."""
-        return self.action != DROP
-
-    def reason_name(self, i: int) -> str:
-        return REASONS[int(self.reason[i])]
-
-
-#: intervals (ns) at most this long convert to float exactly: ``d / NS`` is then the same
-#: correctly rounded quotient in Python (int true division) and in compiled code
-_EXACT_NS = 2 ** 53
-
-
-def _ema_add(e: float | None, dt: float, a: float) -> float:
-    """One interval ``dt`` (s) into the average ``e``: ``dt`` if none yet, else ``e + a·(dt − e)``
-    (the scalar gate's update; the compiled passes' is ``_ema_step``)."""
-    return dt if e is None else e + a * (dt - e)
-
-
-def _ema(e: float | None, d_ns: np.ndarray, a: float) -> float | None:
-    """``e`` after ``e = dt if e is None else e + a·(dt − e)`` for every interval ``dt = d/NS``
-    of ``d_ns`` (int64 ns) in order: the same float operations as the scalar gate's."""
-    if not len(d_ns):
-        return e
-    if np.abs(d_ns).max() >= _EXACT_NS:
-        for dn in d_ns.tolist():
-            e = _ema_add(e, dn / NS, a)
-        return e
-    return float(_ema_kernel(np.nan if e is None else e, e is None, d_ns, a))
-
-
-@njit(cache=True, inline="always")
-def _ema_step(e, unset, d, a):  # pragma: no cover - compiled
-    """One interval of ``d`` ns into the average: ``dt`` if none yet (``unset``), else
-    ``e + a·(dt − e)``; the one update of every compiled pass below."""
-    dt = d / 1_000_000_000
-    return dt if unset else e + a * (dt - e)
-
-
-@njit(cache=True)
-def _ema_kernel(e, unset, d_ns, a):  # pragma: no cover - compiled
-    for k in range(d_ns.shape[0]):
-        e = _ema_step(e, unset, d_ns[k], a)
-        unset = False
-    return e
-
-
-@njit(cache=True)
-def _usable_rows(w, f, has_force, reject, max_rate, max_force, require_f):  # pragma: no cover - compiled
-    """Rows whose values the gate can take as they are: not rejected by the decoder, rate finite
-    and within ``max_rate`` (|ω| by the same float operations as the scalar gate), specific
-    force finite and within ``max_force`` where present (and present if ``require_f``)."""
-    n = w.shape[0]
-    out = np.zeros(n, np.bool_)
-    for k in range(n):
-        w0, w1, w2 = w[k, 0], w[k, 1], w[k, 2]
-        ok = reject[k] == 0 and np.isfinite(w0) and np.isfinite(w1) and np.isfinite(w2)
-        ok = ok and np.sqrt(w0 * w0 + w1 * w1 + w2 * w2) <= max_rate
-        if has_force[k]:
-            f0, f1, f2 = f[k, 0], f[k, 1], f[k, 2]
-            fin = np.isfinite(f0) and np.isfinite(f1) and np.isfinite(f2)
-            ok = ok and fin and np.sqrt(f0 * f0 + f1 * f1 + f2 * f2) <= max_force
-        elif require_f:
-            ok = False
-        out[k] = ok
-    return out
-
-
-@njit(cache=True)
-def _accept_rows(tn, i, j, last_ns, origin, e, unset, a, t, stamp):  # pragma: no cover - compiled
-    """Rows i..j−1 of a plain run: ``t`` (s after ``origin``) and ``stamp`` (ns) filled, the
-    interval EMA ``e`` (``unset``: none yet) advanced over each row's interval after the one
-    before (``last_ns`` before row i); returns it. The float operations of :func:`_ema`."""
-    prev = last_ns
-    for k in range(i, j):
-        x = tn[k]
-        e = _ema_step(e, unset, x - prev, a)
-        unset = False
-        prev = x
-        t[k] = (x - origin) / 1_000_000_000
-        stamp[k] = x
-    return e
-
-
-@njit(cache=True)
-def _arrival_ema(rx, first, has_first, gap_ns, e, unset, a):  # pragma: no cover - compiled
-    """The arrival-interval EMA over receive times ``rx`` (int64 ns; ``first``: the one before,
-    if ``has_first``), intervals outside (0, gap_ns] skipped; returns (e, unset)."""
-    prev = first
-    for k in range(rx.shape[0]):
-        d = rx[k] - prev
-        if (k > 0 or has_first) and 0 < d <= gap_ns:
-            e = _ema_step(e, unset, d, a)
-            unset = False
-        prev = rx[k]
-    return e, unset
-
-
-def _ns_floor(seconds: float) -> int:
-    """Largest integer ns ≤ ``seconds``·1e9, so that ``d > seconds*NS`` ⟺ ``d > _ns_floor`` for int d."""
-    x = seconds * NS
-    return 2**62 if x >= 2**62 else math.floor(x)       # (1e300 s: x is inf, which floor refuses)
-
-
-def reading_of(rb: "RateBlock", i: int) -> Reading | Rejected:
-    """Row ``i`` of a block as the scalar gate's input (what reading_from_msg gives)."""
-    stamp = int(rb.stamp_ns[i]) if rb.has_header[i] else None
-    rj = int(rb.reject[i])
-    if rj:
-        return Rejected(REJECT_REASONS[rj - 1], rb.detail.get(i, ""), stamp, rb.frame_id[i])
-    w = rb.omega[i].tolist()
-    f = tuple(rb.force[i].tolist()) if rb.has_force[i] else None
-    return Reading((w[0], w[1], w[2]), f, stamp, rb.frame_id[i], bool(rb.identity[i]))
+def _row_detail(verdict: int, w: tuple, f: tuple | None, cfg: GateConfig) -> str:
+    """The detail of a drop for a row's values (:func:`row_verdict` code ``verdict``)."""
+    if verdict == ROW_NON_FINITE:
+        return f"non-finite value: omega={list(w)}, specific_force={None if f is None else list(f)}"
+    if verdict == ROW_OVER_RATE:
+        rate = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        return f"|omega| = {rate:.6g} rad/s > max_rate {cfg.max_rate:g} rad/s"
+    if verdict == ROW_NO_SPECIFIC_FORCE:
+        return "the model's effects need the specific force; this message carries none"
+    force = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])      # (or it overflows)
+    return f"|specific force| = {force:.6g} m/s² > max_specific_force {cfg.max_specific_force:g} m/s²"
 
 
 class TimeGate:
@@ -392,7 +195,7 @@ class TimeGate:
         s = self._s
         last = s.rx_last
         if last is not None and 0 < receive_ns - last <= self.config.max_gap * NS:
-            s.rx_dt_ema = _ema_add(s.rx_dt_ema, (receive_ns - last) / NS, self.config.rate_smoothing)
+            s.rx_dt_ema = ema_add(s.rx_dt_ema, (receive_ns - last) / NS, self.config.rate_smoothing)
         s.rx_last = int(receive_ns)
 
     def offer_plain(self, r: Reading | Rejected, receive_ns: int | None = None) -> tuple | None:
@@ -423,17 +226,15 @@ class TimeGate:
                 return None
             wx, wy, wz = r.omega
             wx, wy, wz = float(wx), float(wy), float(wz)
-            # NaN and ±Inf fail this test too (and a finite ω whose norm overflows)
-            if not math.sqrt(wx * wx + wy * wy + wz * wz) <= cfg.max_rate:
-                return None
             f = r.specific_force
-            if f is not None:
+            if f is None:
+                fx = fy = fz = 0.0
+            else:
                 fx, fy, fz = f
-                f = (float(fx), float(fy), float(fz))
-                # NaN and ±Inf fail this test too (and a finite force whose norm overflows)
-                if not math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) <= cfg.max_specific_force:
-                    return None
-            elif cfg.require_specific_force:
+                fx, fy, fz = float(fx), float(fy), float(fz)
+                f = (fx, fy, fz)
+            if row_verdict(wx, wy, wz, fx, fy, fz, f is not None, cfg.max_rate, cfg.max_specific_force,
+                           cfg.require_specific_force) != ROW_OK:
                 return None
         except (TypeError, ValueError, OverflowError):
             return None                         # offer says what is wrong with it
@@ -451,7 +252,7 @@ class TimeGate:
                 self.notes[n] += 1
         e, origin = s.dt_ema, s.origin_ns
         self._undo = (source, origin, last_ns, e, note)
-        s.dt_ema = _ema_add(e, dt_ns / NS, cfg.rate_smoothing)
+        s.dt_ema = ema_add(e, dt_ns / NS, cfg.rate_smoothing)
         s.last_ns = t_ns
         self._last = None
         self._plain = p = ((t_ns - origin) / NS, (wx, wy, wz), f, t_ns, source)
@@ -507,23 +308,15 @@ class TimeGate:
         if len(w) != 3 or (f is not None and len(f) != 3):
             return self._drop("bad_message", "rate or specific force is not a 3-vector")
         wx, wy, wz = float(w[0]), float(w[1]), float(w[2])
-        # x - x is 0.0 (false) for a finite x, NaN (true) for NaN or ±Inf
-        bad = (wx - wx) or (wy - wy) or (wz - wz)
-        if f is not None:
+        if f is None:
+            fx = fy = fz = 0.0
+        else:
             fx, fy, fz = float(f[0]), float(f[1]), float(f[2])
-            bad = bad or (fx - fx) or (fy - fy) or (fz - fz)
-        if bad:
-            return self._drop("non_finite", f"non-finite value: omega={[wx, wy, wz]}, specific_force="
-                                            f"{None if f is None else [fx, fy, fz]}")
-        rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-        if rate > cfg.max_rate:
-            return self._drop("over_rate", f"|omega| = {rate:.6g} rad/s > max_rate {cfg.max_rate:g} rad/s")
-        if f is not None and not (force := math.sqrt(fx * fx + fy * fy + fz * fz)) <= cfg.max_specific_force:
-            return self._drop("over_specific_force", f"|specific force| = {force:.6g} m/s² > "     # (or overflows)
-                                                     f"max_specific_force {cfg.max_specific_force:g} m/s²")
-        if f is None and cfg.require_specific_force:
-            return self._drop("no_specific_force", "the model's effects need the specific force; "
-                                                   "this message carries none")
+        verdict = row_verdict(wx, wy, wz, fx, fy, fz, f is not None, cfg.max_rate, cfg.max_specific_force,
+                              cfg.require_specific_force)
+        if verdict != ROW_OK:
+            f = None if f is None else (fx, fy, fz)
+            return self._drop(ROW_REASONS[verdict], _row_detail(verdict, (wx, wy, wz), f, cfg))
 
         # -- choose the time
         stamp = r.stamp_ns
@@ -567,7 +360,7 @@ class TimeGate:
                 else:
                     note = ("gap_integrated",)
             else:
-                dt_ema = _ema_add(dt_ema, dt_ns / NS, cfg.rate_smoothing)
+                dt_ema = ema_add(dt_ema, dt_ns / NS, cfg.rate_smoothing)
 
         if action is _A_RESET and cfg.rebase_on_reset and cfg.time_source == "auto" and stamp_valid:
             source, t_ns = "header", int(stamp)     # a fresh start chooses its time source again (restart())
@@ -617,9 +410,9 @@ class TimeGate:
             self._arrivals(rx, rx_list)
             arrived = n
 
-        usable = _usable_rows(rb.omega, rb.force, rb.has_force, rb.reject, float(cfg.max_rate),
-                              float(cfg.max_specific_force), bool(cfg.require_specific_force))
-        gap_ns = _ns_floor(cfg.max_gap)
+        usable = usable_rows(rb.omega, rb.force, rb.has_force, rb.reject, float(cfg.max_rate),
+                             float(cfg.max_specific_force), bool(cfg.require_specific_force))
+        gap_ns = ns_floor(cfg.max_gap)
 
         tn = plain_next = intrinsic = stops = tn_source = None
         i = 0
@@ -669,14 +462,14 @@ class TimeGate:
         """The arrival-rate update of :meth:`offer` for every receive time of a block (same float operations)."""
         s = self._s
         first = s.rx_last
-        gap_ns = _ns_floor(self.config.max_gap)
+        gap_ns = ns_floor(self.config.max_gap)
         lo, hi = min(rx_list), max(rx_list)
         if first is not None:
             lo, hi = min(lo, first), max(hi, first)
-        if gap_ns < _EXACT_NS and -2**62 < lo and hi < 2**62:
-            e, unset = _arrival_ema(rx, 0 if first is None else first, first is not None, gap_ns,
-                                    np.nan if s.rx_dt_ema is None else s.rx_dt_ema, s.rx_dt_ema is None,
-                                    self.config.rate_smoothing)
+        if gap_ns < EXACT_NS and -2**62 < lo and hi < 2**62:
+            e, unset = arrival_ema(rx, 0 if first is None else first, first is not None, gap_ns,
+                                   np.nan if s.rx_dt_ema is None else s.rx_dt_ema, s.rx_dt_ema is None,
+                                   self.config.rate_smoothing)
             s.rx_dt_ema = None if unset else float(e)
         else:                                   # int64 differences could wrap or lose digits
             prev = np.empty(len(rx), np.int64)
@@ -686,7 +479,7 @@ class TimeGate:
             ok = (d > 0) & (d <= gap_ns)
             if first is None:
                 ok[0] = False
-            s.rx_dt_ema = _ema(s.rx_dt_ema, d[ok], self.config.rate_smoothing)
+            s.rx_dt_ema = ema(s.rx_dt_ema, d[ok], self.config.rate_smoothing)
         s.rx_last = int(rx_list[-1])
 
     def _accept_run(self, rb: "RateBlock", tn: np.ndarray, i: int, j: int, action: np.ndarray,
@@ -694,17 +487,17 @@ class TimeGate:
         """Accept rows i..j-1 (a plain run: each within (0, max_gap] after the previous one)."""
         s, m = self._s, j - i
         origin = s.origin_ns
-        if _ns_floor(self.config.max_gap) < _EXACT_NS and -2**62 <= origin <= 2**62:
+        if ns_floor(self.config.max_gap) < EXACT_NS and -2**62 <= origin <= 2**62:
             # (the run's times are within 2**62: offer_block vectorises no others)
-            s.dt_ema = float(_accept_rows(tn, i, j, s.last_ns, origin,
-                                          np.nan if s.dt_ema is None else s.dt_ema, s.dt_ema is None,
-                                          self.config.rate_smoothing, t, stamp))
+            s.dt_ema = float(accept_rows(tn, i, j, s.last_ns, origin,
+                                         np.nan if s.dt_ema is None else s.dt_ema, s.dt_ema is None,
+                                         self.config.rate_smoothing, t, stamp))
         else:                                   # intervals beyond 2**53 ns: exact Python division
             run = tn[i:j]
             prev = np.empty(m, np.int64)
             prev[0] = s.last_ns
             prev[1:] = run[:-1]
-            s.dt_ema = _ema(s.dt_ema, run - prev, self.config.rate_smoothing)
+            s.dt_ema = ema(s.dt_ema, run - prev, self.config.rate_smoothing)
             t[i:j] = (run - origin) / NS
             stamp[i:j] = run
         s.last_ns = last_ns = int(tn[j - 1])
