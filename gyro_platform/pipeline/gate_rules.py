@@ -118,6 +118,8 @@ class GateConfig:
         check_number("max_rate", self.max_rate, "rad/s", gt=0)
         check_number("max_specific_force", self.max_specific_force, "m/s²", gt=0)
         check_number("rate_smoothing", self.rate_smoothing, gt=0, le=1)
+        for k in ("max_gap", "reset_on_jump_back", "max_rate", "max_specific_force", "rate_smoothing"):
+            object.__setattr__(self, k, float(getattr(self, k)))    # one compiled row_verdict (float64 bounds)
         if self.on_gap not in ("reset", "integrate"):
             raise ValueError(f"on_gap = {self.on_gap!r}; allowed: reset, integrate")
         if self.time_source not in ("auto", "header", "receive"):
