@@ -117,31 +117,20 @@ import numpy as np
 from . import motions as mo
 from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, oversize, run_budget, RunBudget
 from .scene_yaml import as_float, load_yaml, SceneYAMLError
-from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, ModelOptions, MODES, OptionsError
 from ..physics.params import ParameterError, PlatformParams
 from ..pipeline.grid import MAX_GRID_RATE
-from ..reports.recording import ROTORS
+from ..reports.summary import ENTRY_NAMES, SUMMARY_FIGURES
 
-AXIS_KEYS = ("x", "y", "z", "norm")
-#: quantity -> (selector key or None, allowed selector values, unit)
+#: quantities an expectation may check -> (selector key or None, allowed selector values, unit): the
+#: summary's figures (``reports.summary.SUMMARY_FIGURES``: entries and units)
 QUANTITIES: dict[str, tuple[str | None, tuple[str, ...], str]] = {
-    "max_abs_gimbal_angle": ("joint", GIMBAL_NAMES, "rad"),
-    "final_gimbal_angle": ("joint", GIMBAL_NAMES, "rad"),
-    "gimbal_angle_slope": ("joint", GIMBAL_NAMES, "rad/s"),
-    "max_abs_bearing_torque": ("bearing", BEARING_NAMES, "N m"),
-    "max_abs_motor_torque": ("rotor", ROTORS, "N m"),
-    "max_abs_servo_torque": ("axis", AXIS_KEYS, "N m"),
-    "final_drift_angle": ("axis", AXIS_KEYS, "rad"),
-    "max_abs_drift_angle": ("axis", AXIS_KEYS, "rad"),
-    "drift_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "drift_rate_deg_per_h": ("axis", AXIS_KEYS, "°/h"),
-    "platform_vs_vehicle_rate_deg_per_h": ("axis", AXIS_KEYS, "°/h"),
-    "mean_vehicle_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "max_abs_vehicle_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "duration": (None, (), "s"),
-}
-SELECTORS = ("joint", "bearing", "rotor", "axis")
+    q: (SUMMARY_FIGURES[q][1], ENTRY_NAMES.get(SUMMARY_FIGURES[q][1] or "", ()), SUMMARY_FIGURES[q][0])
+    for q in ("max_abs_gimbal_angle", "final_gimbal_angle", "gimbal_angle_slope", "max_abs_bearing_torque",
+              "max_abs_motor_torque", "max_abs_servo_torque", "final_drift_angle", "max_abs_drift_angle",
+              "drift_rate", "drift_rate_deg_per_h", "platform_vs_vehicle_rate_deg_per_h", "mean_vehicle_rate",
+              "max_abs_vehicle_rate", "duration")}
+SELECTORS = tuple(ENTRY_NAMES)         # joint, bearing, rotor, axis
 MOTION_TYPES = ("constant", "earth_fixed", "coordinated_turn", "sinusoidal", "coning", "rate_steps",
                 "random", "bag")
 TOP_KEYS = ("name", "description", "mode", "fidelity", "effects", "params", "integrator", "max_step",
