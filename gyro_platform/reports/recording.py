@@ -28,12 +28,12 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
-import json
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 
+from .jsonio import write_json
 from .summary import AXES, figures_of_arrays, ROTORS, RunFigures, summary_dict, SUMMARY_UNITS
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
@@ -245,14 +245,12 @@ class Recorder:
         return w.path
 
     def write_json(self, path, extra: dict | None = None) -> Path:
-        """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """``{"summary": summary(), **extra}`` as strict JSON (:func:`jsonio.write_json`: numpy
+        values converted, a non-finite number ``null``)."""
         doc = dict(extra or {})
         if "summary" not in doc:
             doc = {"summary": self.summary(), **doc}
-        path.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=True) + "\n")
-        return path
+        return write_json(path, doc)
 
     # ---- analysis -----------------------------------------------------------------------
     def summary(self, fit_start: float = 0.0, mounting=(0.0, 0.0, 0.0, 1.0)) -> dict[str, Any]:
@@ -489,22 +487,6 @@ class CsvWriter:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, float) or isinstance(x, (int, str, bool)) or x is None:
-        return x
-    return str(x)
 
 
 # ---- summary table ----------------------------------------------------------------------
