@@ -17,6 +17,7 @@
 Holds the vehicle motion generators (``motions``: exact body rates, specific force, attitude),
 the scene schema, loading and lookup by name (``schema``), the checks of a scene file's values
 (``validation``), running a scene through the pipeline and evaluating its expectations
-(``runner``) and the ``gyro-platform run`` command (``command``). May import ``pipeline``, ``bags``, ``messages``, ``reports``, ``engine``, ``physics``,
-``errors``, ``signals`` and ``filesystem``.
+(``runner``) and the ``gyro-platform run`` command (``command``). May import ``pipeline``,
+``bags``, ``messages``, ``reports``, ``engine``, ``physics``, ``errors``, ``signals`` and
+``filesystem``.
 """
