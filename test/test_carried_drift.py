@@ -22,7 +22,7 @@ import pytest
 from gyro_platform.engine.outputs import C_DRIFT, C_T, N_COL, OutputBlock
 from gyro_platform.errors import SimulationError
 from gyro_platform.replay.stats import Stats
-from gyro_platform.reports.recording import fit_slope, unwrap_rotation_vectors
+from gyro_platform.reports.summary import fit_slope, unwrap_rotation_vectors
 from gyro_platform.scenes.runner import run_scene
 from gyro_platform.scenes.schema import scene_from_dict
 

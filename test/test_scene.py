@@ -27,7 +27,8 @@ from gyro_platform import cli
 from gyro_platform.engine.outputs import BEARING_NAMES, GIMBAL_NAMES, Outputs
 from gyro_platform.physics.options import DEFAULT_EFFECTS, ModelOptions
 from gyro_platform.physics.params import PlatformParams
-from gyro_platform.reports.recording import fit_slope, print_summary_table, RAD_S_TO_DEG_H, Recorder
+from gyro_platform.reports.recording import print_summary_table, Recorder
+from gyro_platform.reports.summary import fit_slope, RAD_S_TO_DEG_H
 from gyro_platform.scenes.schema import Check, load_scene, ScenarioError, Scene, scene_from_dict
 
 REPO = Path(__file__).resolve().parents[1]

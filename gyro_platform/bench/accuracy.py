@@ -30,7 +30,6 @@ are quoted. Nothing here asserts speed: tests assert physics, benchmarks measure
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 import time
 
@@ -40,6 +39,7 @@ from .bench_scenes import aircraft_scene, BenchScene, SAMPLE_RATE, ship_scene
 from ..engine.simulator import Simulator
 from ..physics.options import ModelOptions
 from ..physics.params import NAV1
+from ..reports.jsonio import write_json
 
 OUT_EVERY = 100          # compare at 10 Hz
 THRESHOLDS = (1e-3, 1e-6, 1e-9)
@@ -205,7 +205,7 @@ def write_outputs(rows: list[dict], out_dir: Path) -> None:
                 "none" if c is None else f"{c['fidelity']} + {c['integrator']} at {c['step_or_tol']} "
                 f"({c['cpu_per_sim_s']:.2e} CPU s per sim s, {c['rtf']:.0f}× real time, error {c['max']:.1e} rad)"))
     (out_dir / "accuracy.md").write_text("\n".join(lines) + "\n")
-    (out_dir / "accuracy.json").write_text(json.dumps(rows, indent=1, default=float))
+    write_json(out_dir / "accuracy.json", rows, indent=1)
     print("\n" + "\n".join(lines[-2 * len(THRESHOLDS):]))
     plot(rows, out_dir / "accuracy.png")
     print(f"\nwrote {out_dir / 'accuracy.csv'}, {out_dir / 'accuracy.md'}, {out_dir / 'accuracy.png'}")

@@ -30,7 +30,6 @@ scene on 1 and 2 Dask workers, results identical. Each writes its tables and plo
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 import sys
 
@@ -40,6 +39,7 @@ from .hard import hard
 from .hotpath import effects_cost, hotpath
 from ..errors import EXIT_USAGE, OutputError
 from ..filesystem import check_output_path
+from ..reports.jsonio import write_json
 
 __all__ = ["add_arguments", "run"]
 
@@ -128,5 +128,5 @@ def run(args) -> int:
     else:
         res = hotpath(repeats=args.repeats)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "hotpath.json").write_text(json.dumps(res, indent=1))
+        write_json(out / "hotpath.json", res, indent=1)
     return 0

@@ -20,7 +20,6 @@ is off costs nothing. Timing is CPU time (``time.process_time``), medians of rep
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 import time
 
@@ -31,6 +30,7 @@ from ..engine.inputs import RateSample
 from ..engine.simulator import Simulator
 from ..physics.options import DEFAULT_EFFECTS, EFFECTS, ModelOptions
 from ..physics.params import NAV1
+from ..reports.jsonio import write_json
 
 __all__ = ["hotpath", "effects_cost"]
 
@@ -62,7 +62,7 @@ def effects_cost(out_dir: Path, repeats: int = 5) -> list[dict]:
             rows.append({"fidelity": fid, "effect": extra or "(minimum)", "us_per_sample": float(np.median(ts))})
             print(f"{fid:7s} {extra or '(minimum)':30s} {np.median(ts):6.2f} µs/sample", flush=True)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "effects.json").write_text(json.dumps(rows, indent=1))
+    write_json(out_dir / "effects.json", rows, indent=1)
     return rows
 
 

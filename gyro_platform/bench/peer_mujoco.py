@@ -42,7 +42,6 @@ Needs ``pip install '.[bench]'`` (mujoco); without it the benchmark says so and 
 from __future__ import annotations
 
 from dataclasses import dataclass
-import json
 import os
 from pathlib import Path
 import shutil
@@ -57,6 +56,7 @@ from .bags import BAG_VERSION, cache_dir, VehicleImu, write_imu_bag
 from .bench_scenes import BenchScene, SAMPLE_RATE, ship_scene
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
+from ..reports.jsonio import write_json
 from ..scenes.motions import RateSteps
 
 __all__ = ["mjcf", "MujocoPlatform", "gyro_run", "mujoco_run", "peer", "GIMBALS", "BASE_INERTIA", "ROTOR_KV",
@@ -363,7 +363,7 @@ def write_outputs(doc: dict, out_dir: Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     text = table(doc)
     print("\n" + text, end="")
-    (out_dir / "peer.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    write_json(out_dir / "peer.json", doc, indent=1)
     (out_dir / "peer.md").write_text(text)
     plot(doc, out_dir / "peer.png")
     print(f"wrote {out_dir / 'peer.json'}, {out_dir / 'peer.md'}, {out_dir / 'peer.png'}")

@@ -12,17 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""What a benchmark section writes: its Markdown table printed and saved, its rows as JSON with
-the machine's context (Python, load, CPUs, UTC date), and its plot. Standard library only."""
+"""What a benchmark section writes: its Markdown table printed and saved, its rows as strict JSON
+(``reports.jsonio``) with the machine's context (Python, load, CPUs, UTC date), and its plot."""
 from __future__ import annotations
 
 from dataclasses import asdict
-import json
 import os
 from pathlib import Path
 import sys
 import time
 from typing import Any, Callable, Sequence
+
+from ..reports.jsonio import write_json
 
 
 def write_report(stem: str, rows: Sequence[Any], text: str, out_dir: Path,
@@ -34,7 +35,7 @@ def write_report(stem: str, rows: Sequence[Any], text: str, out_dir: Path,
     doc = {"meta": {**meta, "python": sys.version.split()[0], "load_avg": os.getloadavg()[0],
                     "cpus": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())},
            "rows": [{**asdict(r), "ratio": r.ratio} for r in rows]}
-    (out_dir / f"{stem}.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    write_json(out_dir / f"{stem}.json", doc, indent=1)
     (out_dir / f"{stem}.md").write_text(text)
     plot(rows, out_dir / f"{stem}.png")
     print(f"wrote {out_dir / f'{stem}.json'}, {out_dir / f'{stem}.md'}, {out_dir / f'{stem}.png'}")

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 from contextlib import closing
 from dataclasses import dataclass, field
-import json
 from pathlib import Path
 import sys
 import time
@@ -51,6 +50,7 @@ from ..pipeline.grid import grid_index, grid_indices, new_slots
 from ..pipeline.outcomes import ADVANCED, no_sample_hint
 from ..pipeline.pacing import ChunkPacer, prefetched
 from ..pipeline.stream import judge, Pipeline
+from ..reports.jsonio import write_json
 from ..signals import deferred_signals, stop_reason
 
 DEFAULT_OUTPUT_RATE = 10.0      # Hz
@@ -159,7 +159,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     except KeyboardInterrupt as e:          # it arrived while they were written: they are; say so
         run.stopped(e)
         summary["interrupted_by"], summary["error"] = run.interrupted, run.error
-        summary_path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
+        write_json(summary_path, summary)
     return summary
 
 
@@ -172,17 +172,8 @@ def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, plot: bool) 
     summary["files"] = {"bag": str(out_bag), "summary": str(summary_path), "plot": None}
     if plot:
         summary["files"]["plot"], summary["recorder"] = run.plot(plot_path)
-    summary_path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
+    write_json(summary_path, summary)
     return summary
-
-
-def json_default(o: Any) -> Any:
-    """JSON for numpy scalars and arrays (and ``str`` of anything else)."""
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
 
 
 class _Run:

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..engine.outputs import BEARING_NAMES
-from ..reports.recording import unwrap_rotation_vectors
+from ..reports.summary import axes_dict, RAD_S_TO_DEG_H, RunFigures, summary_dict, unwrap_rotation_vectors
 
 N_BEARINGS = len(BEARING_NAMES)
 PLOT_BUCKETS = 2000             # at most this many min/max buckets of outputs are kept for the plot
@@ -173,13 +173,11 @@ class Stats:
         and deg/h, per platform axis and norm; absent with fewer than 2 outputs)."""
         if self.last is None:
             return {}
-        from ..reports.recording import axes_dict
-
         res: dict[str, Any] = {"final_drift_angle_rad": axes_dict(np.asarray(self.last.drift_angle, float))}
         slope = self._fit.slope()
         if slope is not None:
             res["drift_rate_rad_s"] = axes_dict(slope)
-            res["drift_rate_deg_h"] = axes_dict(slope * 180 / math.pi * 3600)
+            res["drift_rate_deg_h"] = axes_dict(slope * RAD_S_TO_DEG_H)
             res["fit_s"] = self._fit.span
             res["fit_outputs"] = self._fit.n
         return res
@@ -348,35 +346,26 @@ class PlotSeries:
 
     def summary(self, drift: tuple[float, np.ndarray] | None) -> dict[str, Any]:
         """The figures ``Recorder.summary`` gives that bounded data keeps exactly, over every
-        output: maxima of |value| (from the buckets' minima and maxima), final values, and
-        the drift rate of ``drift`` = ``(fit start time s, slope (3,) rad/s)`` (the replay's
-        least-squares fit over the last segment, ``Stats.drift_fit``; the plot's legend)."""
-        from ..reports.recording import AXES, axes_dict, GIMBAL_NAMES, RAD_S_TO_DEG_H, ROTORS, SUMMARY_UNITS
-
-        s: dict[str, Any] = {"n_outputs": self.n}
+        output, named as there (``summary.summary_dict``): maxima of |value| (from the buckets'
+        minima and maxima), final values, and the drift rate of ``drift`` = ``(fit start time s,
+        slope (3,) rad/s)`` (the replay's least-squares fit over the last segment,
+        ``Stats.drift_fit``; the plot's legend); then ``plot``: the buckets."""
         if self.n == 0:
-            return s
+            return summary_dict(RunFigures(0))
         t, lo, hi = self.columns()
         big = np.fmax(np.abs(lo), np.abs(hi)).max(axis=0)
         c = column_slices(bool(self.stabilised))
         last = self.last
-        axes = lambda v: dict(zip(AXES, v.tolist()))       # noqa: E731  (x, y, z; the norm from its column)
-        s["t_start"] = float(t[0])
-        s["duration"] = float(self.t_last[self.nb - 1] - t[0])
-        s["max_abs_gimbal_angle"] = dict(zip(GIMBAL_NAMES, big[c["gimbal"]].tolist()))
-        s["final_gimbal_angle"] = dict(zip(GIMBAL_NAMES, last[c["gimbal"]].tolist()))
-        s["max_abs_bearing_torque"] = dict(zip(BEARING_NAMES, big[c["bearing"]].tolist()))
-        s["max_abs_motor_torque"] = dict(zip(ROTORS, big[c["motor"]].tolist()))
+        f = RunFigures(self.n, t_start=float(t[0]), duration=float(self.t_last[self.nb - 1] - t[0]),
+                       max_abs_gimbal_angle=big[c["gimbal"]], final_gimbal_angle=last[c["gimbal"]],
+                       max_abs_bearing_torque=dict(zip(BEARING_NAMES, big[c["bearing"]].tolist())),
+                       max_abs_motor_torque=big[c["motor"]], final_drift_angle=last[c["drift"]],
+                       max_abs_drift_angle=np.append(big[c["drift"]], big[c["drift_norm"]]))
         if self.stabilised:
-            s["max_abs_servo_torque"] = {**axes(big[c["servo"]]), "norm": float(big[c["servo_norm"]])}
-        s["final_drift_angle"] = axes_dict(last[c["drift"]])
-        s["max_abs_drift_angle"] = {**axes(big[c["drift"]]), "norm": float(big[c["drift_norm"]])}
+            f.max_abs_servo_torque = np.append(big[c["servo"]], big[c["servo_norm"]])
         if drift is not None:
-            start, rate = drift
-            s["drift_fit_start"] = float(start - t[0])
-            s["drift_rate"] = axes_dict(rate)
-            s["drift_rate_deg_per_h"] = axes_dict(rate * RAD_S_TO_DEG_H)    # as Recorder.summary
-        s["units"] = {k: SUMMARY_UNITS[k] for k in s if k in SUMMARY_UNITS}
+            f.drift_fit_start, f.drift_rate = float(drift[0] - t[0]), drift[1]
+        s = summary_dict(f)
         s["plot"] = {"buckets": self.nb, "outputs_per_bucket": self.stride}
         return s
 

@@ -12,8 +12,10 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""reports — what a run leaves for people: the recorder (``recording``: CSV, JSON summaries,
-plots) and the helper process that draws a command's plot while it runs (``plot_process``).
+"""reports — what a run leaves for people: a run's summary (``summary``: its figures, names and
+units, made once for the recorder and the replay), the one JSON writer of every command's files
+(``jsonio``: strict JSON), the recorder (``recording``: CSV, JSON summaries, plots) and the
+helper process that draws a command's plot while it runs (``plot_process``).
 May import the engine's output records (``engine.outputs``), ``messages``, ``errors`` and
 ``filesystem``.
 """

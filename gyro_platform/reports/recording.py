@@ -15,8 +15,9 @@
 """Recording of simulator outputs: arrays per field, CSV/JSON files, a summary and a plot.
 
 Units: time s, angles rad, rates rad/s, torques N m; drift rates also in °/h
-(``1 rad/s = 206 264.8 °/h``). A *drift* is the slowly growing part of the drift angle, so the
-drift rate is the slope of a least-squares straight line through the drift angle over time —
+(``1 rad/s = 206 264.8 °/h``). The summary's figures, names and units are those of
+:mod:`gyro_platform.reports.summary`: a *drift* is the slowly growing part of the drift angle, so
+the drift rate is the slope of a least-squares straight line through the drift angle over time —
 an oscillation on top of it averages out, a bounded offset does not count.
 
 Frames: ``drift_angle`` is the platform attitude error (rotation vector, platform axes; see
@@ -27,18 +28,15 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
-import json
-import math
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 
+from .jsonio import write_json
+from .summary import AXES, figures_of_arrays, ROTORS, RunFigures, summary_dict, SUMMARY_UNITS
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
-RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
-AXES = ("x", "y", "z")
-ROTORS = ("rotor6", "rotor8", "rotor11")
 QUAT = ("qx", "qy", "qz", "qw")
 
 #: columns of ``outputs.csv`` (and keys of the replay summary's ``ranges``): (pattern, unit,
@@ -116,67 +114,6 @@ def _columns(field: Any, bearing: Any, status: dict, t: np.ndarray) -> dict[str,
     for k, v in status.items():
         cols[k + STATUS_SUFFIX.get(k, "")] = np.asarray(v, dtype=float)
     return cols
-
-
-def fit_slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least-squares slope of ``y`` (N,) or (N, k) against ``t`` (N,): units of y per second."""
-    t = np.asarray(t, dtype=float)
-    y = np.asarray(y, dtype=float)
-    if t.size < 2:
-        return np.zeros(y.shape[1:]) if y.ndim > 1 else np.float64(0.0)
-    tc = t - t.mean()
-    den = float(tc @ tc)
-    if den == 0.0:
-        return np.zeros(y.shape[1:]) if y.ndim > 1 else np.float64(0.0)
-    yc = y - y.mean(axis=0)
-    return (tc @ yc) / den
-
-
-def unwrap_rotation_vectors(d: np.ndarray, prev: np.ndarray | None = None) -> np.ndarray:
-    """Rotation vectors ``d`` (N, 3) rad made continuous for a slope fit: each becomes the
-    equivalent ``d + 2πm·d/|d|`` (the same rotation) nearest the one before (``prev``: the
-    unwrapped vector before ``d[0]``, if any). A rotation vector's angle is at most π; a drift
-    that turns on (a carried gyro precessing, 410 °/h about z) wraps there, and a line through
-    the wrapped angles has the wrong slope. Rows with a non-finite value stay as they are; a
-    series that stays within π/2 of zero (every stabilised platform) is returned unchanged."""
-    d = np.asarray(d, dtype=float)
-    r = np.sqrt(np.einsum("ij,ij->i", d, d)) if d.size else np.zeros(0)
-    near = not (r > 0.5 * math.pi).any() and (prev is None or not np.linalg.norm(prev) > 0.5 * math.pi)
-    if near:
-        return d
-    out = d.copy()
-    last = None if prev is None else np.asarray(prev, dtype=float)
-    two_pi = 2.0 * math.pi
-    for k in range(len(d)):
-        if not math.isfinite(r[k]):
-            continue
-        if last is not None and r[k] > 0.0:
-            u = d[k] / r[k]
-            m = round(float(np.dot(last - d[k], u)) / two_pi)
-            if m:
-                out[k] = d[k] + (two_pi * m) * u
-        last = out[k]
-    return out
-
-
-def axes_dict(v: np.ndarray) -> dict[str, float]:
-    v = np.asarray(v, dtype=float)
-    return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2]), "norm": float(np.linalg.norm(v))}
-
-
-def _steady(w: np.ndarray) -> bool:
-    """True when the angular rate samples ``w`` (N, 3) rad/s are constant to 1e-3 of their
-    mean (plus 1e-12 rad/s): the only case where a rate of relative attitude is a drift."""
-    if len(w) < 2:
-        return False
-    mean = w.mean(axis=0)
-    return float(np.max(np.linalg.norm(w - mean, axis=1))) <= 1e-3 * float(np.linalg.norm(mean)) + 1e-12
-
-
-def _max_abs_axes(a: np.ndarray) -> dict[str, float]:
-    d = {ax: float(np.max(np.abs(a[:, i]))) for i, ax in enumerate(AXES)}
-    d["norm"] = float(np.max(np.linalg.norm(a, axis=1)))
-    return d
 
 
 class Recorder:
@@ -308,75 +245,29 @@ class Recorder:
         return w.path
 
     def write_json(self, path, extra: dict | None = None) -> Path:
-        """``{"summary": summary(), **extra}`` as JSON (numpy values converted)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """``{"summary": summary(), **extra}`` as strict JSON (:func:`jsonio.write_json`: numpy
+        values converted, a non-finite number ``null``)."""
         doc = dict(extra or {})
         if "summary" not in doc:
             doc = {"summary": self.summary(), **doc}
-        path.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=True) + "\n")
-        return path
+        return write_json(path, doc)
 
     # ---- analysis -----------------------------------------------------------------------
     def summary(self, fit_start: float = 0.0, mounting=(0.0, 0.0, 0.0, 1.0)) -> dict[str, Any]:
-        """Key figures of the run.
+        """Key figures of the run (:func:`summary.figures_of_arrays`, named by :func:`summary.summary_dict`).
 
         ``fit_start`` (s after the first instant) starts the window of the least-squares
         drift fits. ``mounting`` (quaternion x, y, z, w, ``R_BP``) is the platform orientation
         relative to the vehicle at the first instant, used for ``platform_vs_vehicle_*``.
         """
-        n = len(self)
-        s: dict[str, Any] = {"n_outputs": n}
-        if n == 0:
-            return s
-        t = self.t_rel
-        s["t_start"] = float(self.t[0])
-        s["duration"] = float(t[-1])
-        q = self.gimbal_angles
-        s["max_abs_gimbal_angle"] = {g: float(np.max(np.abs(q[:, i]))) for i, g in enumerate(GIMBAL_NAMES)}
-        s["final_gimbal_angle"] = {g: float(q[-1, i]) for i, g in enumerate(GIMBAL_NAMES)}
-        notes: list[str] = []
-        win = t >= fit_start - 1e-12
-        if np.count_nonzero(win) < 2:
-            if fit_start > 0:
-                notes.append(f"the fits cover the whole run: the window from fit_start {fit_start:g} s holds "
-                             f"{np.count_nonzero(win)} output(s), a fit needs two")
-            win = np.ones_like(t, dtype=bool)
-        slope_q = fit_slope(t[win], q[win])
-        s["gimbal_angle_slope"] = {g: float(slope_q[i]) for i, g in enumerate(GIMBAL_NAMES)}
-        s["max_abs_bearing_torque"] = {b: float(np.max(np.linalg.norm(self.bearing(b), axis=1)))
-                                       for b in self.bearings()}
-        mt = self.field("motor_torques")
-        if mt is not None:
-            s["max_abs_motor_torque"] = {r: float(np.max(np.abs(mt[:, i]))) for i, r in enumerate(ROTORS)}
-        st = self.field("servo_torque")
-        if st is not None:
-            s["max_abs_servo_torque"] = _max_abs_axes(st)
-        d = self.drift_angle
-        s["final_drift_angle"] = axes_dict(d[-1])
-        s["max_abs_drift_angle"] = _max_abs_axes(d)
-        rate = fit_slope(t[win], unwrap_rotation_vectors(d)[win])
-        s["drift_fit_start"] = float(t[win][0])
-        s["drift_rate"] = axes_dict(rate)
-        s["drift_rate_deg_per_h"] = axes_dict(rate * RAD_S_TO_DEG_H)
-        if "vehicle_omega" in self._extra:
-            w = self.field("vehicle_omega")
-            s["mean_vehicle_rate"] = axes_dict(w.mean(axis=0))
-            s["max_abs_vehicle_rate"] = _max_abs_axes(w)
-        if "vehicle_attitude" in self._extra:
-            w = self.field("vehicle_omega") if "vehicle_omega" in self._extra else None
-            if w is not None and _steady(w[win]):
-                rel = unwrap_rotation_vectors(self.platform_vs_vehicle(mounting))
-                r = fit_slope(t[win], rel[win])
-                s["platform_vs_vehicle_rate_deg_per_h"] = axes_dict(r * RAD_S_TO_DEG_H)
-            else:
-                notes.append("platform_vs_vehicle_rate_deg_per_h omitted: the vehicle does not turn at a "
-                             "steady rate, so a slope of the platform's attitude relative to the vehicle would "
-                             "measure the vehicle's motion, not a departure of the platform")
-        s["units"] = {k: SUMMARY_UNITS[k] for k in s if k in SUMMARY_UNITS}
-        if notes:
-            s["notes"] = notes
-        return s
+        if len(self) == 0:
+            return summary_dict(RunFigures(0))
+        extra = self._extra
+        return summary_dict(figures_of_arrays(
+            self.t, self.gimbal_angles, self.drift_angle, {b: self.bearing(b) for b in self.bearings()},
+            self.field("motor_torques"), self.field("servo_torque"),
+            self.field("vehicle_omega") if "vehicle_omega" in extra else None,
+            (lambda: self.platform_vs_vehicle(mounting)) if "vehicle_attitude" in extra else None, fit_start))
 
     def platform_vs_vehicle(self, mounting=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
         """(N, 3) rad: rotation of the platform relative to the vehicle since the first
@@ -598,44 +489,23 @@ class CsvWriter:
         self.close()
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, float) or isinstance(x, (int, str, bool)) or x is None:
-        return x
-    return str(x)
-
-
 # ---- summary table ----------------------------------------------------------------------
+#: rows of the summary table: (summary key, number format); units from ``summary.SUMMARY_UNITS``
 _TABLE = [
-    # (summary key, unit, format, scale)
-    ("max_abs_gimbal_angle", "rad", "{:.3e}", 1.0),
-    ("final_gimbal_angle", "rad", "{:+.3e}", 1.0),
-    ("gimbal_angle_slope", "rad/s", "{:+.3e}", 1.0),
-    ("max_abs_bearing_torque", "N m", "{:.3e}", 1.0),
-    ("max_abs_motor_torque", "N m", "{:.3e}", 1.0),
-    ("max_abs_servo_torque", "N m", "{:.3e}", 1.0),
-    ("final_drift_angle", "rad", "{:+.3e}", 1.0),
-    ("max_abs_drift_angle", "rad", "{:.3e}", 1.0),
-    ("drift_rate", "rad/s", "{:+.4e}", 1.0),
-    ("drift_rate_deg_per_h", "°/h", "{:+.5f}", 1.0),
-    ("platform_vs_vehicle_rate_deg_per_h", "°/h", "{:+.5f}", 1.0),
-    ("mean_vehicle_rate", "rad/s", "{:+.3e}", 1.0),
-    ("max_abs_vehicle_rate", "rad/s", "{:.3e}", 1.0),
+    ("max_abs_gimbal_angle", "{:.3e}"),
+    ("final_gimbal_angle", "{:+.3e}"),
+    ("gimbal_angle_slope", "{:+.3e}"),
+    ("max_abs_bearing_torque", "{:.3e}"),
+    ("max_abs_motor_torque", "{:.3e}"),
+    ("max_abs_servo_torque", "{:.3e}"),
+    ("final_drift_angle", "{:+.3e}"),
+    ("max_abs_drift_angle", "{:.3e}"),
+    ("drift_rate", "{:+.4e}"),
+    ("drift_rate_deg_per_h", "{:+.5f}"),
+    ("platform_vs_vehicle_rate_deg_per_h", "{:+.5f}"),
+    ("mean_vehicle_rate", "{:+.3e}"),
+    ("max_abs_vehicle_rate", "{:.3e}"),
 ]
-
-
-#: unit of every number in ``Recorder.summary`` (per key; a dict's entries share the unit)
-SUMMARY_UNITS: dict[str, str] = {"n_outputs": "1", "t_start": "s", "duration": "s", "drift_fit_start": "s",
-                                 **{key: unit for key, unit, _, _ in _TABLE}}
 
 
 def print_summary_table(summary: dict, file: TextIO | None = None) -> None:
@@ -656,12 +526,12 @@ def print_summary_table(summary: dict, file: TextIO | None = None) -> None:
         head.append(f"wall {summary['wall_time']:.3g} s")
     print(" | ".join(head), file=out)
     rows: list[tuple[str, list[str]]] = []
-    for key, unit, fmt, scale in _TABLE:
+    for key, fmt in _TABLE:
         d = summary.get(key)
         if not isinstance(d, dict) or not d:
             continue
-        cells = [f"{k}={fmt.format(v * scale)}" for k, v in d.items()]
-        rows.append((f"{key} [{unit}]", cells))
+        cells = [f"{k}={fmt.format(v)}" for k, v in d.items()]
+        rows.append((f"{key} [{SUMMARY_UNITS[key]}]", cells))
     if not rows:
         return
     w0 = max(len(r[0]) for r in rows)
@@ -672,4 +542,4 @@ def print_summary_table(summary: dict, file: TextIO | None = None) -> None:
         print(line.rstrip(), file=out)
 
 
-__all__ = ["Recorder", "fit_slope", "unwrap_rotation_vectors", "print_summary_table", "RAD_S_TO_DEG_H"]
+__all__ = ["Recorder", "print_summary_table"]

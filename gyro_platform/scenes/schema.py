@@ -97,7 +97,8 @@ Quantities (``QUANTITIES``; selector and unit):
     mean_vehicle_rate, max_abs_vehicle_rate       axis                                      rad/s
     duration                                      —                                         s
 
-``load_scene(path) -> Scene`` (here: the schema, validation, loading and lookup by name);
+``load_scene(path) -> Scene`` (here: the schema, loading and lookup by name; the checks of single
+values and ``ScenarioError`` are :mod:`gyro_platform.scenes.validation`);
 running is :func:`gyro_platform.scenes.runner.run_scene`, the command
 :mod:`gyro_platform.scenes.command`.
 """
@@ -110,47 +111,33 @@ import math
 from pathlib import Path
 import re
 import sys
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 from . import motions as mo
 from .budget import MAX_MEMORY_BYTES, MAX_STEPS, MIN_RTOL, oversize, run_budget, RunBudget
-from .scene_yaml import as_float, load_yaml, SceneYAMLError
-from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
+from .scene_yaml import load_yaml, SceneYAMLError
+from .validation import join_path, param_value, ScenarioError, type_name, Validator
 from ..physics.options import DEFAULT_EFFECTS, DEFAULT_FIDELITY, EFFECTS, FIDELITIES, ModelOptions, MODES, OptionsError
 from ..physics.params import ParameterError, PlatformParams
 from ..pipeline.grid import MAX_GRID_RATE
-from ..reports.recording import ROTORS
+from ..reports.summary import ENTRY_NAMES, SUMMARY_FIGURES
 
-AXIS_KEYS = ("x", "y", "z", "norm")
-#: quantity -> (selector key or None, allowed selector values, unit)
+#: quantities an expectation may check -> (selector key or None, allowed selector values, unit): the
+#: summary's figures (``reports.summary.SUMMARY_FIGURES``: entries and units)
 QUANTITIES: dict[str, tuple[str | None, tuple[str, ...], str]] = {
-    "max_abs_gimbal_angle": ("joint", GIMBAL_NAMES, "rad"),
-    "final_gimbal_angle": ("joint", GIMBAL_NAMES, "rad"),
-    "gimbal_angle_slope": ("joint", GIMBAL_NAMES, "rad/s"),
-    "max_abs_bearing_torque": ("bearing", BEARING_NAMES, "N m"),
-    "max_abs_motor_torque": ("rotor", ROTORS, "N m"),
-    "max_abs_servo_torque": ("axis", AXIS_KEYS, "N m"),
-    "final_drift_angle": ("axis", AXIS_KEYS, "rad"),
-    "max_abs_drift_angle": ("axis", AXIS_KEYS, "rad"),
-    "drift_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "drift_rate_deg_per_h": ("axis", AXIS_KEYS, "°/h"),
-    "platform_vs_vehicle_rate_deg_per_h": ("axis", AXIS_KEYS, "°/h"),
-    "mean_vehicle_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "max_abs_vehicle_rate": ("axis", AXIS_KEYS, "rad/s"),
-    "duration": (None, (), "s"),
-}
-SELECTORS = ("joint", "bearing", "rotor", "axis")
+    q: (SUMMARY_FIGURES[q][1], ENTRY_NAMES.get(SUMMARY_FIGURES[q][1] or "", ()), SUMMARY_FIGURES[q][0])
+    for q in ("max_abs_gimbal_angle", "final_gimbal_angle", "gimbal_angle_slope", "max_abs_bearing_torque",
+              "max_abs_motor_torque", "max_abs_servo_torque", "final_drift_angle", "max_abs_drift_angle",
+              "drift_rate", "drift_rate_deg_per_h", "platform_vs_vehicle_rate_deg_per_h", "mean_vehicle_rate",
+              "max_abs_vehicle_rate", "duration")}
+SELECTORS = tuple(ENTRY_NAMES)         # joint, bearing, rotor, axis
 MOTION_TYPES = ("constant", "earth_fixed", "coordinated_turn", "sinusoidal", "coning", "rate_steps",
                 "random", "bag")
 TOP_KEYS = ("name", "description", "mode", "fidelity", "effects", "params", "integrator", "max_step",
             "rtol", "atol", "duration", "test_duration", "sample_rate", "output_rate", "fit_start",
             "motion", "expect")
-
-
-class ScenarioError(ValueError):
-    """A scene file is invalid; the message names the file and the key path."""
 
 
 class MotionError(ScenarioError):
@@ -168,93 +155,6 @@ def check_budget(source: str, duration: float, sample_rate: float | None, output
     if problem is not None:
         key, text = problem
         raise ScenarioError(f"scene '{source}': {(keys or {}).get(key, key)}: {text}")
-
-
-# ---- validation helpers -----------------------------------------------------------------
-class _V:
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, path: str, msg: str):
-        where = f"{path}: " if path else ""
-        raise ScenarioError(f"scene '{self.source}': {where}{msg}")
-
-    def mapping(self, v, path: str, allowed: Iterable[str], required: Iterable[str] = ()) -> dict:
-        if not isinstance(v, dict):
-            self.fail(path, f"expected a mapping, got {_tname(v)}")
-        allowed = tuple(allowed)
-        for k in v:
-            if not isinstance(k, str):
-                self.fail(path, f"keys must be strings, got {k!r}")
-            if k not in allowed:
-                self.fail(_join(path, k), f"unknown key (allowed: {', '.join(allowed)})")
-        for k in required:
-            if k not in v or v[k] is None:
-                self.fail(_join(path, k), "required key is missing")
-        return v
-
-    def number(self, v, path: str, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False) -> float:
-        x = as_float(v)
-        if x is None:
-            self.fail(path, f"expected a number, got {_tname(v)} {v!r}")
-        if not math.isfinite(x):
-            self.fail(path, f"expected a finite number, got {v!r}")
-        if lo is not None and (x <= lo if lo_open else x < lo):
-            self.fail(path, f"must be {'>' if lo_open else '≥'} {lo:g}, got {x:g}")
-        if hi is not None and x > hi:
-            self.fail(path, f"must be ≤ {hi:g}, got {x:g}")
-        return x
-
-    def integer(self, v, path: str, lo: int | None = None, hi: int | None = None) -> int:
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-            self.fail(path, f"expected an integer, got {_tname(v)} {v!r}")
-        if lo is not None and v < lo:
-            self.fail(path, f"must be ≥ {lo}, got {v}")
-        if hi is not None and v > hi:
-            self.fail(path, f"must be ≤ {hi}, got {v}")
-        return int(v)
-
-    def string(self, v, path: str) -> str:
-        if not isinstance(v, str):
-            self.fail(path, f"expected a string, got {_tname(v)} {v!r}")
-        return v
-
-    def choice(self, v, path: str, allowed: Iterable[str]) -> str:
-        allowed = tuple(allowed)
-        if not isinstance(v, str) or v not in allowed:
-            self.fail(path, f"expected one of {', '.join(allowed)}, got {v!r}")
-        return v
-
-    def vector(self, v, path: str, n: int = 3) -> np.ndarray:
-        if not isinstance(v, (list, tuple)) or len(v) != n:
-            self.fail(path, f"expected a list of {n} numbers, got {_tname(v)} {v!r}")
-        return np.array([self.number(x, f"{path}[{i}]") for i, x in enumerate(v)])
-
-    def scalar_or_vector(self, v, path: str, n: int = 3, lo: float | None = None) -> np.ndarray:
-        if isinstance(v, (list, tuple)):
-            arr = self.vector(v, path, n)
-            for i, x in enumerate(arr):
-                if lo is not None and x < lo:
-                    self.fail(f"{path}[{i}]", f"must be ≥ {lo:g}, got {x:g}")
-            return arr
-        return np.full(n, self.number(v, path, lo=lo))
-
-
-def _param_value(v: _V, val: Any, path: str) -> Any:
-    """A parameter override: a number or a flat list of numbers (no booleans, no nesting)."""
-    if isinstance(val, (list, tuple)):
-        return [v.number(x, f"{path}[{i}]") for i, x in enumerate(val)]
-    return v.number(val, path)
-
-
-def _join(path: str, key: str) -> str:
-    return f"{path}.{key}" if path else key
-
-
-def _tname(v) -> str:
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
-            type(None): "nothing"}.get(type(v), type(v).__name__)
 
 
 # ---- typed scene --------------------------------------------------------------------------
@@ -475,7 +375,7 @@ def fit_window_too_short(fit_start: float, duration: float, output_rate: float) 
 def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = None,
                     default_name: str = "scene", path: Path | None = None) -> Scene:
     """Validate a parsed scene mapping (``source`` names it in error messages)."""
-    v = _V(source)
+    v = Validator(source)
     d = v.mapping(data, "", TOP_KEYS, required=("duration", "motion"))
     name = v.string(d.get("name", default_name), "name")
     if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name) or not name.strip("."):
@@ -489,7 +389,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     if "effects" in d:
         raw = d["effects"]
         if not isinstance(raw, list):
-            v.fail("effects", f"expected a list of effect names, got {_tname(raw)}")
+            v.fail("effects", f"expected a list of effect names, got {type_name(raw)}")
         eff: list[str] = []
         for i, e in enumerate(raw):
             e = v.choice(e, f"effects[{i}]", ("defaults", *EFFECTS))
@@ -504,7 +404,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
     overrides = d.get("params", {}) or {}
     known = tuple(f.name for f in dc_fields(PlatformParams))
     v.mapping(overrides, "params", known)
-    overrides = {k: _param_value(v, val, f"params.{k}") for k, val in overrides.items()}
+    overrides = {k: param_value(v, val, f"params.{k}") for k, val in overrides.items()}
     try:
         params = PlatformParams.from_dict(overrides)
     except ParameterError as e:
@@ -552,7 +452,7 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
 
     raw_expect = d.get("expect", []) or []
     if not isinstance(raw_expect, list):
-        v.fail("expect", f"expected a list of checks, got {_tname(raw_expect)}")
+        v.fail("expect", f"expected a list of checks, got {type_name(raw_expect)}")
     checks = tuple(_check(v, c, f"expect[{i}]") for i, c in enumerate(raw_expect))
     return Scene(name=name, description=description, mode=mode, fidelity=fidelity, effects=effects,
                  param_overrides=dict(overrides), params=params, options=options, integrator=integrator,
@@ -577,25 +477,25 @@ _MOTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 
 
-def _initial(v: _V, m: dict, path: str):
+def _initial(v: Validator, m: dict, path: str):
     from scipy.spatial.transform import Rotation
 
     if "initial_rpy_deg" not in m:
         return None
-    r, p, y = np.radians(v.vector(m["initial_rpy_deg"], _join(path, "initial_rpy_deg")))
+    r, p, y = np.radians(v.vector(m["initial_rpy_deg"], join_path(path, "initial_rpy_deg")))
     return Rotation.from_euler("ZYX", [y, p, r])
 
 
-def _motion(v: _V, raw: Any, params: PlatformParams, base_dir: Path | None, path: Path | None) -> MotionSpec:
+def _motion(v: Validator, raw: Any, params: PlatformParams, base_dir: Path | None, path: Path | None) -> MotionSpec:
     P = "motion"
     if not isinstance(raw, dict):
-        v.fail(P, f"expected a mapping with a 'type' key, got {_tname(raw)}")
+        v.fail(P, f"expected a mapping with a 'type' key, got {type_name(raw)}")
     if "type" not in raw:
-        v.fail(_join(P, "type"), f"required key is missing (one of {', '.join(MOTION_TYPES)})")
-    typ = v.choice(raw["type"], _join(P, "type"), MOTION_TYPES)
+        v.fail(join_path(P, "type"), f"required key is missing (one of {', '.join(MOTION_TYPES)})")
+    typ = v.choice(raw["type"], join_path(P, "type"), MOTION_TYPES)
     allowed, required = _MOTION_KEYS[typ]
     m = v.mapping(raw, P, ("type", *allowed), required)
-    J = lambda k: _join(P, k)  # noqa: E731
+    J = lambda k: join_path(P, k)  # noqa: E731
     num = lambda k, default=None, **kw: (v.number(m[k], J(k), **kw) if k in m and m[k] is not None  # noqa: E731
                                          else default)
     deg = lambda k, default=0.0, **kw: math.radians(num(k, default, **kw))  # noqa: E731
@@ -633,7 +533,7 @@ def _motion(v: _V, raw: Any, params: PlatformParams, base_dir: Path | None, path
         elif typ == "rate_steps":
             steps = m["steps"]
             if not isinstance(steps, list) or not steps:
-                v.fail(J("steps"), f"expected a non-empty list of {{t, omega}} mappings, got {_tname(steps)}")
+                v.fail(J("steps"), f"expected a non-empty list of {{t, omega}} mappings, got {type_name(steps)}")
             times, rates = [], []
             for i, st in enumerate(steps):
                 sp = f"{J('steps')}[{i}]"
@@ -666,7 +566,7 @@ def _motion(v: _V, raw: Any, params: PlatformParams, base_dir: Path | None, path
     return MotionSpec(typ, dict(m), gen)
 
 
-def _resolve_bag(v: _V, p: str, base_dir: Path | None) -> Path:
+def _resolve_bag(v: Validator, p: str, base_dir: Path | None) -> Path:
     cand: list[Path] = []
     pp = Path(p).expanduser()
     if pp.is_absolute():
@@ -685,35 +585,35 @@ def _resolve_bag(v: _V, p: str, base_dir: Path | None) -> Path:
     raise AssertionError  # unreachable
 
 
-def _check(v: _V, raw: Any, path: str) -> Check:
+def _check(v: Validator, raw: Any, path: str) -> Check:
     keys = ("quantity", *SELECTORS, "value", "rtol", "atol", "min", "max", "why")
     c = v.mapping(raw, path, keys, required=("quantity",))
-    q = v.choice(c["quantity"], _join(path, "quantity"), QUANTITIES)
+    q = v.choice(c["quantity"], join_path(path, "quantity"), QUANTITIES)
     sel_key, sel_allowed, _ = QUANTITIES[q]
     for s in SELECTORS:
         if s in c and s != sel_key:
-            v.fail(_join(path, s), f"not a selector of '{q}'"
+            v.fail(join_path(path, s), f"not a selector of '{q}'"
                    + (f" (it takes '{sel_key}')" if sel_key else " (it takes none)"))
     selector = None
     if sel_key is not None:
         if sel_key not in c:
-            v.fail(_join(path, sel_key), f"required for '{q}' (one of {', '.join(sel_allowed)})")
-        selector = v.choice(c[sel_key], _join(path, sel_key), sel_allowed)
-    vals = {k: (v.number(c[k], _join(path, k)) if c.get(k) is not None else None)
+            v.fail(join_path(path, sel_key), f"required for '{q}' (one of {', '.join(sel_allowed)})")
+        selector = v.choice(c[sel_key], join_path(path, sel_key), sel_allowed)
+    vals = {k: (v.number(c[k], join_path(path, k)) if c.get(k) is not None else None)
             for k in ("value", "rtol", "atol", "min", "max")}
     for k in ("rtol", "atol"):
         if vals[k] is not None and vals[k] < 0:
-            v.fail(_join(path, k), f"must be ≥ 0, got {vals[k]:g}")
+            v.fail(join_path(path, k), f"must be ≥ 0, got {vals[k]:g}")
     if vals["value"] is not None:
         if vals["rtol"] is None and vals["atol"] is None:
-            v.fail(_join(path, "value"), "needs a tolerance: 'rtol' and/or 'atol'")
+            v.fail(join_path(path, "value"), "needs a tolerance: 'rtol' and/or 'atol'")
     elif vals["rtol"] is not None or vals["atol"] is not None:
-        v.fail(_join(path, "rtol" if vals["rtol"] is not None else "atol"), "only used with 'value'")
+        v.fail(join_path(path, "rtol" if vals["rtol"] is not None else "atol"), "only used with 'value'")
     if vals["value"] is None and vals["min"] is None and vals["max"] is None:
         v.fail(path, "give 'value' (with 'rtol' and/or 'atol') or a bound 'min'/'max'")
     if vals["min"] is not None and vals["max"] is not None and vals["min"] > vals["max"]:
-        v.fail(_join(path, "min"), f"min ({vals['min']:g}) > max ({vals['max']:g})")
-    why = v.string(c.get("why", ""), _join(path, "why"))
+        v.fail(join_path(path, "min"), f"min ({vals['min']:g}) > max ({vals['max']:g})")
+    why = v.string(c.get("why", ""), join_path(path, "why"))
     return Check(quantity=q, selector=selector, value=vals["value"], rtol=vals["rtol"] or 0.0,
                  atol=vals["atol"] or 0.0, min=vals["min"], max=vals["max"], why=why)
 

@@ -48,6 +48,7 @@ import uuid
 from .runs import figure_columns, FINISHED, STATUSES
 from ..errors import OutputError
 from ..filesystem import write_failure
+from ..reports.jsonio import dumps_strict
 
 RECORD_NAME = re.compile(r"run_(\d+)\.json")
 
@@ -155,24 +156,11 @@ def record_problem(rec: Any, run: int) -> str | None:
     return None
 
 
-def _finite(x: Any) -> Any:
-    """``x`` with every non-finite float (NaN: a figure that could not be made, σ of one run)
-    replaced by None, so that the text is strict JSON (``null``), not JavaScript's ``NaN``."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if hasattr(x, "tolist"):                # numpy scalars and arrays
-        return _finite(x.tolist())
-    return x
-
-
 def json_bytes(obj: Any, indent: int | None = None) -> bytes:
-    """Strict JSON of ``obj`` (non-finite numbers as ``null``, numpy values as Python ones,
+    """Strict JSON of ``obj`` as UTF-8 (``reports.jsonio.dumps_strict``: a non-finite number —
+    a figure that could not be made, σ of one run — is ``null``, numpy values Python ones,
     other objects — paths — by ``str``)."""
-    return json.dumps(_finite(obj), indent=indent, default=str, allow_nan=False).encode()
+    return dumps_strict(obj, indent).encode()
 
 
 class ResultStore:
@@ -199,8 +187,7 @@ class ResultStore:
                     raise StoreError(f"{self.out} holds another sweep (fingerprint {have}, this one "
                                      f"{self.fingerprint}); choose another --out")
             self.runs_dir.mkdir(parents=True, exist_ok=True)
-            atomic_write(meta, json.dumps({"fingerprint": self.fingerprint, **self.description},
-                                          indent=2, default=str).encode())
+            atomic_write(meta, json_bytes({"fingerprint": self.fingerprint, **self.description}, indent=2))
         except (OSError, json.JSONDecodeError) as e:
             raise StoreError(f"cannot use {self.out}: {getattr(e, 'strerror', None) or e}") from None
         except UnicodeDecodeError:
