@@ -21,7 +21,8 @@ output bag (``writer``: ``OutputBag``). May import ``messages`` (types, blocks, 
 ``physics`` (jit), ``errors``, ``signals`` and ``filesystem``.
 
 rosbags versions: ``setup.py`` pins the range tested (``rosbags>=0.11.6,<0.12``; 0.11.6 is the
-first with every piece below, ``Stores.ROS2_JAZZY`` came in 0.10.8); re-run the check with
+first with every piece below: ``storage_mcap.decompress`` came in 0.11.6, ``DirectoryReader`` in
+0.11.0, ``Stores.ROS2_JAZZY`` in 0.10.8); re-run the check with
 ``test/rosbags_range.sh`` (docs/replay.md). Public API used: ``rosbags.rosbag2`` (``Reader``,
 ``Writer``, ``ReaderError``, ``WriterError``, ``StoragePlugin``, ``CompressionMode``),
 ``rosbags.interfaces`` (``Connection``, message definitions, QoS) and ``rosbags.typesys``.
