@@ -37,7 +37,7 @@ setup(
         "numba>=0.58",
         "matplotlib>=3.6",
         "pyyaml>=6",
-        "rosbags>=0.10",
+        "rosbags>=0.11.6,<0.12",  # the range tested (test/rosbags_range.sh); internals used: bags/__init__.py
         "ruamel.yaml.clib>=0.2.7",  # rosbags reads metadata.yaml with ruamel: its C parser, 5x faster
         "apsw>=3.40",       # the sqlite3 output bag's writer (rosbags reads with it too)
         "mcap>=1.1",        # damaged-bag salvage: bags/salvage.py reads MCAP records in file order

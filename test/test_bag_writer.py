@@ -476,8 +476,8 @@ def test_yaml_memo_keeps_texts_apart():
 
     from rosbags.rosbag2.metadata import dump_qos_v9
 
-    from gyro_platform.bags.storage import _LibYaml
     from gyro_platform.bags.writer import default_qos
+    from gyro_platform.bags.yaml_dump import LibYaml as _LibYaml
 
     def text(value):
         s = _io.StringIO()
@@ -504,7 +504,7 @@ _YAML_DATA = st.recursive(_SCALARS, lambda kids: st.one_of(st.lists(kids, max_si
 @given(data=st.dictionaries(_NAMES, _YAML_DATA, min_size=1, max_size=6))
 def test_block_yaml_is_pyyamls_text_or_declines(data):
     """The fast metadata text equals PyYAML's wherever it is given (None: PyYAML dumps it)."""
-    from gyro_platform.bags.storage import block_yaml
+    from gyro_platform.bags.yaml_dump import block_yaml
 
     text = block_yaml(data)
     if text is not None:
@@ -516,7 +516,7 @@ def test_block_yaml_takes_a_written_bags_metadata(tmp_path, storage):
     """The metadata of a bag written here (mappings, lists of mappings, QoS, '' and null) takes
     the fast path, with PyYAML's text; the shared recordings' (QoS as text blocks) are dumped
     as PyYAML would."""
-    from gyro_platform.bags.storage import block_yaml
+    from gyro_platform.bags.yaml_dump import block_yaml
 
     plan, groups, enc, stamps = make_plan(5)
     write_fast(tmp_path / "out", storage, groups, enc, stamps, by_chunk=True)

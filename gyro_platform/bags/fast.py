@@ -189,15 +189,26 @@ def mcap_batches(storage: Any, cmap: dict[int, int]) -> Iterator[Batch]:
             yield p_conn, p_ts, p_raw
 
 
+def _read_exact(bio: Any, size: int) -> bytes:
+    """``size`` bytes from ``bio``; rosbags' ``ReaderError`` (with its text) when the file ends first."""
+    from rosbags.rosbag2 import ReaderError
+
+    pos = bio.tell()
+    data = bio.read(size)
+    if len(data) != size:
+        raise ReaderError(f"Truncated record at offset {pos}: expected {size} bytes, got {len(data)}.")
+    return data
+
+
 def _read_chunk(bio: Any, chunk: Any, sel: np.ndarray, lut: np.ndarray) -> tuple[np.ndarray, np.ndarray, RawRows]:
     """(log times, bag connection ids, payloads) of the selected messages of one chunk in record
     order (rosbags' reading: CRC and size checked by its ``decompress``)."""
-    from rosbags.rosbag2.storage_mcap import decompress, read_exact
+    from rosbags.rosbag2.storage_mcap import decompress
 
     bio.seek(chunk.chunk_start_offset + 9 + 24)
-    crc = _I.unpack(read_exact(bio, 4))[0]
+    crc = _I.unpack(_read_exact(bio, 4))[0]
     bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
-    buf = decompress(read_exact(bio, chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc)
+    buf = decompress(_read_exact(bio, chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc)
     lo, hi = np.uint64(chunk.message_start_time), np.uint64(chunk.message_end_time)
     err, at, n, ts, cid, beg, end = walk_records(np.frombuffer(buf, np.uint8), lo, hi, sel)
     if err:
@@ -365,26 +376,18 @@ class McapFile:
 
 def _connection(ch: Any, schema: Any, count: int) -> Any:
     from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
-    from rosbags.rosbag2.storage_mcap import get_qos
+    from rosbags.rosbag2.metadata import parse_qos
 
     fmt = _MSGDEF_FORMATS.get(schema.encoding if schema is not None else "")
     text = schema.data.decode(errors="replace") if schema is not None and fmt else ""
     msgdef = MessageDefinition(getattr(MessageDefinitionFormat, fmt or "NONE"), text)
+    profiles = ch.metadata.get("offered_qos_profiles")     # what rosbags' McapReader parses (get_qos)
     try:
-        qos = get_qos(_metadata_bytes(ch.metadata))
+        qos = parse_qos(profiles) if profiles is not None else []
     except Exception:
         qos = []
     return Connection(ch.id, ch.topic, schema.name if schema is not None else "", msgdef, "", count,
                       ConnectionExtRosbag2(ch.message_encoding, qos), None)
-
-
-def _metadata_bytes(meta: dict[str, str]) -> bytes:
-    """A channel's metadata map in MCAP's wire form (what rosbags' ``get_qos`` parses)."""
-    out = bytearray()
-    for k, v in meta.items():
-        for s in (k.encode(), v.encode()):
-            out += _I.pack(len(s)) + s
-    return bytes(out)
 
 
 class McapBag:

@@ -51,7 +51,8 @@ from typing import Any, Iterable, Iterator, Sequence
 import numpy as np
 
 from .paths import rosbags_api
-from .storage import Rows, segments, SQLITE_ERRORS, writer_class
+from .rows import Rows, segments
+from .storage import SQLITE_ERRORS, writer_class
 from .. import messages as msgs
 from ..errors import OutputError
 from ..messages.typedefs import core_typestore, has_type

@@ -116,7 +116,7 @@ class IdlTypes:
             return cls
 
     def _idl_field_type(self, desc: Any) -> Any:
-        from rosbags.typesys.base import Nodetype
+        from rosbags.interfaces import Nodetype
 
         _, T = import_cyclonedds()
         kind, args = desc
@@ -162,7 +162,7 @@ class IdlTypes:
             return fn
 
     def _to_field(self, desc: Any) -> Callable[[Any], Any]:
-        from rosbags.typesys.base import Nodetype
+        from rosbags.interfaces import Nodetype
 
         kind, args = desc
         if kind == Nodetype.BASE:
@@ -200,7 +200,7 @@ class IdlTypes:
         return self._converter(self._from, ros_type, self.typestore.types.__getitem__, self._from_field)
 
     def _from_field(self, desc: Any) -> Callable[[Any], Any]:
-        from rosbags.typesys.base import Nodetype
+        from rosbags.interfaces import Nodetype
 
         kind, args = desc
         if kind == Nodetype.BASE:
