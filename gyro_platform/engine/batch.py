@@ -49,7 +49,8 @@ from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2, view3
 from ..physics.jit import njit
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import FASTMATH, LAY_STAB, platform_rhs, SEG_N, support_regime
+from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, platform_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
+                              SEG_W0, SEG_W1, support_regime)
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
 #: integrators with a compiled path → method code
@@ -234,8 +235,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     n = y.shape[0]
     s = c.shape[0]
     Kf = fb[ib[SLOT_W * F_K]:ib[SLOT_W * F_K] + s * n]     # K flat (no reshape)
-    qa = I[0, 3]
-    qp = I[0, 2]
+    qa = I[0, LAY_QIB]
+    qp = I[0, LAY_QIP]
     nout = out_idx.shape[0]
     jo = ih[J_JOUT]
     for i in range(first, ts.shape[0]):
@@ -267,13 +268,13 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             segsave[m] = seg[m]
         t0 = tr[0]
         t1 = tr[1]
-        seg[0] = t0
-        seg[1] = t1 - t0
+        seg[SEG_T0] = t0
+        seg[SEG_DT] = t1 - t0
         for m in range(3):
-            seg[2 + m] = wr[0, m]
-            seg[5 + m] = wr[1, m]
-            seg[8 + m] = fr[0, m]
-            seg[11 + m] = fr[1, m]
+            seg[SEG_W0 + m] = wr[0, m]
+            seg[SEG_W1 + m] = wr[1, m]
+            seg[SEG_F0 + m] = fr[0, m]
+            seg[SEG_F1 + m] = fr[1, m]
         hq = 0
         extra = 0
         q = 0.0

@@ -36,13 +36,13 @@ from .inputs import RateSample
 from .integrators import Auto, Integrator, make_integrator
 from .output_kernel import OutputKernel
 from .outputs import OutputBlock, Outputs, outputs_of_row
-from .snapshots import first_segment, SEG_N, Snapshots
+from .snapshots import first_segment, Snapshots
 from ..errors import GimbalLockError, InputError, SimulationError
 from ..physics.model import spin_momentum
 from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
 from ..physics.params import NAV1, PlatformParams
 from ..physics.rotations import quat_matrix
-from ..physics.system import PlatformSystem
+from ..physics.system import PlatformSystem, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1
 from ..physics.tree import kinematics, mass_matrix, TreeWork
 
 #: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
@@ -227,14 +227,15 @@ class Simulator:
         if not self.engine.ih[J_STARTED]:
             return None
         seg = self.system.seg
-        return RateSample(self.t, seg[5:8].copy(), seg[11:14].copy() if self.engine.ih[J_HAS_F] else None)
+        return RateSample(self.t, seg[SEG_W1:SEG_W1 + 3].copy(),
+                          seg[SEG_F1:SEG_F1 + 3].copy() if self.engine.ih[J_HAS_F] else None)
 
     def reset(self) -> None:
         """Back to the initial state: the next ``push`` starts a new time base, and everything
         after it equals a fresh simulator fed the same samples (stage matrices are kept)."""
         self.engine.clear(self.system.rest_state())
         self.system.seg[:] = 0.0
-        self.system.seg[1] = 1.0
+        self.system.seg[SEG_DT] = 1.0
         self.system.regime = 0
         self.integrator.reset()
         st = self.layout
@@ -421,9 +422,9 @@ class Simulator:
             raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
         seg = self.system.seg
         saved = seg.copy()
-        seg[0], seg[1] = t0, t1 - t0
-        seg[2:5], seg[5:8] = e.wr[0], w
-        seg[8:11], seg[11:14] = e.fr[0], (f if has_f else 0.0)
+        seg[SEG_T0], seg[SEG_DT] = t0, t1 - t0
+        seg[SEG_W0:SEG_W0 + 3], seg[SEG_W1:SEG_W1 + 3] = e.wr[0], w
+        seg[SEG_F0:SEG_F0 + 3], seg[SEG_F1:SEG_F1 + 3] = e.fr[0], (f if has_f else 0.0)
         try:
             if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
                 self.system.update_regime(self.y)
@@ -587,7 +588,7 @@ class Simulator:
         st = self.layout
         if st.Om is not None:
             return self.y[st.Om].copy()
-        return self.system.R_PB @ self.system.seg[5:8]
+        return self.system.R_PB @ self.system.seg[SEG_W1:SEG_W1 + 3]
 
     def attitude_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(R_IB, R_IP) rotation matrices (vehicle → inertial, platform → inertial)."""
