@@ -16,9 +16,9 @@
 
 One contract (:mod:`.base`: ``Integrator``, ``StepStats``, the weighted error norm, the
 step-size controller of the fixed-grid methods, ``OdeSystem``), one module per family, one front
-door (:mod:`.registry`: ``INTEGRATORS``, ``INTEGRATOR_CHOICES``, ``make_integrator``). Every method is given ``rtol``/``atol``
-and ``max_step``, estimates its local error and refuses (``ToleranceError``) rather than return
-a state outside the tolerance; see :mod:`.base`.
+door (:mod:`.registry`: ``INTEGRATORS``, ``INTEGRATOR_CHOICES``, ``make_integrator``). Every
+method is given ``rtol``/``atol`` and ``max_step``, estimates its local error and refuses
+(``ToleranceError``) rather than return a state outside the tolerance; see :mod:`.base`.
 
 Methods (see ``INTEGRATORS``):
 
