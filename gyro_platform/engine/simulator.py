@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
-from .batch import (COMPILED, Engine, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
-                    J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
-                    ST_ORDER, ST_TOLERANCE)
+from .batch import COMPILED, Engine, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD, ST_ORDER, ST_TOLERANCE
+from .buffers import (H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE, J_HAS_F, J_JOUT,
+                      J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED)
 from .checks import as_time as _time
 from .checks import as_vec3 as _vec3
 from .checks import check_block
