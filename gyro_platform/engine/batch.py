@@ -20,8 +20,9 @@ state, the controller's scalars, the 2-row input of the current interval, the st
 arrays) plus the exponential methods' stage matrices (``mi`` int64 CSR pointers/indices,
 ``md`` float64 values; slots, headers and views: :mod:`.buffers`). A call passes these four
 arrays and the sample; the kernel rebuilds its views from the offset table at the start of ``ib``
-(numba's dispatch costs ~0.1 µs per array argument: four buffers instead of ~45 arrays). The system's named arrays (``system.seg``,
-``system.P`` …) are rebound to views into ``fb``/``ib``, so the Python code sees the same memory.
+(numba's dispatch costs ~0.1 µs per array argument: four buffers instead of ~45 arrays). The
+system's named arrays (``system.seg``, ``system.P`` …) are rebound to views into ``fb``/``ib``,
+so the Python code sees the same memory.
 
 Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
 Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
