@@ -41,10 +41,12 @@ from gyro_platform.physics.options import EFFECTS, ModelOptions, STABILISED_ONLY
 from gyro_platform.physics.params import NAV1
 from gyro_platform.physics.rotations import (euler_xyz, euler_xyz_rates, euler_xyz_rates_into, matrix_quat,
                                              matrix_rotvec, quat_matrix, rotvec_matrix)
-from gyro_platform.physics.system import PRECESSION
+from gyro_platform.physics.system import PRECESSION, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1
 from gyro_platform.physics.tree import kinematics, tree_inverse_dynamics, TreeWork
 from gyro_platform.scenes.schema import load_scene
 
+#: the vector fields of a ``seg`` row
+W0, W1, F0, F1 = (slice(o, o + 3) for o in (SEG_W0, SEG_W1, SEG_F0, SEG_F1))
 SCENES = sorted((Path(__file__).resolve().parents[1] / "config" / "scenes").glob("*.yaml"))
 
 
@@ -56,8 +58,8 @@ def reference_outputs(sim: Simulator) -> Outputs:
     sys_ = sim.system
     y = sim.y
     q = y[st.q].copy()
-    wB = sys_.seg[5:8].copy()
-    fB = sys_.seg[11:14].copy()
+    wB = sys_.seg[W1].copy()
+    fB = sys_.seg[F1].copy()
 
     def rhs(t, yy):
         out = np.empty_like(yy)
@@ -95,7 +97,7 @@ def reference_outputs(sim: Simulator) -> Outputs:
     else:
         seg = sys_.seg
         w0 = sys_.R_PB @ wB
-        wd0 = sys_.R_PB @ ((seg[5:8] - seg[2:5]) / seg[1]) if seg[1] > 0 else np.zeros(3)
+        wd0 = sys_.R_PB @ ((seg[W1] - seg[W0]) / seg[SEG_DT]) if seg[SEG_DT] > 0 else np.zeros(3)
     L = sys_.L_true if sim.options.has("rotor_gyroscopic") else np.zeros(3)
     _, f, rtau = tree_inverse_dynamics(tree, wk, q, v, a, w0, wd0, L, tau_ext)
     bearings = {"support": f[0].copy()}
@@ -238,10 +240,10 @@ def test_kernel_matches_reference_at_large_random_states(mode, fid, effects):
         if st.z is not None:
             y[st.z] = rng.normal(scale=1e-3, size=3)
         sim.y = y
-        sim.system.seg[2:14] = rng.normal(scale=3.0, size=12)
+        sim.system.seg[SEG_W0:SEG_N] = rng.normal(scale=3.0, size=12)
         sim.t_rel = float(rng.uniform(0, 1e4))
-        sim.system.seg[0] = sim.t_rel - 0.01
-        sim.system.seg[1] = 0.01
+        sim.system.seg[SEG_T0] = sim.t_rel - 0.01
+        sim.system.seg[SEG_DT] = 0.01
         worst = max(worst, deviation(sim.outputs(), reference_outputs(sim)))
     assert worst <= TOL
 
@@ -400,7 +402,7 @@ def test_block_stops_at_the_first_non_finite_instant_and_carries_the_ones_before
     sim = _aniso_sim("carried", "full")
     snaps, outs = _snapshots_along(sim, 6, rng)
     seg = snaps.seg.copy()
-    seg[3, 8:14] = 1e250                 # instant 3: absurd specific force
+    seg[3, SEG_F0:SEG_N] = 1e250                # instant 3: absurd specific force
     bad = Snapshots(snaps.t, snaps.t_rel, snaps.y, seg, snaps.n_steps)
     with pytest.raises(NonFiniteOutputError) as ei:
         sim.outputs_at(bad)
@@ -451,9 +453,9 @@ def test_outputs_are_finite_or_refused_never_nan(mode, fid, f, exponent, w0, w1,
     sim.push(RateSample.of(0.0, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81]))
     scale = 10.0 ** exponent / max(1.0, max(abs(x) for x in f))
     seg = sim.system.seg
-    seg[0], seg[1] = sim.t_rel - dt, dt
-    seg[2:5], seg[5:8] = w0, w1
-    seg[8:11] = seg[11:14] = np.array(f) * scale
+    seg[SEG_T0], seg[SEG_DT] = sim.t_rel - dt, dt
+    seg[W0], seg[W1] = w0, w1
+    seg[F0] = seg[F1] = np.array(f) * scale
     if sim.layout.v.stop > sim.layout.v.start:
         sim.y[sim.layout.v] = qd_scale * np.linspace(-1.0, 1.0, sim.layout.v.stop - sim.layout.v.start)
     try:

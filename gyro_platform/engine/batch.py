@@ -18,10 +18,11 @@
 two flat buffers (``fb`` float64, ``ib`` int64: the system's kernel tables and work arrays, the
 state, the controller's scalars, the 2-row input of the current interval, the stage work
 arrays) plus the exponential methods' stage matrices (``mi`` int64 CSR pointers/indices,
-``md`` float64 values). A call passes these four arrays and the sample; the kernel rebuilds its
-views from the offset table at the start of ``ib`` (numba's dispatch costs ~0.1 µs per array
-argument: four buffers instead of ~45 arrays). The system's named arrays (``system.seg``,
-``system.P`` …) are rebound to views into ``fb``/``ib``, so the Python code sees the same memory.
+``md`` float64 values; slots, headers and views: :mod:`.buffers`). A call passes these four
+arrays and the sample; the kernel rebuilds its views from the offset table at the start of ``ib``
+(numba's dispatch costs ~0.1 µs per array argument: four buffers instead of ~45 arrays). The
+system's named arrays (``system.seg``, ``system.P`` …) are rebound to views into ``fb``/``ib``,
+so the Python code sees the same memory.
 
 Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
 Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
@@ -44,12 +45,20 @@ import math
 
 import numpy as np
 
+from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_FR, F_HDR, F_INERTIA, F_J, F_K, F_K5,
+                      F_MATS, F_MM, F_P, F_PUSH, F_Q, F_R, F_RAXIS, F_RR, F_SEG, F_SEGSAVE, F_TAU, F_TR, F_TW, F_U,
+                      F_UL, F_V, F_W, F_WB, F_WD, F_WR, F_Y, F_Y1, F_YC, F_YK, F_YW, fview1, fview2, fview3, H_ATOL,
+                      H_E_BAD, H_EST, H_H_BAD, H_MAX_STEP, H_N_BAD, H_NORM, H_RTOL, H_T_BAD, H_T_REL, H_T_START, I_HDR,
+                      I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
+                      J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
+                      N_IH, pack, SLOT_W, SYSTEM_F)
 from .integrators import COARSEN, ETD2, MAX_JUMP, STEP_SLACK, TAIL_MIN, TAIL_ULP
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
-from .views import view2, view3
+from .views import view2
 from ..physics.jit import njit
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import FASTMATH, LAY_STAB, platform_rhs, SEG_N, support_regime
+from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, platform_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
+                              SEG_W0, SEG_W1, support_regime)
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
 #: integrators with a compiled path → method code
@@ -60,68 +69,6 @@ COMPILED = {"rk4": RK4, "etd2": EXPRK_D, "etd4": EXPRK}
 ST_LOCK, ST_NOT_PD, ST_NONFINITE, NEED_REGIME, ST_TOLERANCE, ST_BAD_SAMPLE, ST_ORDER = 1, 2, 4, 8, 16, 32, 64
 #: exponential steps are multiples of max_step / GRID (as the Python etd2/etd4)
 GRID = ETD2.GRID
-
-# ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
-(F_P, F_SEG, F_MATS, F_AXIS, F_INERTIA, F_RAXIS, F_R, F_WB, F_WD, F_J, F_FO, F_MM, F_CC, F_TAU, F_FB, F_CHOL,
- F_F, F_A, F_Q, F_RR, F_V, F_W,
- F_HDR, F_Y, F_YW, F_Y1, F_K, F_K5, F_U, F_UL, F_AU, F_C, F_TR, F_WR, F_FR, F_SEGSAVE, F_YC, F_YK, F_PUSH,
- F_TW) = range(40)
-N_FSLOT = 40
-I_I, I_RHOST, I_HDR, I_TABLE = range(4)
-N_ISLOT = 4
-SLOT_W = 4                          # table entry: offset, d0, d1, d2
-TABLE_LEN = SLOT_W * (N_FSLOT + N_ISLOT)
-# float header
-(H_MAX_STEP, H_RTOL, H_ATOL, H_T_START, H_T_REL, H_EST, H_NORM, H_T_BAD, H_E_BAD, H_N_BAD, H_H_BAD) = range(11)
-N_FH = 11
-# int header
-(J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_LEVEL, J_NSAMP, J_NSTEPS, J_NRHS, J_NEED_R, J_NEED_L, J_NEED_H,
- J_STARTED, J_HAS_F, J_NLEV, J_REJ, J_DONE, J_JOUT, J_K1) = range(18)
-N_IH = 18
-#: system attributes rebound to buffer views: (slot, owner path, attribute)
-_SYSTEM_F = ((F_P, "", "P"), (F_SEG, "", "seg"), (F_MATS, "", "mats"), (F_R, "work", "R"), (F_WB, "work", "w"),
-             (F_WD, "work", "wd"), (F_J, "work", "J"), (F_FO, "work", "f"), (F_MM, "work", "M"),
-             (F_CC, "work", "c"), (F_TAU, "work", "tau_ext"), (F_FB, "", "_fb"), (F_CHOL, "", "_chol"),
-             (F_F, "", "_F"), (F_A, "", "_a"), (F_Q, "", "_Q"), (F_RR, "", "_RR"), (F_V, "", "_V"),
-             (F_W, "", "_W"))
-
-
-# ---------------------------------------------------------------------------- views (compiled)
-@njit(cache=True, inline="always")
-def _f1(fb, ib, k):
-    o = ib[SLOT_W * k]
-    return fb[o:o + ib[SLOT_W * k + 1]]
-
-
-@njit(cache=True, inline="always")
-def _f2(fb, ib, k):
-    o = ib[SLOT_W * k]
-    d0 = ib[SLOT_W * k + 1]
-    d1 = ib[SLOT_W * k + 2]
-    return view2(fb, o, (d0, d1))
-
-
-@njit(cache=True, inline="always")
-def _f3(fb, ib, k):
-    o = ib[SLOT_W * k]
-    d0 = ib[SLOT_W * k + 1]
-    d1 = ib[SLOT_W * k + 2]
-    d2 = ib[SLOT_W * k + 3]
-    return view3(fb, o, (d0, d1, d2))
-
-
-@njit(cache=True, inline="always")
-def _i1(ib, k):
-    o = ib[SLOT_W * (N_FSLOT + k)]
-    return ib[o:o + ib[SLOT_W * (N_FSLOT + k) + 1]]
-
-
-@njit(cache=True, inline="always")
-def _i2(ib, k):
-    o = ib[SLOT_W * (N_FSLOT + k)]
-    d0 = ib[SLOT_W * (N_FSLOT + k) + 1]
-    d1 = ib[SLOT_W * (N_FSLOT + k) + 2]
-    return view2(ib, o, (d0, d1))
 
 
 # ---------------------------------------------------------------------------- kernels
@@ -178,51 +125,51 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     what its model and method run. Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
     counting of array arguments would cost more than the step)."""
-    fh = _f1(fb, ib, F_HDR)
-    ih = _i1(ib, I_HDR)
-    I = _i2(ib, I_I)
-    P = _f1(fb, ib, F_P)
-    seg = _f1(fb, ib, F_SEG)
-    mats = _f3(fb, ib, F_MATS)
-    axis = _f2(fb, ib, F_AXIS)
-    inertia = _f3(fb, ib, F_INERTIA)
-    rhost = _i1(ib, I_RHOST)
-    raxis = _f2(fb, ib, F_RAXIS)
-    R = _f3(fb, ib, F_R)
-    wb = _f2(fb, ib, F_WB)
-    wd = _f2(fb, ib, F_WD)
-    J = _f3(fb, ib, F_J)
-    fo = _f2(fb, ib, F_FO)
-    Mm = _f2(fb, ib, F_MM)
-    cc = _f1(fb, ib, F_CC)
-    tau_ext = _f2(fb, ib, F_TAU)
-    fbb = _f2(fb, ib, F_FB)
-    chol = _f2(fb, ib, F_CHOL)
-    F = _f1(fb, ib, F_F)
-    a = _f1(fb, ib, F_A)
-    Q = _f1(fb, ib, F_Q)
-    RR = _f3(fb, ib, F_RR)
-    V = _f2(fb, ib, F_V)
-    W = _f2(fb, ib, F_W)
-    y = _f1(fb, ib, F_Y)
-    yw = _f1(fb, ib, F_YW)
-    y1 = _f1(fb, ib, F_Y1)
-    K = _f2(fb, ib, F_K)
-    k5 = _f1(fb, ib, F_K5)
-    U = _f1(fb, ib, F_U)
-    Ul = _f1(fb, ib, F_UL)
-    AU = _f1(fb, ib, F_AU)
-    c = _f1(fb, ib, F_C)
-    tr = _f1(fb, ib, F_TR)
-    wr = _f2(fb, ib, F_WR)
-    fr = _f2(fb, ib, F_FR)
-    segsave = _f1(fb, ib, F_SEGSAVE)
-    yc = _f1(fb, ib, F_YC)
-    yk = _f1(fb, ib, F_YK)
-    TW = _f2(fb, ib, F_TW)
+    fh = fview1(fb, ib, F_HDR)
+    ih = iview1(ib, I_HDR)
+    I = iview2(ib, I_I)
+    P = fview1(fb, ib, F_P)
+    seg = fview1(fb, ib, F_SEG)
+    mats = fview3(fb, ib, F_MATS)
+    axis = fview2(fb, ib, F_AXIS)
+    inertia = fview3(fb, ib, F_INERTIA)
+    rhost = iview1(ib, I_RHOST)
+    raxis = fview2(fb, ib, F_RAXIS)
+    R = fview3(fb, ib, F_R)
+    wb = fview2(fb, ib, F_WB)
+    wd = fview2(fb, ib, F_WD)
+    J = fview3(fb, ib, F_J)
+    fo = fview2(fb, ib, F_FO)
+    Mm = fview2(fb, ib, F_MM)
+    cc = fview1(fb, ib, F_CC)
+    tau_ext = fview2(fb, ib, F_TAU)
+    fbb = fview2(fb, ib, F_FB)
+    chol = fview2(fb, ib, F_CHOL)
+    F = fview1(fb, ib, F_F)
+    a = fview1(fb, ib, F_A)
+    Q = fview1(fb, ib, F_Q)
+    RR = fview3(fb, ib, F_RR)
+    V = fview2(fb, ib, F_V)
+    W = fview2(fb, ib, F_W)
+    y = fview1(fb, ib, F_Y)
+    yw = fview1(fb, ib, F_YW)
+    y1 = fview1(fb, ib, F_Y1)
+    K = fview2(fb, ib, F_K)
+    k5 = fview1(fb, ib, F_K5)
+    U = fview1(fb, ib, F_U)
+    Ul = fview1(fb, ib, F_UL)
+    AU = fview1(fb, ib, F_AU)
+    c = fview1(fb, ib, F_C)
+    tr = fview1(fb, ib, F_TR)
+    wr = fview2(fb, ib, F_WR)
+    fr = fview2(fb, ib, F_FR)
+    segsave = fview1(fb, ib, F_SEGSAVE)
+    yc = fview1(fb, ib, F_YC)
+    yk = fview1(fb, ib, F_YK)
+    TW = fview2(fb, ib, F_TW)
     Ta = TW[0]
     Tb = TW[1]
-    table = _i1(ib, I_TABLE)
+    table = iview1(ib, I_TABLE)
     method = ih[J_METHOD]
     fid = ih[J_FID]
     q1 = ih[J_Q1]
@@ -234,8 +181,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     n = y.shape[0]
     s = c.shape[0]
     Kf = fb[ib[SLOT_W * F_K]:ib[SLOT_W * F_K] + s * n]     # K flat (no reshape)
-    qa = I[0, 3]
-    qp = I[0, 2]
+    qa = I[0, LAY_QIB]
+    qp = I[0, LAY_QIP]
     nout = out_idx.shape[0]
     jo = ih[J_JOUT]
     for i in range(first, ts.shape[0]):
@@ -267,13 +214,13 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             segsave[m] = seg[m]
         t0 = tr[0]
         t1 = tr[1]
-        seg[0] = t0
-        seg[1] = t1 - t0
+        seg[SEG_T0] = t0
+        seg[SEG_DT] = t1 - t0
         for m in range(3):
-            seg[2 + m] = wr[0, m]
-            seg[5 + m] = wr[1, m]
-            seg[8 + m] = fr[0, m]
-            seg[11 + m] = fr[1, m]
+            seg[SEG_W0 + m] = wr[0, m]
+            seg[SEG_W1 + m] = wr[1, m]
+            seg[SEG_F0 + m] = fr[0, m]
+            seg[SEG_F1 + m] = fr[1, m]
         hq = 0
         extra = 0
         q = 0.0
@@ -611,8 +558,8 @@ class Engine:
         c = (np.array([0.0, 0.5, 0.5, 1.0]) if method in (None, RK4) else np.asarray(stepper.c, float))
         max_level = stepper.max_level if stepper is not None else 0
         nlev = max_level + 1
-        fl = [getattr(wk if o == "work" else system, a) for _, o, a in _SYSTEM_F]
-        f_arrays = {slot: arr for (slot, _, _), arr in zip(_SYSTEM_F, fl)}
+        fl = [getattr(wk if o == "work" else system, a) for _, o, a in SYSTEM_F]
+        f_arrays = {slot: arr for (slot, _, _), arr in zip(SYSTEM_F, fl)}
         f_arrays.update({F_AXIS: tree.axis, F_INERTIA: tree.inertia, F_RAXIS: tree.rotor_axis,
                          F_HDR: np.zeros(N_FH), F_Y: np.zeros(n), F_YW: np.zeros(n), F_Y1: np.zeros(n),
                          F_K: np.zeros((len(c), n)), F_K5: np.zeros(n), F_U: np.zeros(n), F_UL: np.zeros(n),
@@ -622,30 +569,9 @@ class Engine:
         table_n = 2 * 8 * nlev * (GRID + 1) if method in (EXPRK, EXPRK_D) else 2
         i_arrays = {I_I: system.I, I_RHOST: np.asarray(tree.rotor_host, np.int64), I_HDR: np.zeros(N_IH, np.int64),
                     I_TABLE: -np.ones(table_n, np.int64)}
-        fsize = sum(np.asarray(a).size for a in f_arrays.values())
-        isize = TABLE_LEN + sum(np.asarray(a).size for a in i_arrays.values())
-        self.fb = np.zeros(fsize)
-        self.ib = np.zeros(isize, np.int64)
-        views: dict[int, np.ndarray] = {}
-        off = 0
-        for k in range(N_FSLOT):
-            a = np.asarray(f_arrays[k], float)
-            self._slot(k, off, a.shape)
-            v = self.fb[off:off + a.size].reshape(a.shape)
-            v[...] = a
-            views[k] = v
-            off += a.size
-        off = TABLE_LEN
-        iviews: dict[int, np.ndarray] = {}
-        for k in range(N_ISLOT):
-            a = np.asarray(i_arrays[k], np.int64)
-            self._slot(N_FSLOT + k, off, a.shape)
-            v = self.ib[off:off + a.size].reshape(a.shape)
-            v[...] = a
-            iviews[k] = v
-            off += a.size
+        self.fb, self.ib, views, iviews = pack(f_arrays, i_arrays)
         # the system's arrays become views into the buffers (same values)
-        for (slot, o, name) in _SYSTEM_F:
+        for (slot, o, name) in SYSTEM_F:
             setattr(wk if o == "work" else system, name, views[slot])
         system.rebind(iviews[I_I])
         self.fh, self.ih = views[F_HDR], iviews[I_HDR]
@@ -667,14 +593,6 @@ class Engine:
         self.expo = None if method == RK4 else 0
         if stepper is not None:
             fh[H_MAX_STEP], fh[H_RTOL], fh[H_ATOL] = stepper.max_step, stepper.rtol, stepper.atol
-
-    def _slot(self, k: int, off: int, shape: tuple) -> None:
-        e = self.ib[SLOT_W * k:SLOT_W * (k + 1)]
-        e[0] = off
-        dims = list(shape) + [1] * (3 - len(shape))
-        if len(shape) == 0:
-            dims = [1, 1, 1]
-        e[1:4] = dims[:3]
 
     # ---- calls -------------------------------------------------------------------------
     def push(self, t: float, w: np.ndarray, f: np.ndarray, has_f: bool) -> int:

@@ -45,8 +45,8 @@ from ..physics.options import NEEDS_SPECIFIC_FORCE
 from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
                                  rotvec_matrix_into)
-from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, P_L, P_WIN, platform_rhs,
-                              PlatformSystem, PRECESSION)
+from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, platform_rhs, PlatformSystem,
+                              PRECESSION, SEG_DT, SEG_F1, SEG_N, SEG_W0, SEG_W1, unpack_tables)
 from ..physics.tree import kinematics_rw, newton_euler, rotor_torques
 
 #: step (s) of the central difference that gives the gimbal accelerations in precession
@@ -138,15 +138,7 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
     o += 9 * nb
     raxis = CF[o:o + 3 * nr].reshape((nr, 3))
     Lout = CF[F_L:F_L + 3]
-    lay = I[0]
-    on = I[1]
-    parent = I[2, :nb]
-    jtype = I[3, :nb]
-    qidx = I[4, :nb]
-    vidx = I[5, :nb]
-    k = P[0:P_L]
-    Lsys = P[P_L:P_L + 3]
-    wIN = P[P_WIN:P_WIN + 3]
+    lay, on, parent, jtype, qidx, vidx, k, Lsys, _, wIN = unpack_tables(I, P, nb)
     stab = lay[LAY_STAB] == 1
     yes = nb > 0        # True, typed bool: newton_euler's one signature (a literal True would be another)
     nv = lay[LAY_NV]
@@ -198,8 +190,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
                 acc[off + i] = (ydp[i] - ydm[i]) / (2 * eps)
         qd = v[nv - 5:nv]
         # --- frames: X rows are 3-vectors, MM 3×3 matrices ----------------------------------------
-        wB = seg[5:8]
-        fB = seg[11:14]
+        wB = seg[SEG_W1:SEG_W1 + 3]
+        fB = seg[SEG_F1:SEG_F1 + 3]
         R_IB = MM[0]
         R_IP = MM[1]
         R_PB = mats[4, :3, :3]
@@ -229,7 +221,7 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
             _mv(R_PB, wB, Om)
             for i in range(3):
                 w0[i] = Om[i]
-                X[4, i] = (seg[5 + i] - seg[2 + i]) / seg[1] if seg[1] > 0 else 0.0
+                X[4, i] = (seg[SEG_W1 + i] - seg[SEG_W0 + i]) / seg[SEG_DT] if seg[SEG_DT] > 0 else 0.0
             _mv(R_PB, X[4], wd0)
         # --- axial gimbal torques of the effects ---------------------------------------------------
         wc = X[5]
@@ -531,7 +523,7 @@ class OutputKernel:
         Y = np.ascontiguousarray(y, dtype=float)
         SEG = np.ascontiguousarray(seg, dtype=float)
         K = len(T)
-        if TR.shape != (K,) or NS.shape != (K,) or Y.shape != (K, s.layout.n) or SEG.shape != (K, 14):
+        if TR.shape != (K,) or NS.shape != (K,) or Y.shape != (K, s.layout.n) or SEG.shape != (K, SEG_N):
             raise ValueError(f"output snapshots: t {T.shape}, t_rel {TR.shape}, n_steps {NS.shape}, "
                              f"y {Y.shape} (n = {s.layout.n}), seg {SEG.shape} do not fit")
         OUT = np.empty((K, N_COL))

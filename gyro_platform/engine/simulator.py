@@ -26,38 +26,24 @@ import math
 
 import numpy as np
 
-from .batch import (COMPILED, Engine, H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE,
-                    J_HAS_F, J_JOUT, J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD,
-                    ST_ORDER, ST_TOLERANCE)
+from .batch import COMPILED, Engine, ST_BAD_SAMPLE, ST_LOCK, ST_NOT_PD, ST_ORDER, ST_TOLERANCE
+from .buffers import (H_E_BAD, H_EST, H_H_BAD, H_N_BAD, H_NORM, H_T_BAD, H_T_REL, H_T_START, J_DONE, J_HAS_F, J_JOUT,
+                      J_NRHS, J_NSAMP, J_NSTEPS, J_REJ, J_STARTED)
 from .checks import as_time as _time
 from .checks import as_vec3 as _vec3
 from .checks import check_block
 from .inputs import RateSample
-from .integrators import Auto, Integrator, make_integrator
+from .integrators import Auto, auto_method, Integrator, make_integrator
 from .output_kernel import OutputKernel
 from .outputs import OutputBlock, Outputs, outputs_of_row
-from .snapshots import first_segment, SEG_N, Snapshots
+from .snapshots import first_segment, Snapshots
 from ..errors import GimbalLockError, InputError, SimulationError
 from ..physics.model import spin_momentum
 from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
 from ..physics.params import NAV1, PlatformParams
 from ..physics.rotations import quat_matrix
-from ..physics.system import PlatformSystem
+from ..physics.system import PlatformSystem, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1
 from ..physics.tree import kinematics, mass_matrix, TreeWork
-
-#: ``integrator: auto`` (see ``auto_primary``): RK4 where the fastest mode λ is resolved at the
-#: step (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
-#: tolerance is tight enough that its numerical damping of the nutation stays negligible
-#: (rtol ≤ AUTO_RK4_MAX_RTOL); otherwise etd2, which integrates the gyroscopic linear part
-#: exactly at any spin. Intervals the primary cannot bring within tolerance go to exprb.
-AUTO_RK4_LIMIT = 1.5
-AUTO_RK4_MAX_RTOL = 1e-6
-#: below this rtol an excited nutation costs RK4 ≥ 1/(24 rtol)^¼·ωh ≈ 100 substeps per 1 ms
-#: sample at ×1: etd2 (exact on the nutation) is cheaper
-AUTO_RK4_MIN_RTOL = 1e-9
-#: below this rtol auto's exponential method is etd4 (order 4: its error falls much faster
-#: with the step than etd2's, and it keeps invariants to 1e-10 over 1000 nutation periods)
-AUTO_ETD4_BELOW = 1e-9
 
 
 def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
@@ -81,38 +67,23 @@ def fastest_mode(params: PlatformParams, options: ModelOptions) -> float:
     return max(rates)
 
 
+def nutation_excited(options: ModelOptions) -> bool:
+    """Whether the motion excites the nutation: a carried platform's gimbals are driven by the
+    vehicle directly (not in precession, which has no nutation); a stabilised platform is held
+    by its servo and the nutation stays quiet."""
+    return options.mode == "carried" and options.fidelity != "precession"
+
+
 def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
-    """The method ``auto`` steps with: the cheaper one that reaches the tolerance without
-    damping the nutation.
-
-    RK4 (compiled, 4 right-hand sides per step) is the cheapest per step and its substeps
-    follow what the motion excites; but it must resolve the fastest mode λ for stability
-    (h·λ < 2.8), and it damps a nutation ω by ≈ (hω)⁶/72 per step. Held to rtol its local error
-    (hω)⁴/24 ≤ rtol gives hω ≤ (24 rtol)^¼, i.e. a T2 loss ≤ 1000·2π(hω)⁵/72 ≤ 1e-4 over 1000
-    nutation periods for rtol ≤ 1e-6; below rtol 1e-9 resolving an excited nutation costs RK4
-    more than etd2. Beyond the stability limit (fast rotors), at looser or at tighter tolerance:
-    etd2 (exact on the gyroscopic linear part, cost independent of the spin), etd4 below
-    rtol 1e-9 (fourth order: fewer substeps at tight tolerance).
-
-    A carried platform's gimbals are driven by the vehicle directly, so the motion excites the
-    nutation, which an exponential method integrates exactly and RK4 only resolves (damping it a
-    little every step). A stabilised platform is held by its servo and the nutation stays
-    quiet: RK4, the cheapest there (husky: rk4 61 substeps, 262 rhs per sample against etd2's
-    98 and 209, 2.8× less CPU; 1 kHz: 2.7× less; session 3).
-
-    A carried platform takes etd4 at every tolerance: its free gyros integrate every step's
-    error, and etd2's local errors there add up far beyond what it reports (ship motion at
-    1 kHz, rtol 1e-6: gimbal angles 5.6e-6 rad off after 10 s, 1.0e-4 after 30 s, largest
-    local estimate 2.3e-8; etd4 3.9e-11 after 30 s at 1.4× etd2's CPU, 3.4× on rate steps)."""
-    excited = options.mode == "carried" and options.fidelity != "precession"
-    if (fastest_mode(params, options) * options.max_step < AUTO_RK4_LIMIT and not excited
-            and AUTO_RK4_MIN_RTOL <= options.rtol <= AUTO_RK4_MAX_RTOL):
-        return "rk4"
-    return "etd2" if options.rtol >= AUTO_ETD4_BELOW and not excited else "etd4"
+    """The method ``auto`` steps with for this model: ``integrators.auto_method`` (the rule and
+    its reasons) of the model's fastest mode at max_step, the tolerance and whether the motion
+    excites the nutation."""
+    return auto_method(fastest_mode(params, options) * options.max_step, options.rtol, nutation_excited(options))
 
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
-    """The integrator of ``options`` (``auto``: ``Auto(auto_primary(...), exprb)``)."""
+    """The integrator of ``options`` (``auto``: its primary from this model's fastest mode, see
+    ``auto_primary``; the registry builds it)."""
     kw = {
         "max_step": options.max_step,
         "rtol": options.rtol,
@@ -120,7 +91,7 @@ def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> I
         "max_substeps": options.max_substeps,
     }
     if options.integrator == "auto":
-        return Auto(make_integrator(auto_primary(options, params), **kw), make_integrator("exprb", **kw))
+        kw.update(fastest_rate=fastest_mode(params, options), excited=nutation_excited(options))
     return make_integrator(options.integrator, **kw)
 
 
@@ -227,14 +198,15 @@ class Simulator:
         if not self.engine.ih[J_STARTED]:
             return None
         seg = self.system.seg
-        return RateSample(self.t, seg[5:8].copy(), seg[11:14].copy() if self.engine.ih[J_HAS_F] else None)
+        return RateSample(self.t, seg[SEG_W1:SEG_W1 + 3].copy(),
+                          seg[SEG_F1:SEG_F1 + 3].copy() if self.engine.ih[J_HAS_F] else None)
 
     def reset(self) -> None:
         """Back to the initial state: the next ``push`` starts a new time base, and everything
         after it equals a fresh simulator fed the same samples (stage matrices are kept)."""
         self.engine.clear(self.system.rest_state())
         self.system.seg[:] = 0.0
-        self.system.seg[1] = 1.0
+        self.system.seg[SEG_DT] = 1.0
         self.system.regime = 0
         self.integrator.reset()
         st = self.layout
@@ -421,9 +393,9 @@ class Simulator:
             raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
         seg = self.system.seg
         saved = seg.copy()
-        seg[0], seg[1] = t0, t1 - t0
-        seg[2:5], seg[5:8] = e.wr[0], w
-        seg[8:11], seg[11:14] = e.fr[0], (f if has_f else 0.0)
+        seg[SEG_T0], seg[SEG_DT] = t0, t1 - t0
+        seg[SEG_W0:SEG_W0 + 3], seg[SEG_W1:SEG_W1 + 3] = e.wr[0], w
+        seg[SEG_F0:SEG_F0 + 3], seg[SEG_F1:SEG_F1 + 3] = e.fr[0], (f if has_f else 0.0)
         try:
             if self.integrator.uses_linear_part:   # friction regime: only the linear part depends on it
                 self.system.update_regime(self.y)
@@ -587,7 +559,7 @@ class Simulator:
         st = self.layout
         if st.Om is not None:
             return self.y[st.Om].copy()
-        return self.system.R_PB @ self.system.seg[5:8]
+        return self.system.R_PB @ self.system.seg[SEG_W1:SEG_W1 + 3]
 
     def attitude_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(R_IB, R_IP) rotation matrices (vehicle → inertial, platform → inertial)."""

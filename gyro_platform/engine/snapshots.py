@@ -20,7 +20,8 @@ code (``engine.outputs``) turns a ``Snapshots`` into an ``OutputBlock``. ``Simul
 is the K = 1 case: ``Simulator._snapshot()`` gives the current instant as a ``Snapshots``.
 
 The input over the interval ending at the instant is the ``seg`` row in the layout of
-``physics.system`` (``SEG_N`` = 14 floats): ``[t0_rel, dt, w0(3), w1(3), f0(3), f1(3)]`` —
+``physics.model`` (``SEG_N`` = 14 floats, field offsets ``SEG_*``):
+``[t0_rel, dt, w0(3), w1(3), f0(3), f1(3)]`` —
 interval start (s, relative to the first sample), length (s, > 0), vehicle rate at its start and
 end (rad/s, vehicle axes), specific force at its start and end (m/s², vehicle axes; zeros when
 the samples carry none). The input at the instant itself is ``w1``/``f1``; the vehicle angular
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics.system import SEG_N
+from ..physics.system import SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1
 
 __all__ = ["Snapshots", "SEG_N", "first_segment"]
 
@@ -72,12 +73,12 @@ class Snapshots:
 def first_segment(seg: np.ndarray, w: np.ndarray, f: np.ndarray | None) -> None:
     """Fill ``seg`` (14,) for the first sample after a start/reset: input ``w`` (rad/s) and
     ``f`` (m/s², None = zeros) held constant over a unit interval starting at 0."""
-    seg[0] = 0.0
-    seg[1] = 1.0
-    seg[2:5] = w
-    seg[5:8] = w
+    seg[SEG_T0] = 0.0
+    seg[SEG_DT] = 1.0
+    seg[SEG_W0:SEG_W0 + 3] = w
+    seg[SEG_W1:SEG_W1 + 3] = w
     if f is None:
-        seg[8:14] = 0.0
+        seg[SEG_F0:SEG_F1 + 3] = 0.0
     else:
-        seg[8:11] = f
-        seg[11:14] = f
+        seg[SEG_F0:SEG_F0 + 3] = f
+        seg[SEG_F1:SEG_F1 + 3] = f

@@ -89,6 +89,11 @@ def platform_tree(p: PlatformParams, root_dynamic: bool) -> BodyTree:
 
 # the kernels' layout index row I[0]: [Om, qd, qIP, qIB, z, stabilised, nv] (start indices, −1: absent)
 LAY_OM, LAY_QD, LAY_QIP, LAY_QIB, LAY_Z, LAY_STAB, LAY_NV = range(7)
+# the kernels' input interval row ``seg`` (SEG_N floats): [t0, dt, w0(3), w1(3), f0(3), f1(3)], offsets of its
+# fields: interval start (s), length (s), vehicle rate (rad/s) and specific force (m/s²) at its start and end
+# (vehicle axes; the input is linear in time over the interval)
+SEG_T0, SEG_DT, SEG_W0, SEG_W1, SEG_F0, SEG_F1 = 0, 1, 2, 5, 8, 11
+SEG_N = 14
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from . import effects as fx
 from .jit import njit
-from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z
+from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, SEG_DT, SEG_T0, SEG_W0, SEG_W1
 from .rotations import quat_matrix_elems, quat_rate_at
 
 __all__ = ["stabilised_linear_rhs", "takes_linear_path", "rest_model_accel"]
@@ -76,11 +76,11 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     (a store into ``yd`` could alias any float argument for the compiler and force reloads);
     the sums are those of ``rest_model_accel`` in the same order (bit-identical results)."""
     # vehicle rate at t (linear over the interval), vehicle axes
-    dt = seg[1]
-    s = (t - seg[0]) / dt if dt > 0.0 else 0.0
-    wB0 = seg[2] + s * (seg[5] - seg[2])
-    wB1 = seg[3] + s * (seg[6] - seg[3])
-    wB2 = seg[4] + s * (seg[7] - seg[4])
+    dt = seg[SEG_DT]
+    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
+    wB0 = seg[SEG_W0] + s * (seg[SEG_W1] - seg[SEG_W0])
+    wB1 = seg[SEG_W0 + 1] + s * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
+    wB2 = seg[SEG_W0 + 2] + s * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
     io = I[0, LAY_OM]
     iqd = I[0, LAY_QD]
     iqp = I[0, LAY_QIP]

@@ -29,7 +29,7 @@ from . import effects as fx
 from .jit import njit
 from .model import (check_precession_valid, LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z,
                     linear_coefficients, linear_gimbal_accel, LOCK_COS, platform_tree, precession_rates, rest_matrices,
-                    spin_momentum, StateLayout)
+                    SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1, spin_momentum, StateLayout)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
@@ -39,8 +39,6 @@ from ..errors import GimbalLockError, SimulationError
 
 FULL, LINEAR, PRECESSION = 0, 1, 2
 FIDELITY_CODE = {"full": FULL, "linear": LINEAR, "precession": PRECESSION}
-# segment array: [t0, dt, w0(3), w1(3), f0(3), f1(3)]
-SEG_N = 14
 STATUS_OK, STATUS_LOCK, STATUS_NOT_PD = 0, 1, 2
 #: LLVM fast-math flags of the hot kernels: none. Reassociation and fused multiply-add made
 #: the last bits depend on how LLVM inlined a callee, i.e. on which kernels a process compiled
@@ -56,6 +54,17 @@ P_L = fx.N_K
 P_LC = P_L + 3
 P_WIN = P_LC + 13
 N_P = P_WIN + 3
+
+
+@njit(cache=True, inline="always")
+def unpack_tables(I, P, nb):
+    """Named views of the kernels' packed inputs, the one place their layout is read:
+    ``I`` (int rows) → ``lay`` (``LAY_*``), ``on`` (effect flags), the tree's ``parent``,
+    ``jtype``, ``qidx``, ``vidx`` (its ``nb`` bodies); ``P`` (floats, offsets ``P_*``) → ``k``
+    (effect coefficients), ``L`` (rotor momenta), ``lc`` (linear coefficients), ``w_IN`` (Earth
+    rate). Inlined into the compiled callers; ``PlatformSystem.rebind`` runs it as Python."""
+    return (I[0], I[1], I[2, :nb], I[3, :nb], I[4, :nb], I[5, :nb],
+            P[0:P_L], P[P_L:P_L + 3], P[P_LC:P_LC + 13], P[P_WIN:P_WIN + 3])
 
 
 @njit(cache=True)
@@ -108,16 +117,7 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     if takes_linear_path(fid == LINEAR, I):
         return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
     nb = inertia.shape[0]
-    lay = I[0]
-    on = I[1]
-    parent = I[2, :nb]
-    jtype = I[3, :nb]
-    qidx = I[4, :nb]
-    vidx = I[5, :nb]
-    k = P[0:P_L]
-    L = P[P_L:P_L + 3]
-    lc = P[P_LC:P_LC + 13]
-    wIN = P[P_WIN:P_WIN + 3]
+    lay, on, parent, jtype, qidx, vidx, k, L, lc, wIN = unpack_tables(I, P, nb)
     qd = W[0]
     vv = W[1]
     za = W[2]
@@ -127,15 +127,15 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     nv = lay[LAY_NV]
     status = 0
     # --- input at time t (linear over the interval) ---------------------------------------
-    dt = seg[1]
-    s = (t - seg[0]) / dt if dt > 0.0 else 0.0
+    dt = seg[SEG_DT]
+    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
     inv_dt = 1.0 / dt if dt > 0.0 else 0.0
-    wB0 = seg[2] + s * (seg[5] - seg[2])
-    wB1 = seg[3] + s * (seg[6] - seg[3])
-    wB2 = seg[4] + s * (seg[7] - seg[4])
-    fB0 = seg[8] + s * (seg[11] - seg[8])
-    fB1 = seg[9] + s * (seg[12] - seg[9])
-    fB2 = seg[10] + s * (seg[13] - seg[10])
+    wB0 = seg[SEG_W0] + s * (seg[SEG_W1] - seg[SEG_W0])
+    wB1 = seg[SEG_W0 + 1] + s * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
+    wB2 = seg[SEG_W0 + 2] + s * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
+    fB0 = seg[SEG_F0] + s * (seg[SEG_F1] - seg[SEG_F0])
+    fB1 = seg[SEG_F0 + 1] + s * (seg[SEG_F1 + 1] - seg[SEG_F0 + 1])
+    fB2 = seg[SEG_F0 + 2] + s * (seg[SEG_F1 + 2] - seg[SEG_F0 + 2])
     iqb = lay[LAY_QIB]
     quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
     # R_PB: platform <- vehicle
@@ -160,9 +160,9 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     wBP2 = RR[2, 2, 0] * wB0 + RR[2, 2, 1] * wB1 + RR[2, 2, 2] * wB2
     if not stab:
         Om0, Om1, Om2 = wBP0, wBP1, wBP2
-        d0 = (seg[5] - seg[2]) * inv_dt
-        d1 = (seg[6] - seg[3]) * inv_dt
-        d2 = (seg[7] - seg[4]) * inv_dt
+        d0 = (seg[SEG_W1] - seg[SEG_W0]) * inv_dt
+        d1 = (seg[SEG_W1 + 1] - seg[SEG_W0 + 1]) * inv_dt
+        d2 = (seg[SEG_W1 + 2] - seg[SEG_W0 + 2]) * inv_dt
         Omd0 = RR[2, 0, 0] * d0 + RR[2, 0, 1] * d1 + RR[2, 0, 2] * d2
         Omd1 = RR[2, 1, 0] * d0 + RR[2, 1, 1] * d1 + RR[2, 1, 2] * d2
         Omd2 = RR[2, 2, 0] * d0 + RR[2, 2, 1] * d1 + RR[2, 2, 2] * d2
@@ -374,7 +374,7 @@ def support_regime(y, I, P, seg, RR):
     quat_to_matrix_at(y, lay[LAY_QIB], RR, 1)
     eps = P[fx.K_EPS_S]
     io = lay[LAY_OM]
-    dt = seg[1]
+    dt = seg[SEG_DT]
     inv_dt = 1.0 / dt if dt > 0.0 else 0.0
     wbp0 = 0.0
     wbp1 = 0.0
@@ -386,8 +386,8 @@ def support_regime(y, I, P, seg, RR):
         r0 = RR[0, 0, 0] * RR[1, 0, j] + RR[0, 1, 0] * RR[1, 1, j] + RR[0, 2, 0] * RR[1, 2, j]
         r1 = RR[0, 0, 1] * RR[1, 0, j] + RR[0, 1, 1] * RR[1, 1, j] + RR[0, 2, 1] * RR[1, 2, j]
         r2 = RR[0, 0, 2] * RR[1, 0, j] + RR[0, 1, 2] * RR[1, 1, j] + RR[0, 2, 2] * RR[1, 2, j]
-        wj = seg[2 + j]
-        dj = (seg[5 + j] - seg[2 + j]) * inv_dt
+        wj = seg[SEG_W0 + j]
+        dj = (seg[SEG_W1 + j] - seg[SEG_W0 + j]) * inv_dt
         wbp0 += r0 * wj
         wbp1 += r1 * wj
         wbp2 += r2 * wj
@@ -438,15 +438,11 @@ class PlatformSystem:
         self.I[1, :fx.N_EFFECTS] = fx.flags(options.effects)
         for row, arr in ((2, self.tree.parent), (3, self.tree.jtype), (4, self.tree.qidx), (5, self.tree.vidx)):
             self.I[row, :nb] = arr
-        self.lay = self.I[0]
-        self.on = self.I[1]
         self.P = np.zeros(N_P)
-        self.k = self.P[0:P_L]
+        self.rebind(self.I)
         self.k[:] = fx.coefficients(params)
-        self.L = self.P[P_L:P_L + 3]
         self.L[:] = np.asarray(params.L, float) if options.has("rotor_gyroscopic") else np.zeros(3)
         self.L_true = np.asarray(params.L, float)
-        self.lc = self.P[P_LC:P_LC + 13]
         self.lc[:] = linear_coefficients(params)
         M0, G0 = rest_matrices(params)
         self.M0, self.G0 = M0, G0
@@ -464,11 +460,10 @@ class PlatformSystem:
         self.R_PB = np.ascontiguousarray(self.R_BP.T)
         self.mats[4, :3, :3] = self.R_PB
         lat = params.latitude
-        self.w_IN = self.P[P_WIN:P_WIN + 3]
         self.w_IN[:] = (params.earth_rate * np.array([0.0, math.cos(lat), math.sin(lat)])
                         if options.has("earth_rate") else np.zeros(3))
         self.seg = np.zeros(SEG_N)
-        self.seg[1] = 1.0
+        self.seg[SEG_DT] = 1.0
         n = self.nv
         self._F = np.zeros(n)
         self._a = np.zeros(8)
@@ -487,27 +482,22 @@ class PlatformSystem:
         """Use ``I`` (same values) as the int table and re-derive the named views of ``I`` and
         ``P`` (after ``P`` was replaced by an equal array elsewhere, e.g. a packed buffer)."""
         self.I = I
-        self.lay = I[0]
-        self.on = I[1]
-        self.k = self.P[0:P_L]
-        self.L = self.P[P_L:P_L + 3]
-        self.lc = self.P[P_LC:P_LC + 13]
-        self.w_IN = self.P[P_WIN:P_WIN + 3]
+        self.lay, self.on, _, _, _, _, self.k, self.L, self.lc, self.w_IN = unpack_tables.py_func(I, self.P, 0)
 
     # ---- input -------------------------------------------------------------------------
     def set_input(self, t0: float, t1: float, w0, w1, f0=None, f1=None) -> None:
         """Input over [t0, t1]: vehicle rate (rad/s) and specific force (m/s²), vehicle axes,
         linear in time."""
         seg = self.seg
-        seg[0] = t0
-        seg[1] = t1 - t0
-        seg[2:5] = w0
-        seg[5:8] = w1
+        seg[SEG_T0] = t0
+        seg[SEG_DT] = t1 - t0
+        seg[SEG_W0:SEG_W0 + 3] = w0
+        seg[SEG_W1:SEG_W1 + 3] = w1
         if f0 is None:
-            seg[8:14] = 0.0
+            seg[SEG_F0:SEG_F1 + 3] = 0.0
         else:
-            seg[8:11] = f0
-            seg[11:14] = f0 if f1 is None else f1
+            seg[SEG_F0:SEG_F0 + 3] = f0
+            seg[SEG_F1:SEG_F1 + 3] = f0 if f1 is None else f1
 
     # ---- ODE ---------------------------------------------------------------------------
     def kernel_args(self) -> tuple:

@@ -196,9 +196,9 @@ PHYSICS_PREFIX = "physics."
 
 
 def _integrators() -> tuple[str, ...]:
-    from ..engine.integrators import INTEGRATORS
+    from ..engine.integrators import INTEGRATOR_CHOICES
 
-    return ("auto", *INTEGRATORS)
+    return INTEGRATOR_CHOICES
 
 
 def _physics_specs() -> list[ParamSpec]:

@@ -269,13 +269,13 @@ class Scene:
 
     def with_integrator(self, integrator: str | None = None, max_step: float | None = None) -> "Scene":
         """Copy with another integrator and/or internal step bound (s)."""
-        from ..engine.integrators import INTEGRATORS
+        from ..engine.integrators import INTEGRATOR_CHOICES
 
         name = self.integrator if integrator is None else integrator
         step = self.max_step if max_step is None else float(max_step)
-        if name not in ("auto", *INTEGRATORS):
-            raise ScenarioError(f"scene '{self.name}': integrator: expected one of auto, "
-                                f"{', '.join(INTEGRATORS)}, got {name!r}")
+        if name not in INTEGRATOR_CHOICES:
+            raise ScenarioError(f"scene '{self.name}': integrator: expected one of "
+                                f"{', '.join(INTEGRATOR_CHOICES)}, got {name!r}")
         try:
             opts = self.options.with_(integrator=name, max_step=step)
         except OptionsError as e:
@@ -411,9 +411,9 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
         m = re.search(r"parameter '([A-Za-z_0-9]+)", str(e))
         v.fail(f"params.{m.group(1)}" if m else "params", str(e))
 
-    from ..engine.integrators import INTEGRATORS
+    from ..engine.integrators import INTEGRATOR_CHOICES
 
-    integrator = v.choice(d.get("integrator", "auto"), "integrator", ("auto", *INTEGRATORS))
+    integrator = v.choice(d.get("integrator", "auto"), "integrator", INTEGRATOR_CHOICES)
     max_step = v.number(d.get("max_step", 1e-3), "max_step", lo=0.0, hi=1.0, lo_open=True)
     kw: dict[str, Any] = {"integrator": integrator, "max_step": max_step}
     for k in ("rtol", "atol"):

@@ -16,9 +16,9 @@
 
 One contract (:mod:`.base`: ``Integrator``, ``StepStats``, the weighted error norm, the
 step-size controller of the fixed-grid methods, ``OdeSystem``), one module per family, one front
-door (this package: ``INTEGRATORS``, ``make_integrator``). Every method is given ``rtol``/``atol``
-and ``max_step``, estimates its local error and refuses (``ToleranceError``) rather than return
-a state outside the tolerance; see :mod:`.base`.
+door (:mod:`.registry`: ``INTEGRATORS``, ``INTEGRATOR_CHOICES``, ``make_integrator``). Every
+method is given ``rtol``/``atol`` and ``max_step``, estimates its local error and refuses
+(``ToleranceError``) rather than return a state outside the tolerance; see :mod:`.base`.
 
 Methods (see ``INTEGRATORS``):
 
@@ -27,22 +27,26 @@ Methods (see ``INTEGRATORS``):
   state (ETD2RK, ETDRK4) or re-linearised at every step (exprb32); their φ-functions.
 - ``implicit_midpoint`` (:mod:`.implicit`): A-stable, symplectic, step doubling.
 - ``dop853``, ``rk45``, ``radau`` (:mod:`.scipy_methods`): scipy's ``OdeSolver`` step API.
-- ``auto`` (:mod:`.auto`): a primary method with the exprb fallback (built by the simulator).
+- ``auto`` (:mod:`.auto`): a primary method chosen from the system's fastest mode, with the
+  exprb fallback (built by the registry like the others; the simulator gives the model's rate).
 
 :mod:`.jacobian` holds the Jacobians (a system's own or forward differences) the linearising
 methods share. Imports only ``errors`` (and numpy, scipy, numba).
 """
-from .auto import Auto, AUTO_STICKY
+from .auto import (Auto, AUTO_ETD4_BELOW, AUTO_FALLBACK, auto_method, AUTO_RK4_LIMIT, AUTO_RK4_MAX_RTOL,
+                   AUTO_RK4_MIN_RTOL, AUTO_STICKY)
 from .base import COARSEN, Controlled, error_norm, Integrator, MAX_JUMP, MAX_SUBSTEPS, OdeSystem, STEP_SLACK, StepStats
 from .exponential import ETD2, ETD4, ExpRosenbrock, TAIL_MIN, TAIL_ULP, taylor_bound, TAYLOR_MAX, TAYLOR_TOL
 from .implicit import ImplicitMidpoint
 from .jacobian import fd_jacobian, jacobian_of
-from .registry import INTEGRATORS, make_integrator
+from .registry import INTEGRATOR_CHOICES, INTEGRATORS, make_integrator
 from .rk import RK4
 from .scipy_methods import DOP853, Radau, RK45
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
-           "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "Auto", "AUTO_STICKY", "RK4", "ETD2",
+           "INTEGRATOR_CHOICES", "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "Auto",
+           "AUTO_STICKY", "AUTO_FALLBACK", "auto_method", "AUTO_RK4_LIMIT", "AUTO_RK4_MAX_RTOL", "AUTO_RK4_MIN_RTOL",
+           "AUTO_ETD4_BELOW", "RK4", "ETD2",
            "ETD4",
            "ExpRosenbrock", "ImplicitMidpoint", "DOP853", "RK45", "Radau", "fd_jacobian", "jacobian_of",
            "TAIL_MIN", "TAIL_ULP", "TAYLOR_MAX", "TAYLOR_TOL", "taylor_bound"]

@@ -12,18 +12,21 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The integrators by name: ``INTEGRATORS`` (name → description) and :func:`make_integrator`."""
+"""The integrators by name: ``INTEGRATORS`` (name → description), ``INTEGRATOR_CHOICES`` (every
+name an ``integrator`` option accepts: ``auto`` and the methods) and :func:`make_integrator`,
+which builds them all, ``auto`` included."""
 from __future__ import annotations
 
 import math
 
+from .auto import Auto, AUTO_FALLBACK, auto_method
 from .base import Integrator, MAX_SUBSTEPS
 from .exponential import ETD2, ETD4, ExpRosenbrock
 from .implicit import ImplicitMidpoint
 from .rk import RK4
 from .scipy_methods import DOP853, Radau, RK45
 
-__all__ = ["INTEGRATORS", "make_integrator"]
+__all__ = ["INTEGRATORS", "INTEGRATOR_CHOICES", "make_integrator"]
 
 INTEGRATORS: dict[str, str] = {
     "rk4": "classic explicit Runge-Kutta 4 with embedded 3rd-order estimate, substeps to rtol/atol "
@@ -38,6 +41,10 @@ INTEGRATORS: dict[str, str] = {
     "exprb": "exponential Rosenbrock exprb32, re-linearised every step, embedded estimate; large angles, fast rotors",
 }
 
+#: every name an ``integrator`` option accepts: ``auto`` (a primary method chosen by
+#: ``auto.auto_method`` with the ``AUTO_FALLBACK`` fallback) and the methods of ``INTEGRATORS``
+INTEGRATOR_CHOICES: tuple[str, ...] = ("auto", *INTEGRATORS)
+
 _CLASSES: dict[str, type[Integrator]] = {
     "rk4": RK4, "dop853": DOP853, "rk45": RK45, "radau": Radau,
     "implicit_midpoint": ImplicitMidpoint, "etd2": ETD2, "etd4": ETD4, "exprb": ExpRosenbrock,
@@ -45,16 +52,23 @@ _CLASSES: dict[str, type[Integrator]] = {
 
 
 def make_integrator(name: str, *, max_step: float = 1e-3, rtol: float = 1e-8,
-                    atol: float = 1e-12, max_substeps: int = MAX_SUBSTEPS) -> Integrator:
-    """A new integrator by name (see ``INTEGRATORS``).
+                    atol: float = 1e-12, max_substeps: int = MAX_SUBSTEPS, fastest_rate: float = 0.0,
+                    excited: bool = False) -> Integrator:
+    """A new integrator by name (see ``INTEGRATOR_CHOICES``).
 
     ``max_step`` (s): step bound; ``rtol``, ``atol`` (state units): local error tolerance;
-    ``max_substeps``: budget (shortest step ``max_step/max_substeps``). Raises ``ValueError``
-    for an unknown name or bad values.
+    ``max_substeps``: budget (shortest step ``max_step/max_substeps``). ``auto`` only:
+    ``fastest_rate`` (rad/s or 1/s), the system's fastest characteristic rate, and ``excited``,
+    whether its motion excites the nutation, choose the primary method (``auto.auto_method``);
+    the fallback is ``AUTO_FALLBACK``. Raises ``ValueError`` for an unknown name or bad values.
     """
+    if name == "auto":
+        kw = {"max_step": max_step, "rtol": rtol, "atol": atol, "max_substeps": max_substeps}
+        primary = auto_method(fastest_rate * max_step, rtol, excited)
+        return Auto(make_integrator(primary, **kw), make_integrator(AUTO_FALLBACK, **kw))
     cls = _CLASSES.get(name)
     if cls is None:
-        raise ValueError(f"unknown integrator {name!r}; known: {', '.join(INTEGRATORS)}")
+        raise ValueError(f"unknown integrator {name!r}; known: {', '.join(INTEGRATOR_CHOICES)}")
     if not (0.0 < max_step < math.inf):
         raise ValueError(f"{name}: max_step must be a positive finite time in s, got {max_step!r}")
     if not (rtol > 0.0 and atol > 0.0):
