@@ -37,7 +37,7 @@ from rosbags.typesys import get_typestore, Stores
 from gyro_platform import messages as m
 from gyro_platform import replay as rp
 from gyro_platform.physics.options import ModelOptions
-from gyro_platform.pipeline.gate import GateConfig
+from gyro_platform.pipeline.gate_rules import GateConfig
 from gyro_platform.pipeline.grid import grid_index, grid_indices, new_slots
 from gyro_platform.replay.stats import LineFit, PlotSeries, Stats
 

@@ -31,7 +31,7 @@ from test_cli import small_bag
 
 from gyro_platform import cli
 from gyro_platform.errors import check_number, not_finite
-from gyro_platform.pipeline.gate import GateConfig
+from gyro_platform.pipeline.gate_rules import GateConfig
 
 WORDS = "expected a finite number, got"
 GATE_FLAGS = ("--max-gap", "--reset-on-jump-back", "--max-rate", "--max-specific-force")

@@ -31,7 +31,8 @@ import pytest
 
 from gyro_platform.messages import jazzy_typestore, Mounting, Reading, reading_from_msg, Rejected
 from gyro_platform.messages.blocks import RateBlock, REJECT_REASONS
-from gyro_platform.pipeline.gate import ACCEPT, Action, DROP, GateConfig, plain_decision, REASONS, RESET, TimeGate
+from gyro_platform.pipeline.gate import TimeGate
+from gyro_platform.pipeline.gate_rules import ACCEPT, Action, DROP, GateConfig, plain_decision, REASONS, RESET
 
 NS = 1_000_000_000
 T0 = 1_700_000_000 * NS

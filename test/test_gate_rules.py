@@ -29,9 +29,9 @@ import pytest
 
 from gyro_platform.messages import Reading
 from gyro_platform.messages.blocks import RateBlock
-from gyro_platform.pipeline.gate import GateConfig, REASONS, row_verdict, TimeGate
+from gyro_platform.pipeline.gate import TimeGate
 from gyro_platform.pipeline.gate_kernels import usable_rows
-from gyro_platform.pipeline.gate_rules import ROW_REASONS
+from gyro_platform.pipeline.gate_rules import GateConfig, REASONS, ROW_REASONS, row_verdict
 
 NS = 1_000_000_000
 T0 = 1_700_000_000 * NS

@@ -301,7 +301,8 @@ def test_a_sample_the_simulator_refuses_rolls_the_gate_back():
     stamp is not dropped as repeated_stamp and the run does not diverge."""
     from gyro_platform.engine.simulator import Simulator
     from gyro_platform.messages import reading_from_msg
-    from gyro_platform.pipeline.gate import GateConfig, TimeGate
+    from gyro_platform.pipeline.gate import TimeGate
+    from gyro_platform.pipeline.gate_rules import GateConfig
     from gyro_platform.pipeline.stream import Pipeline
 
     cfg = NodeConfig.from_ros_params({"effects": ["defaults", "mass_unbalance"]})
@@ -333,7 +334,8 @@ def test_pipeline_offer_through_the_plain_lane_equals_the_general_path(draws, ne
     from gyro_platform.engine.simulator import Simulator
     from gyro_platform.messages import Reading
     from gyro_platform.physics.options import ModelOptions
-    from gyro_platform.pipeline.gate import GateConfig, TimeGate
+    from gyro_platform.pipeline.gate import TimeGate
+    from gyro_platform.pipeline.gate_rules import GateConfig
     from gyro_platform.pipeline.stream import Pipeline
 
     opts = ModelOptions(effects=ModelOptions().effects | ({"mass_unbalance"} if needs_f else set()),

@@ -37,7 +37,8 @@ from gyro_platform import messages as m
 from gyro_platform import replay as rp
 from gyro_platform.bags.paths import read_metadata
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
-from gyro_platform.pipeline.gate import Action, GateConfig, TimeGate
+from gyro_platform.pipeline.gate import TimeGate
+from gyro_platform.pipeline.gate_rules import Action, GateConfig
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"

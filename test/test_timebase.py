@@ -22,7 +22,8 @@ import pytest
 
 from gyro_platform.messages import Reading, Rejected
 from gyro_platform.pipeline import gate as timebase
-from gyro_platform.pipeline.gate import ACCEPT_REASONS, Action, DROP_REASONS, GateConfig, NOTES, RESET_REASONS, TimeGate
+from gyro_platform.pipeline.gate import TimeGate
+from gyro_platform.pipeline.gate_rules import ACCEPT_REASONS, Action, DROP_REASONS, GateConfig, NOTES, RESET_REASONS
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S

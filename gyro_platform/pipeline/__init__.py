@@ -23,7 +23,8 @@ path (``chunked``: blocks of rows), the output grid (``grid``) and pacing (``pac
 read-ahead thread, chunk sizes). May import ``bags``, ``messages``, ``engine``, ``physics``,
 ``errors`` and ``signals``.
 """
-from .gate import GateConfig, TimeGate
+from .gate import TimeGate
+from .gate_rules import GateConfig
 from .stream import Pipeline, read_samples
 
 __all__ = ["GateConfig", "TimeGate", "Pipeline", "read_samples"]

@@ -24,7 +24,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .gate import Action, ALL_REASONS, Decision, DROP, reading_of, RESET
+from .gate_kernels import reading_of
+from .gate_rules import Action, ALL_REASONS, Decision, DROP, RESET
 from .grid import grid_indices, new_slots, NO_SLOT
 from .outcomes import ADVANCED, apply_decision, MAX_ERRORS, O_DROPPED, O_PUSHED, O_RESET, OUTCOMES
 from ..bags.reader import InputBag

@@ -66,7 +66,7 @@ reason tables, :class:`GateConfig`, :class:`GateBlock`) and the one rule for a r
 (:func:`~gyro_platform.pipeline.gate_rules.row_verdict`: `non_finite`, `over_rate`,
 `over_specific_force`, `no_specific_force`; every path calls it) are in
 :mod:`~gyro_platform.pipeline.gate_rules`, the compiled block passes in
-:mod:`~gyro_platform.pipeline.gate_kernels`; the names are importable from here too.
+:mod:`~gyro_platform.pipeline.gate_kernels`.
 """  # noqa: E501 (the reason table: one row a line)
 from __future__ import annotations
 
@@ -79,18 +79,16 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from .gate_kernels import accept_rows, arrival_ema, ema, ema_add, EXACT_NS, ns_floor, reading_of, usable_rows
-from .gate_rules import (ACCEPT, ACCEPT_REASONS, Action, ACTION_CODE, ALL_REASONS, Decision, DROP, DROP_REASONS,
-                         GateBlock, GateConfig, NOTES, NS, plain_decision, REASON_INDEX, REASONS, RESET, RESET_REASONS,
-                         ROW_NO_SPECIFIC_FORCE, ROW_NON_FINITE, ROW_OK, ROW_OVER_RATE, ROW_REASONS, row_verdict)
+from .gate_rules import (ACCEPT, ACCEPT_REASONS, Action, ACTION_CODE, Decision, DROP, DROP_REASONS, GateBlock,
+                         GateConfig, NS, plain_decision, REASON_INDEX, RESET_REASONS, ROW_NO_SPECIFIC_FORCE,
+                         ROW_NON_FINITE, ROW_OK, ROW_OVER_RATE, ROW_REASONS, row_verdict)
 from ..engine.inputs import RateSample
 from ..messages import Reading, Rejected
 
 if TYPE_CHECKING:
     from ..messages.blocks import RateBlock
 
-__all__ = ["TimeGate", "Action", "Decision", "GateConfig", "GateBlock", "plain_decision", "reading_of", "row_verdict",
-           "NS", "ACCEPT", "DROP", "RESET", "ACTION_CODE", "REASONS", "ALL_REASONS", "REASON_INDEX", "DROP_REASONS",
-           "RESET_REASONS", "ACCEPT_REASONS", "NOTES"]
+__all__ = ["TimeGate"]
 
 # the members as plain globals: an Enum attribute lookup costs ~60 ns, several per message
 _A_ACCEPT, _A_DROP, _A_RESET = Action.ACCEPT, Action.DROP, Action.RESET

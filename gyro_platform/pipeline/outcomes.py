@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .gate import Action, Decision
+from .gate_rules import Action, Decision
 from ..engine.inputs import RateSample
 from ..errors import InputError, SimulationError
 

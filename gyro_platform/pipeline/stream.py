@@ -36,7 +36,8 @@ from pathlib import Path
 from typing import Any, Iterable, Iterator
 
 from .chunked import ChunkedRuns
-from .gate import Decision, NS, plain_decision, TimeGate
+from .gate import TimeGate
+from .gate_rules import Decision, NS, plain_decision
 from .grid import check_grid_rate, grid_index
 from .outcomes import ADVANCED, apply_decision, restart_at
 from .. import messages as msgs

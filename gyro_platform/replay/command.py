@@ -44,7 +44,7 @@ from ..errors import (BagPathError, BagReadError, EXIT_DATA, EXIT_INTERRUPTED, E
                       EXIT_WRITE, OutputError, ReplayError)
 from ..filesystem import check_output_path, write_failure
 from ..messages import Mounting
-from ..pipeline.gate import GateConfig
+from ..pipeline.gate_rules import GateConfig
 from ..pipeline.grid import check_grid_rate
 from ..pipeline.outcomes import no_sample_hint
 

@@ -45,7 +45,8 @@ from ..errors import BagReadError, ReplayError, SimulationError
 from ..messages import MessageTypes, Mounting
 from ..messages.encode import encode_outputs
 from ..messages.typedefs import core_typestore
-from ..pipeline.gate import DROP, GateConfig, NS, TimeGate
+from ..pipeline.gate import TimeGate
+from ..pipeline.gate_rules import DROP, GateConfig, NS
 from ..pipeline.grid import grid_index, grid_indices, new_slots
 from ..pipeline.outcomes import ADVANCED, no_sample_hint
 from ..pipeline.pacing import ChunkPacer, prefetched

@@ -39,7 +39,7 @@ from .parameters import ConfigError, INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS
 from ..messages import flatten, Mounting, output_topics
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions, NEEDS_SPECIFIC_FORCE, OptionsError
 from ..physics.params import ParameterError, PlatformParams
-from ..pipeline.gate import GateConfig
+from ..pipeline.gate_rules import GateConfig
 
 #: parameters every rclpy node (or a library it uses) declares itself; accepted and ignored here
 ROS_STANDARD_PARAMETERS = ("use_sim_time", "start_type_description_service", "diagnostic_updater.period")

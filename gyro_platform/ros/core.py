@@ -52,7 +52,8 @@ from .. import messages as msgs
 from ..engine.outputs import C_QUAT, C_ROTOR, outputs_of_row
 from ..errors import SimulationError
 from ..messages import MessageTypes, Reading
-from ..pipeline.gate import NS, TimeGate
+from ..pipeline.gate import TimeGate
+from ..pipeline.gate_rules import NS
 from ..pipeline.grid import grid_index
 from ..pipeline.stream import Pipeline
 

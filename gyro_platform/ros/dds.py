@@ -57,7 +57,7 @@ from .dds_names import (dds_topic_name, DISCOVERY_TOPIC, DISCOVERY_TYPE, domain_
                         normalize_namespace, validate_node_name)
 from .dds_types import (dds_qos, DEFAULT, DISCOVERY_INFO, IdlTypes, LATCHED, QosProfile, SENSOR_DATA, TF,
                         type_hash_user_data, zero_message)
-from ..pipeline.gate import NS
+from ..pipeline.gate_rules import NS
 
 
 # =========================================================================================

@@ -18,7 +18,7 @@ from __future__ import annotations
 from bisect import bisect_left, insort
 from collections import deque
 
-from ..pipeline.gate import NS
+from ..pipeline.gate_rules import NS
 
 __all__ = ["InputLoss"]
 

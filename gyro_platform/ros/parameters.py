@@ -34,7 +34,7 @@ from ..errors import not_finite
 from ..messages import IMU, Mounting, TWIST, TWIST_STAMPED
 from ..physics.options import DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES
 from ..physics.params import NAV1, PlatformParams
-from ..pipeline.gate import GateConfig
+from ..pipeline.gate_rules import GateConfig
 
 NODE_NAME = "gyro_platform_node"
 #: input_type parameter value -> ROS message type
