@@ -481,7 +481,7 @@ def table(rows: list[Row]) -> str:
             continue
         wc = r.extra.get("whole_command_wall_s")
         whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
-        floor = "failed" if r.extra.get("floor_error") else _fmt(r.extra.get("floor_rtf"), '.3g')
+        floor = "failed" if r.extra.get("floor_error") else _fmt(r.extra.get("floor_rtf"), ".3g")
         lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} "
                      f"| {_fmt(r.kernel_us, '.2f')} | {_fmt(r.ratio, '.1f')} | {floor} "
                      f"| {_fmt(r.extra.get('replay_over_floor'), '.2f')} | {r.target} |")
