@@ -354,7 +354,7 @@ def add_floor(row: Row, bag: Path, work: Path, repeats: int) -> None:
         row.extra["floor_error"] = f"{type(e).__name__}: {str(e)[:120]}"
         return
     row.extra.update(floor_rtf=f["rtf"], floor_wall_s=f["wall_s"], floor_us=f["wall_s"] / max(f["inputs"], 1) * 1e6,
-                     floor_counts=f["counts"])
+                     floor_walls_s=f["walls"], floor_counts=f["counts"])
     if f["rtf"] and row.rtf:
         row.extra["replay_over_floor"] = f["rtf"] / row.rtf
 
