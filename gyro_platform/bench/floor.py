@@ -101,7 +101,9 @@ class FloorRun:
     def instants(self, rb: Any, rx: np.ndarray) -> tuple:
         """Where the replay emits in these decoded rows received at ``rx`` (ns): (record ns,
         header stamp ns, outputs (OutputBlock) of the output instants; the diagnostics rows'
-        record ns, outputs up to each, the last output up to each or None)."""
+        record ns, their figures (outputs up to each, samples accepted), the last output up to
+        each or None). Accepted: decoded (``reject == 0``) and stamped after every accepted row
+        before (``NO_SLOT``, int64's minimum, is "none yet")."""
         self.n_in += len(rx)
         ok = rb.reject == 0
         s = np.where(ok, rb.stamp_ns, NO_SLOT)
