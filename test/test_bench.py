@@ -160,6 +160,29 @@ def test_sqlite_floor_inserts_every_row_the_replay_wrote(tmp_path):
     assert row.extra["rows"] == n and "| SQLite alone" in consumer.table([row])
 
 
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_io_floor_writes_what_the_replay_writes(tmp_path, storage):
+    """The I/O floor's output bag holds as many messages per topic as the replay's (inputs
+    copied, the output topics at the 100 Hz instants, /diagnostics), on a bag with jittered stamps."""
+    from rosbags.highlevel import AnyReader
+
+    from gyro_platform.bench.floor import io_floor
+
+    def counts(path):
+        with AnyReader([path]) as r:
+            return {c.topic: c.msgcount for c in r.connections if c.msgcount}
+
+    path = bags.cached_imu_bag(0.5, storage, seed=31, jitter=0.05)
+    s = consumer.replay_once(path, tmp_path / "replay", ("--output-rate", "100"))
+    f = io_floor(path, tmp_path / "floor", None, 100.0)
+    assert counts(tmp_path / "floor") == counts(tmp_path / "replay") == f["counts"]
+    assert f["outputs"] == s["counts"]["out"] and f["inputs"] == s["counts"]["in"] == 501
+    assert f["wall_s"] > 0 and f["duration_s"] == pytest.approx(s["duration_s"])
+    row = consumer.Row("replay_1khz_x", "replay x", str(path), rtf=s["real_time_factor"], us_per_sample=1.0)
+    consumer.add_floor(row, path, tmp_path, repeats=1)
+    assert row.extra["replay_over_floor"] > 0 and "| replay ÷ floor" in consumer.table([row])
+
+
 def test_node_figure_publishes_on_the_default_grid():
     msgs = consumer._imu_objects(bags.cached_imu_bag(0.5, "mcap"), 400)
     r = consumer.node_us(msgs, repeats=1)

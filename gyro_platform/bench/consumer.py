@@ -23,6 +23,10 @@ Rows, all in one process run (medians of ``repeats``):
   code: the summary's ``real_time_factor``, the first run's kept as ``first_run_rtf``; and the
   whole command in a subprocess, ``python -m gyro_platform replay …`` with default options:
   wall time including interpreter start-up, imports and the plot);
+* the I/O floor of each 1 kHz replay (:mod:`gyro_platform.bench.floor`, beside its row: ``I/O
+  floor ×`` and ``replay ÷ floor``, issue 31's bar ≤ 2): the same bag read and decoded, the same
+  output messages encoded and written, without simulating (medians of ``repeats`` after one
+  untimed pass);
 * SQLite's own floor under the sqlite3 replay: the rows that replay wrote, inserted again into a
   fresh database with nothing else running (the best a sqlite3 replay of them can do);
 * ``replay`` of the shared husky recording (30 Hz, 395 s; ``--quick``: its first 30 s), found as
@@ -58,7 +62,7 @@ import numpy as np
 from .bags import cache_dir, cached_imu_bag, husky_bag, IMU_TOPIC, short_copy, vehicle_imu
 from .report import write_report
 
-__all__ = ["Row", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
+__all__ = ["Row", "add_floor", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
 
 OUTPUT_RATE = 100.0            # Hz, replay --output-rate of the 1 kHz rows
 #: the second 1 kHz bag, one the fast path was not tuned on: another vehicle's motion and noise
@@ -317,6 +321,8 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
                 rows.append(_guard(name, what, lambda: _replay_row(
                     name, what, cached_imu_bag(duration, storage, **bag_kw), work, repeats,
                     ("--output-rate", f"{OUTPUT_RATE:g}"), kern, TARGETS["replay_1khz"], whole_command)))
+                if rows[-1].status == "ok":
+                    add_floor(rows[-1], cached_imu_bag(duration, storage, **bag_kw), work, repeats)
                 print(_line(rows[-1]), flush=True)
                 if storage == "sqlite3" and not variant:
                     rows.append(_guard("sqlite3_floor", SQLITE_FLOOR, lambda: _floor_row(work / f"{name}_0", repeats)))
@@ -331,6 +337,26 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
         shutil.rmtree(work, ignore_errors=True)
     write_outputs(rows, out_dir, quick=quick, repeats=repeats)
     return rows
+
+
+def add_floor(row: Row, bag: Path, work: Path, repeats: int) -> None:
+    """The replay's I/O floor on the same bag (:func:`gyro_platform.bench.floor.floor_seconds`: the
+    same reads, decoding, encoding and writes, no simulation) into ``row.extra``: ``floor_rtf``,
+    ``floor_wall_s`` (median s), ``floor_us`` (µs per input message) and ``replay_over_floor``
+    (replay wall ÷ floor wall; the issue's bar: ≤ 2). A failure is noted as ``floor_error``."""
+    from .floor import floor_seconds
+
+    try:
+        f = floor_seconds(bag, work, repeats, OUTPUT_RATE)
+    except KeyboardInterrupt:
+        raise
+    except Exception as e:  # the benchmark reports, it does not stop
+        row.extra["floor_error"] = f"{type(e).__name__}: {str(e)[:120]}"
+        return
+    row.extra.update(floor_rtf=f["rtf"], floor_wall_s=f["wall_s"], floor_us=f["wall_s"] / max(f["inputs"], 1) * 1e6,
+                     floor_walls_s=f["walls"], floor_counts=f["counts"])
+    if f["rtf"] and row.rtf:
+        row.extra["replay_over_floor"] = f["rtf"] / row.rtf
 
 
 SQLITE_FLOOR = "SQLite alone: the rows that replay wrote, inserted again (one transaction)"
@@ -436,21 +462,29 @@ def _line(r: Row) -> str:
         return f"  {r.what}: {r.status}"
     rtf = f"×{r.rtf:.3g} real time, " if r.rtf else ""
     kernel = f"; kernel {r.kernel_us:.2f} µs/sample; ratio {r.ratio:.1f}" if r.kernel_us else ""
-    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg{kernel}"
+    floor = ""
+    if r.extra.get("replay_over_floor"):
+        floor = f"; I/O floor ×{r.extra['floor_rtf']:.3g} real time, replay ÷ floor {r.extra['replay_over_floor']:.2f}"
+    elif r.extra.get("floor_error"):
+        floor = f"; I/O floor failed: {r.extra['floor_error']}"
+    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg{kernel}{floor}"
 
 
 def table(rows: list[Row]) -> str:
     """The Markdown table: one line per figure."""
     lines = ["| figure | real-time × (summary) | whole command: wall s (×) | µs per input msg | kernel µs/sample "
-             "| consumer / kernel | target |", "|---|---|---|---|---|---|---|"]
+             "| consumer / kernel | I/O floor × | replay ÷ floor (≤ 2) | target |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r.status != "ok":
-            lines.append(f"| {r.what} | {r.status} | | | | | {r.target} |")
+            lines.append(f"| {r.what} | {r.status} | | | | | | | {r.target} |")
             continue
         wc = r.extra.get("whole_command_wall_s")
         whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
+        floor = "failed" if r.extra.get("floor_error") else _fmt(r.extra.get("floor_rtf"), ".3g")
         lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {whole} | {r.us_per_sample:.2f} "
-                     f"| {_fmt(r.kernel_us, '.2f')} | {_fmt(r.ratio, '.1f')} | {r.target} |")
+                     f"| {_fmt(r.kernel_us, '.2f')} | {_fmt(r.ratio, '.1f')} | {floor} "
+                     f"| {_fmt(r.extra.get('replay_over_floor'), '.2f')} | {r.target} |")
     return "\n".join(lines) + "\n"
 
 
@@ -469,6 +503,9 @@ def plot(rows: list[Row], path: Path) -> None:
     y = np.arange(len(ok))
     ax.barh(y - 0.2, [r.us_per_sample for r in ok], 0.4, label="consumer (all in)", color="tab:orange")
     ax.barh(y + 0.2, [r.kernel_us or np.nan for r in ok], 0.4, label="kernel push_many", color="tab:blue")
+    floor = [r.extra.get("floor_us", np.nan) for r in ok]
+    if np.isfinite(floor).any():
+        ax.plot(floor, y - 0.2, "k|", markersize=14, mew=2, label="I/O floor (no simulation)")
     for yi, r in zip(y, ok):
         if r.ratio:
             ax.text(r.us_per_sample * 1.1, yi - 0.2, f"×{r.ratio:.1f}", va="center", fontsize=8)
