@@ -348,11 +348,16 @@ def test_second_ctrl_c_keeps_metadata(tmp_path, storage, where):
 
 def test_deferred_signals_delivers_after_the_block():
     hits = []
-    with pytest.raises(KeyboardInterrupt):
-        with deferred_signals():
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.05)
-            hits.append("block finished")
+    # Ctrl-C raising, as in a terminal (a test run started as a background job inherits SIGINT ignored)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with deferred_signals():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+                hits.append("block finished")
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert hits == ["block finished"]
 
 

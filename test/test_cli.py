@@ -714,11 +714,24 @@ def test_signals_inside_a_deferred_block_arrive_after_it():
     import signal as sg
     import threading
 
-    from gyro_platform.signals import deferred_signals, StopSignals, Terminated
-
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers live in the main thread only")
     done = []
+    # Ctrl-C raising, as in a terminal (a test run started as a background job inherits SIGINT ignored)
+    before = sg.signal(sg.SIGINT, sg.default_int_handler)
+    try:
+        stopped_then_restored(done)
+    finally:
+        sg.signal(sg.SIGINT, before)
+
+
+def stopped_then_restored(done: list) -> None:
+    """The body of the test above: SIGTERM held by ``deferred_signals``, then raised; the handlers
+    in place before ``StopSignals`` restored after it."""
+    import signal as sg
+
+    from gyro_platform.signals import deferred_signals, StopSignals, Terminated
+
     with StopSignals("test") as stop:
         assert sg.getsignal(sg.SIGTERM) == stop._handler      # never SIGTERM the test runner itself
         with pytest.raises(Terminated):
