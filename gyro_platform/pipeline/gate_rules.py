@@ -167,8 +167,9 @@ def row_verdict(w0, w1, w2, f0, f1, f2, has_force, max_rate, max_force, require_
     overflows included), :data:`ROW_OVER_SPECIFIC_FORCE` (likewise ‖f‖ and ``max_force``),
     :data:`ROW_NO_SPECIFIC_FORCE` (no ``f`` although ``require_f``).
 
-    The one place of these bounds: the per-message gate calls it from Python (``offer_plain``,
-    ``offer``: ~0.3 µs a call), the block pass from compiled code (``gate_kernels.usable_rows``).
+    The one place of these bounds: the per-message gate runs this source in Python
+    (``row_verdict.py_func`` in ``offer_plain`` and ``offer``: a call of the compiled dispatcher
+    would cost ~0.3 µs more), the block pass the compiled function (``gate_kernels.usable_rows``).
     Plain float operations only (‖v‖ = sqrt(x² + y² + z²), no fast-math), so that
     ``row_verdict.py_func`` (the same source, not compiled) gives the same verdicts."""
     # x - x is 0.0 for a finite x and NaN for NaN or ±Inf: the sum is 0.0 only if all are finite
