@@ -56,8 +56,8 @@ from .integrators import COARSEN, ETD2, MAX_JUMP, STEP_SLACK, TAIL_MIN, TAIL_ULP
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2
 from ..physics.jit import njit
-from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
-from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, platform_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
+from ..physics.rhs_linear import takes_linear_path
+from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, model_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
                               SEG_W0, SEG_W1, support_regime)
 
 RK4, EXPRK, EXPRK_D = 0, 1, 2
@@ -365,12 +365,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             break
                         nrhs += 1
                         tj = h if j == ss or (in_tail and j == 1) else c[j] * h
-                        if gen is None:     # the same model without the general kernel's 28 arguments
-                            status |= stabilised_linear_rhs(t + tj, U, k5 if j == ss else K[j], I, P, seg, mats, F)
-                        else:
-                            status |= platform_rhs(t + tj, U, k5 if j == ss else K[j], fid, I,
-                                                   P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm,
-                                                   cc, tau_ext, fbb, chol, F, a, Q, RR, V, W)
+                        status |= model_rhs(gen, t + tj, U, k5 if j == ss else K[j], fid, I,
+                                            P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm,
+                                            cc, tau_ext, fbb, chol, F, a, Q, RR, V, W)
                     if status & (ST_LOCK | ST_NOT_PD):
                         break
                     if status & ST_NONFINITE:

@@ -42,10 +42,10 @@ from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
 from ..physics.jit import njit
 from ..physics.options import NEEDS_SPECIFIC_FORCE
-from ..physics.rhs_linear import stabilised_linear_rhs, takes_linear_path
+from ..physics.rhs_linear import takes_linear_path
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
                                  rotvec_matrix_into)
-from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, platform_rhs, PlatformSystem,
+from ..physics.system import (LAY_NV, LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, LINEAR, model_rhs, PlatformSystem,
                               PRECESSION, SEG_DT, SEG_F1, SEG_N, SEG_W0, SEG_W1, unpack_tables)
 from ..physics.tree import kinematics_rw, newton_euler, rotor_torques
 
@@ -110,13 +110,13 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-# ---- the model's right-hand side (the one compiled platform_rhs, called up to three times) ------
+# ---- the model's right-hand side (one compiled function, called up to three times; gen: model_rhs) ---
 
 @njit(cache=True, error_model="numpy")
-def _rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c, tau_ext, fb,
+def _rhs(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c, tau_ext, fb,
          chol, F, a, Q, RR, V, W):
-    return platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
-                        tau_ext, fb, chol, F, a, Q, RR, V, W)
+    return model_rhs(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
+                     tau_ext, fb, chol, F, a, Q, RR, V, W)
 
 
 # ---- the instants ------------------------------------------------------------------------
@@ -147,11 +147,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
         t, t_rel, n_steps = T[kk], TR[kk], NS[kk]
         y, seg, out = Y[kk], SEG[kk], OUT[kk]
         # --- generalised velocities and accelerations of the tree (Simulator._accelerations) ----
-        if gen is None:     # takes_linear_path: what platform_rhs hands over to, inlined here
-            st = stabilised_linear_rhs(t_rel, y, yd, I, P, seg, mats, F)
-        else:
-            st = _rhs(t_rel, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
-                      tau_ext, fb, chol, F, a, Q, RR, V, W)
+        st = _rhs(gen, t_rel, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w, wd, J, f, M, c,
+                  tau_ext, fb, chol, F, a, Q, RR, V, W)
         if st != 0:
             E[0] = t_rel
             for i in range(n):
@@ -172,8 +169,8 @@ def _instants(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, yd, yp, ym, ydp, ydm, 
             for sgn in range(2):
                 tt = t_rel + eps if sgn == 0 else t_rel - eps
                 yy = yp if sgn == 0 else ym
-                st = _rhs(tt, yy, ydp if sgn == 0 else ydm, fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, w,
-                          wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
+                st = _rhs(gen, tt, yy, ydp if sgn == 0 else ydm, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                          R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
                 if st != 0:
                     E[0] = tt
                     for i in range(n):

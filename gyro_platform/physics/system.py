@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import math
 
+from numba import types
+from numba.extending import overload
 import numpy as np
 
 from . import effects as fx
@@ -102,6 +104,50 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     """ẏ of the platform (see module doc). Writes ``yd``; returns a status code
     (0 ok, 1 precession gimbal lock, 2 mass matrix not positive definite).
 
+    The linear stabilised model without body rotations (``takes_linear_path``) is
+    :func:`.rhs_linear.stabilised_linear_rhs`, every other model :func:`general_rhs`. The
+    compiled kernels choose between the two when they are compiled (their ``gen`` switch) and
+    call one of them directly: a kernel of the general model does not compile the linear one
+    (~5 s of a first run on a 2 GHz core), nor the linear kernels the general one."""
+    if takes_linear_path(fid == LINEAR, I):
+        return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
+    return general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                       R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
+
+
+def model_rhs(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+              R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
+    """``platform_rhs`` with the choice of the model made by the type of ``gen`` (None: the
+    linear stabilised model, an int: :func:`general_rhs`): what the compiled kernels call, so
+    that each compiles only the right-hand side it runs (numba prunes an ``if gen is None``
+    only when ``gen`` is None; this overload chooses while typing, for both)."""
+    if gen is None:
+        return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
+    return general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                       R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
+
+
+@overload(model_rhs)
+def _model_rhs_typed(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                     R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
+    if isinstance(gen, types.NoneType):
+        def linear(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                   R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
+            return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
+        return linear
+
+    def general(gen, t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
+        return general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                           R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W)
+    return general
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
+                R, w, wd, J, f, M, c, tau_ext, fb, chol, F, a, Q, RR, V, W):
+    """ẏ of every model but the linear stabilised one (``platform_rhs``'s arguments and status).
+
     One compiled function that the batch, push and output kernels call (not inlined into
     each: a first run compiled it three times, 154 s of the default scene's first run on a
     2 GHz core, now 95 s; the call's 28 array arguments cost nothing measurable against the
@@ -113,9 +159,8 @@ def platform_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     are preallocated and indexed directly (no views on the linear hot path): the tree's,
     ``RR`` (4, 3, 3) rotations R_IP, R_IB, R_PB, R_IC, ``V`` (9, 3) small vectors (rows
     ``V_*``), ``W`` rows q̇, tree v, zero a, dvisc, Qf. The linear stabilised model without
-    body rotations is handed to :func:`.rhs_linear.stabilised_linear_rhs` before any view is made."""
-    if takes_linear_path(fid == LINEAR, I):
-        return stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F)
+    body rotations is not computed here (``platform_rhs`` hands it to
+    :func:`.rhs_linear.stabilised_linear_rhs`)."""
     nb = inertia.shape[0]
     lay, on, parent, jtype, qidx, vidx, k, L, lc, wIN = unpack_tables(I, P, nb)
     qd = W[0]
