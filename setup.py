@@ -12,12 +12,59 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Build script: a plain setuptools package that is also an ament_python ROS 2 package."""
+"""Build script: a plain setuptools package that is also an ament_python ROS 2 package.
+
+Under ``colcon build`` (colcon sets ``COLCON=1``) the install step ends with
+``gyro-platform compile``: the kernels of the default scene, the node and the replay compiled
+into the shared kernel cache, so that the first ``ros2 launch`` of the workspace loads them
+instead of compiling them (once per code version and machine; a later build loads them in a
+few seconds). ``GYRO_PLATFORM_COMPILE_ON_BUILD=0`` skips it; a failure is a warning only.
+"""
 from glob import glob
+import os
+import subprocess
+import sys
 
 from setuptools import find_packages, setup
+from setuptools.command.develop import develop
+from setuptools.command.install import install
 
 PACKAGE = "gyro_platform"
+HERE = os.path.dirname(os.path.realpath(__file__))      # the source tree (colcon may run a symlink)
+
+
+def compile_kernels() -> None:
+    """``python -m gyro_platform compile`` from this source tree, under colcon only."""
+    if os.environ.get("COLCON") != "1" or os.environ.get("GYRO_PLATFORM_COMPILE_ON_BUILD", "1") == "0":
+        return
+    print(f"{PACKAGE}: compiling the kernels of the default scene, the node and the replay into the kernel cache "
+          "(once per code version and machine; GYRO_PLATFORM_COMPILE_ON_BUILD=0 skips)", flush=True)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (HERE, os.environ.get("PYTHONPATH")) if p))
+    try:
+        rc = subprocess.run([sys.executable, "-m", PACKAGE, "compile"], cwd=HERE, env=env,
+                            stderr=subprocess.STDOUT).returncode    # colcon: stderr would read as a warning
+    except OSError as e:
+        rc = str(e)
+    if rc != 0:
+        print(f"{PACKAGE}: warning: the kernels were not all compiled ({rc}); they compile at first use",
+              flush=True)
+
+
+class InstallThenCompile(install):
+    """``setup.py install`` (colcon build), then :func:`compile_kernels`."""
+
+    def run(self):
+        super().run()
+        compile_kernels()
+
+
+class DevelopThenCompile(develop):
+    """``setup.py develop`` (colcon build --symlink-install), then :func:`compile_kernels`."""
+
+    def run(self):
+        super().run()
+        compile_kernels()
+
 
 setup(
     name=PACKAGE,
@@ -56,6 +103,7 @@ setup(
         # the documentation site: sphinx-build -W -b html docs docs/_build/html
         "docs": ["sphinx>=7", "myst-parser>=2"],
     },
+    cmdclass={"install": InstallThenCompile, "develop": DevelopThenCompile},
     zip_safe=True,
     maintainer="gyro_platform developers",
     maintainer_email="gyro-platform@example.com",

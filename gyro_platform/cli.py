@@ -61,6 +61,9 @@ SUBCOMMANDS = {
     ),
     "node": ("gyro_platform.ros.command", "run the ROS 2 node (rclpy or plain DDS transport)"),
     "sweep": ("gyro_platform.sweep.command", "Monte Carlo drift budgets and fleet replays on Dask"),
+    "compile": ("gyro_platform.prefill.command",
+                "compile the kernels of the default scene, the node and the replay into the cache (set-up, image "
+                "or colcon build step)"),
 }
 
 

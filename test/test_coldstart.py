@@ -77,6 +77,39 @@ def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig
     assert time.monotonic() - t0 < 30          # not after the compile (a generous bound, not a timing test)
 
 
+def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
+    """``gyro-platform compile`` (the README's set-up step, colcon build's install step) on an
+    empty cache compiles what the first ``run default``, ``replay`` of the husky recording and
+    the node's start need: each then runs without a compile notice."""
+    from gyro_platform.bench.coldstart import LOOPBACK_XML, time_to_line
+
+    env = _cold_env(tmp_path)
+    setup = subprocess.run([sys.executable, "-m", "gyro_platform", "compile"], cwd=ROOT, env=env,
+                           capture_output=True, text=True, timeout=1800)
+    assert setup.returncode == 0, setup.stdout + setup.stderr
+    assert "compiling the simulation kernels" in setup.stderr
+    assert "4 of 4 steps" in setup.stdout, setup.stdout
+    runs = [["run", "default", "--no-files"]]
+    if HUSKY.exists():
+        runs.append(["replay", str(HUSKY), "--out", str(tmp_path / "husky"), "--no-plot"])
+    for args in runs:
+        p = subprocess.run([sys.executable, "-m", "gyro_platform", *args], cwd=ROOT, env=env, capture_output=True,
+                           text=True, timeout=300)
+        assert p.returncode == 0, p.stderr
+        assert "compiling" not in p.stderr, (args, p.stderr)
+    _, out = time_to_line([sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--cyclonedds-config",
+                           str(LOOPBACK_XML), "--domain-id", "88"], tmp_path / "numba", "ready:", timeout=300)
+    assert "compiling" not in out, out
+
+
+def test_compile_refuses_a_scene_that_does_not_exist(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "gyro_platform", "compile", "--scene", "no_such_scene"], cwd=ROOT,
+                       env=_cold_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.startswith("gyro-platform compile: error:") and "no_such_scene" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
 def test_package_kernels_cached_by_content_under_the_cache_dir(tmp_path, monkeypatch):
     from numba.core import config
 
@@ -114,15 +147,18 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
     monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
     monkeypatch.setattr(cs, "husky_bag", lambda: (None, "not found"))
+    monkeypatch.setattr(cs.shutil, "copytree", lambda src, dst: Path(dst).mkdir())   # a fresh folder: "cold"
     rows = cs.coldstart(tmp_path / "out", repeats=3)
     by = {r.name: r for r in rows}
-    assert set(by) == {"run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run"}
+    assert set(by) == {"compile", "run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run"}
+    assert rows[0].name == "compile" and rows[0].cold_s == 10.0 and rows[0].warm_s == pytest.approx(2.1)
     assert by["replay_husky"].status == "not found"
     r = by["run_default"]
     assert r.cold_s == 10.0 and r.warm_s == pytest.approx(2.2) and r.ratio == pytest.approx(10 / 2.2)
     assert r.notice and r.extra["warm_notice"] is False
+    assert r.extra["after_setup_s"] == 10.0 and r.extra["after_setup_notice"] is True   # its copy compiled
     text = (tmp_path / "out" / "coldstart.md").read_text()
-    assert "| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes |" in text
+    assert "| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes | 10.00 (×4.5 ✗) |" in text
     doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())
     assert [x["name"] for x in doc["rows"]] == [r.name for r in rows] and doc["meta"]["repeats"] == 3
     assert (tmp_path / "out" / "coldstart.png").stat().st_size > 0

@@ -70,8 +70,10 @@ ALLOWED: dict[str, set[str]] = {
               "signals", "filesystem", "ros.core"},
     "ros": {"replay", "pipeline", "scenes", "bags", "messages", "reports", "engine", "physics", "errors", "signals",
             "filesystem"},
-    "cli": {"sweep", "bench", "ros", "replay", "pipeline", "scenes", "bags", "messages", "reports", "engine",
+    "cli": {"prefill", "sweep", "bench", "ros", "replay", "pipeline", "scenes", "bags", "messages", "reports", "engine",
             "physics", "errors", "signals", "filesystem"},
+    "prefill": {"ros", "replay", "scenes", "bench.bags", "messages", "engine", "physics", "errors", "signals",
+                "filesystem"},
     "__init__": {"engine", "physics", "errors", "scenes", "replay", "pipeline", "messages", "bags", "reports"},
     "__main__": {"cli"},
 }

@@ -40,6 +40,8 @@ def plain_ws(ros, tmp_path_factory):
 @pytest.mark.parametrize("which", ["plain", "symlink"])
 def test_colcon_build_installs_the_package_into_the_ament_index(which, plain_ws, ros_ws):
     ws = plain_ws if which == "plain" else ros_ws
+    # the install step ends with ``gyro-platform compile`` (setup.py): every step compiled or loaded
+    assert "gyro-platform compile: 4 of 4 steps" in ws.build_log, ws.build_log[-3000:]
     prefix = ws.run("ros2 pkg prefix gyro_platform", check=True).stdout.strip()
     assert prefix == str(ws.root / "install" / "gyro_platform")
     exes = ws.run("ros2 pkg executables gyro_platform", check=True).stdout.split()
