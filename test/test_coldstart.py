@@ -46,10 +46,13 @@ HUSKY = ROOT.parent / "shared" / "data" / "bags" / "robot_localization_husky_tes
 
 @pytest.mark.parametrize("what, sig, code", [("run", signal.SIGINT, EXIT_INTERRUPTED),
                                              ("run", signal.SIGTERM, EXIT_TERMINATED),
-                                             ("replay", signal.SIGTERM, EXIT_TERMINATED)])
+                                             ("replay", signal.SIGTERM, EXIT_TERMINATED),
+                                             ("compile", signal.SIGTERM, EXIT_TERMINATED)])
 def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig, code):
     if what == "run":
         args = ["run", "default", "--no-files", "--duration", "1"]
+    elif what == "compile":
+        args = ["compile"]
     else:                       # the bag is read and decoded on a reader thread: its compile is abandoned
         if not HUSKY.exists():
             pytest.skip("the shared husky recording is not here")

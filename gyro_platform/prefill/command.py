@@ -42,6 +42,7 @@ from typing import Callable
 
 from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..physics.jit import cache_dir
+from ..signals import Terminated
 
 __all__ = ["add_arguments", "run", "steps"]
 
@@ -96,7 +97,12 @@ def _replay_step(storage: str, work: Path) -> None:
     from ..replay.loop import replay, ReplayConfig
 
     bag = write_imu_bag(work / f"in_{storage}", vehicle_imu(BAG_SECONDS, rate=BAG_RATE), storage=storage)
-    replay(bag, work / f"out_{storage}", ReplayConfig(plot=False))
+    summary = replay(bag, work / f"out_{storage}", ReplayConfig(plot=False))
+    stopped = summary.get("interrupted_by")
+    if stopped:                 # the replay stopped in order on a signal: so does this command
+        raise Terminated("terminated") if stopped == "SIGTERM" else KeyboardInterrupt()
+    if summary.get("error"):
+        raise RuntimeError(summary["error"])
 
 
 def steps(scene: str, params_file: str | None, work: Path) -> list[tuple[str, Callable[[], None]]]:
