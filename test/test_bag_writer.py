@@ -319,11 +319,14 @@ def test_killed_writer_loses_at_most_the_last_chunk(tmp_path, storage, sig):
     written = wait_for(proc, 30_000)
     proc.send_signal(sig)
     proc.wait(timeout=60)
+    # the child writes on while the signal travels: what it reported after ``written`` (still in
+    # the pipe) was written too (seen once: 2300 rows more, and the bag held them)
+    last = max([written] + [int(x) for x in proc.stdout.read().split() if x.isdigit()])
     n = readable_prefix(tmp_path / "out")
     # the child may have written up to one more batch (100) after its last report; the loss
     # bound: one commit chunk (COMMIT_ROWS = 2000 rows, or 1 MiB MCAP chunk ≈ 3500 Imu rows)
     bound = 2000 if storage == "sqlite3" else 2000
-    assert written - bound - 100 <= n <= written + 100
+    assert last - bound - 100 <= n <= last + 100
 
 
 @pytest.mark.parametrize("storage", STORAGES)
