@@ -120,8 +120,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     describes a refusal (``H_T_BAD`` …) or the int header names the missing matrices
     (``NEED_REGIME``). ``gen``: None when the engine takes the linear stabilised model
     (``takes_linear_path``), else 0; ``expo``: None for RK4, else 0. numba compiles a kernel
-    per combination and prunes the branches a None rules out before typing them (the general
-    right-hand side, the exponential methods' stage and regime code): a command compiles only
+    per combination: ``physics.system.model_rhs`` takes the right-hand side of ``gen``'s type
+    while typing (linear or general, never both), and numba prunes the branches an ``expo`` of
+    None rules out (the exponential methods' stage and regime code): a command compiles only
     what its model and method run. Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
     counting of array arguments would cost more than the step)."""

@@ -404,9 +404,10 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK, gen, carried)
     (done, code, detail): the instants ``[0, done)`` are written and finite; code OK,
     RHS_FAILED (the model refused the state of instant ``done``; its (t, y) in E) or
     NON_FINITE (column ``detail`` of instant ``done``). ``gen``: None when the model is the
-    linear stabilised one (``takes_linear_path``), else 0; ``carried``: None for a stabilised
-    platform, else 0 — numba prunes the code a None rules out before typing it (a kernel per
-    combination: a command compiles what its model needs)."""
+    linear stabilised one (``takes_linear_path``), else 0 (``_rhs`` → ``physics.system.model_rhs``
+    takes that model's right-hand side only); ``carried``: None for a stabilised platform, else
+    0 — numba prunes the code a None rules out before typing it (a kernel per combination: a
+    command compiles what its model needs)."""
     n = Y.shape[1]
     nb = OI[I_NB]
     nr = OI[I_NR]
