@@ -13,14 +13,16 @@
 # limitations under the License.
 
 """``gyro-platform bench [WHAT]``: the benchmarks' command line (coldstart, consumer, peer,
-accuracy, hard, effects, hotpath, sweep; without WHAT: coldstart, consumer, then peer).
+accuracy, hard, effects, hotpath, roughness, sweep; without WHAT: coldstart, consumer, roughness,
+then peer).
 
 ``coldstart`` (:mod:`.coldstart`): whole commands (``run default``, the husky replay, the DDS
 node's time to ready, a Dask worker's first run) on an empty kernel cache beside warm, and
 their ratio;
 
 ``consumer`` (:mod:`.consumer`): replay, scene run and node figures beside the compiled kernel;
-``peer`` (:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs
+``roughness`` (:mod:`.roughness`): right-hand sides per sample and delivered error on a smooth and
+a vibrating 1 kHz IMU; ``peer`` (:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs
 ``pip install '.[bench]'``; skipped with a note without it);
 
 ``accuracy`` (:mod:`.accuracy`): work-precision study; ``hard`` (:mod:`.hard`): the hard-case
@@ -47,13 +49,14 @@ __all__ = ["add_arguments", "run"]
 def add_arguments(p) -> None:
     """The ``bench`` subcommand's arguments on the argparse parser ``p``."""
     p.add_argument("what", nargs="?", default="default",
-                   choices=["default", "coldstart", "consumer", "peer", "accuracy", "effects", "hotpath", "hard",
-                            "sweep"],
-                   help="which benchmark (default: coldstart, consumer, then peer)")
+                   choices=["default", "coldstart", "consumer", "roughness", "peer", "accuracy", "effects", "hotpath",
+                            "hard", "sweep"],
+                   help="which benchmark (default: coldstart, consumer, roughness, then peer)")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
                    help="short runs (coldstart: 5 s scene, husky's first 30 s; consumer: 10 s bags, husky's first "
-                        "30 s; peer: 2 s scenes; accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
+                        "30 s; roughness: 2 s inputs; peer: 2 s scenes; accuracy: 60 s ship, 30 s aircraft; hard: the "
+                        "tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
     p.add_argument("--runs", type=int, default=8,
@@ -106,11 +109,15 @@ def run(args) -> int:
         return 0
     if args.what in ("default", "consumer"):
         consumer(out, quick=args.quick, repeats=args.repeats, whole_command=not args.no_whole_command)
+    if args.what in ("default", "roughness"):
+        from .roughness import roughness
+
+        roughness(out, quick=args.quick)
     if args.what in ("default", "peer"):
         from .peer_mujoco import peer
 
         return peer(out, quick=args.quick, repeats=args.repeats, required=args.what == "peer")
-    if args.what in ("default", "consumer", "peer"):
+    if args.what in ("default", "consumer", "roughness", "peer"):
         return 0
     if args.what == "accuracy":
         accuracy(out, quick=args.quick, repeats=args.repeats)

@@ -36,6 +36,10 @@ integrators' to round-off and the failures are the same. Compiled RK4 on a stabi
 last stage across intervals (first same as last: the next interval's input starts where this
 one ends and the right-hand side does not see its slope), one right-hand side fewer per
 interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
+RK4 with the mount friction on also ends a piece of a chunk at the friction's next kink (predicted
+from K[0], ``physics.switching``) and goes on with the rest of the chunk; once per piece, a kink
+found looking back from the piece's end shortens it to end there (redone, one rejection): the plan
+of ``Controlled._advance``/``_chunk`` with ``locates_switches``.
 A sample is committed (state, time, input, counters)
 only when its interval succeeded; otherwise everything — ``seg`` included — is as before.
 """
@@ -52,11 +56,14 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import COARSEN, ETD2, MAX_JUMP, STEP_SLACK, TAIL_MIN, TAIL_ULP
+from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
+                          TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2
+from ..physics.effects import SUPPORT
 from ..physics.jit import njit
 from ..physics.rhs_linear import takes_linear_path
+from ..physics.switching import support_switch_passed, support_switch_time
 from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, model_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
                               SEG_W0, SEG_W1, support_regime)
 
@@ -186,6 +193,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     qp = I[0, LAY_QIP]
     nout = out_idx.shape[0]
     jo = ih[J_JOUT]
+    locate = method == RK4 and I[0, LAY_STAB] == 1 and I[1, SUPPORT] == 1
+    h_min = SWITCH_MIN * max_step
     for i in range(first, ts.shape[0]):
         ih[J_DONE] = i
         # ---- the sample: finite, after the last one; it becomes input row 1
@@ -266,7 +275,10 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
         ih[J_K1] = 0                          # K[0] is overwritten from here on
         main_level = level
-        for chunk in range(nchunk + tail):
+        chunk = 0
+        n_sw = 0                    # pieces of this chunk ended at a switch so far
+        t_sw = 0.0                  # where the rest of the chunk starts (n_sw > 0)
+        while chunk < nchunk + tail:
             # the tail (last chunk, exponential methods): etd2 steps to t1 exactly with the
             # φ-functions by Taylor series (_ETD._tail), its own level from 0; stage matrix
             # slot (r, 0, 0) holds the linear part A alone
@@ -290,6 +302,24 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 if chunk < extra:
                     hqc = hq + 1
                     hc = hqc * q
+            # RK4 with the support friction: the piece ends at its next kink (Controlled._advance)
+            end = tc + hc
+            t_end = end
+            if n_sw > 0:
+                hc = end - t_sw
+                tc = t_sw
+            can_pass = False
+            if locate and n_sw < MAX_SWITCHES:
+                can_pass = True
+                if not have_k1:
+                    if model_rhs(gen, tc, yw, K[0], fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd,
+                                 J, fo, Mm, cc, tau_ext, fbb, chol, F, a, Q, RR, V, W) == 0:
+                        have_k1 = True
+                    nrhs += 1
+                if have_k1:
+                    t_end = support_switch_time(tc, yw, K[0], I, P, seg, end, h_min)
+                    if t_end < end:
+                        hc = t_end - tc
             for m in range(n):
                 yc[m] = yw[m]
             a2 = 0.0                        # (set in the tail)
@@ -425,6 +455,20 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     ih[J_NRHS] += nrhs
                     ih[J_JOUT] = jo
                     return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
+                if (can_pass and (not bad or t_bad == tc + (nsub - 1) * h) and nrm < math.inf
+                        and not status & ST_NONFINITE):
+                    # a kink inside the piece (judged from its end: y1, k5)? redo it to end there
+                    d = support_switch_passed(tc + hc, y1, k5, I, P, seg, h_min,
+                                              hc - max(SWITCH_EDGE * hc, 4.0 * h_min))
+                    if d > 0.0:
+                        hc -= d
+                        t_end = tc + hc
+                        can_pass = False
+                        nrej += 1
+                        for m in range(n):
+                            yw[m] = yc[m]
+                        have_k1 = False
+                        continue
                 if not bad:
                     break
                 # rejected: redo the chunk from its start at a finer level
@@ -463,6 +507,12 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             while level > 0 and worst * 2.0 ** q1 <= COARSEN and not in_tail:     # as base.coarser_level
                 level -= 1
                 worst *= 2.0 ** q1
+            if t_end < end:             # the rest of the chunk from the switch
+                t_sw = t_end
+                n_sw += 1
+            else:
+                chunk += 1
+                n_sw = 0
         # accepted: normalise, check, commit
         ih[J_NRHS] += nrhs
         ih[J_REJ] += nrej

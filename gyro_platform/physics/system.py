@@ -36,6 +36,7 @@ from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
 from .rotations import quat_matrix, quat_rate_at, quat_to_matrix_at
+from .switching import support_switch_passed, support_switch_time
 from .tree import generalised, kinematics, mass_matrix, newton_euler, rot_axis, TreeWork
 from ..errors import GimbalLockError, SimulationError
 
@@ -594,6 +595,19 @@ class PlatformSystem:
         return self.regime
 
     regime = 0
+
+    def switch_time(self, t: float, y: np.ndarray, yd: np.ndarray, t_end: float, h_min: float) -> float:
+        """The next kink of ``rhs`` in (t + h_min, t_end − h_min) (s): the support friction's
+        regime change predicted from ``yd`` = ẏ(t, y) (:mod:`.switching`); ``t_end`` if none."""
+        return float(support_switch_time(t, np.ascontiguousarray(y, dtype=float),
+                                         np.ascontiguousarray(yd, dtype=float), self.I, self.P, self.seg,
+                                         t_end, h_min))
+
+    def switch_passed(self, t: float, y: np.ndarray, yd: np.ndarray, lo: float, hi: float) -> float:
+        """How long before ``t`` (s) a step ending at (t, y) passed a kink of ``rhs`` (the largest
+        in (lo, hi); ``yd`` = ẏ(t, y)), 0.0 if none (:mod:`.switching`)."""
+        return float(support_switch_passed(t, np.ascontiguousarray(y, dtype=float),
+                                           np.ascontiguousarray(yd, dtype=float), self.I, self.P, self.seg, lo, hi))
 
     def linear_part(self):
         """(A, key): the linear part for exponential integrators — the Jacobian of ẏ at rest

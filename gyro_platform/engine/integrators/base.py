@@ -36,7 +36,11 @@ a brief hard stretch (a friction reversal inside a 33 ms interval) costs fine su
 in its own chunk, not over the whole interval; at one chunk per interval (samples at
 ≤ max_step) chunk and interval coincide. A method may plan its chunks itself (``_plan``: the
 exponential ones cut whole steps of a grid and end the interval with a short last step
-``_tail``, controlled alike from level 0). The compiled batch loop
+``_tail``, controlled alike from level 0). A method that ``locates_switches`` (rk4) also ends a
+chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
+regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
+chunk: a step across a kink is only first-order accurate, so a vibrating input otherwise costs
+3–8× the substeps of a smooth one. The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
 Non-finite results are never returned: ``SimulationError``.
@@ -53,7 +57,8 @@ import numpy as np
 from ...errors import SimulationError, ToleranceError
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
-           "is_rejected", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP"]
+           "is_rejected", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN", "MAX_SWITCHES",
+           "SWITCH_EDGE"]
 
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 #: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
@@ -93,6 +98,15 @@ def coarser_level(level: int, norm: float, q1: int) -> int:
 #: (measured on a 1 kHz bag with ±5 % stamp jitter: 19 % fewer RK4 steps, the same largest
 #: error estimate). The exponential methods keep their grid (``_ETD._plan``).
 STEP_SLACK = 0.1
+#: switch location (``Controlled.locates_switches``): a predicted kink closer than
+#: ``SWITCH_MIN``·max_step to either end of a chunk piece is not split off (the step ends there
+#: anyway, or the kink was just passed: its error is that distance × the jump, ~0.1 rad/s²), and at
+#: most ``MAX_SWITCHES`` kinks end pieces of one chunk (a rate hovering at ±ε: the substeps take over)
+SWITCH_MIN = 1e-6
+MAX_SWITCHES = 8
+#: a kink found looking back from a step's end within this fraction of the step from its start
+#: is the one the step starts at (the backward look is linear: not exact that far back)
+SWITCH_EDGE = 1e-3
 
 
 class OdeSystem(Protocol):
@@ -104,6 +118,10 @@ class OdeSystem(Protocol):
       (hashable) identifies ``A`` so that expm/φ/LU results can be cached. Needed by etd2/etd4;
       used as the Newton matrix by implicit_midpoint and as the Jacobian by radau.
     - ``jacobian(t, y) -> ∂f/∂y`` (n×n): exact Jacobian, preferred over ``linear_part``.
+    - ``switch_time(t, y, yd, t_end, h_min) -> float``: the next time in ``(t + h_min, t_end −
+      h_min)`` at which ``rhs`` has a kink, predicted from ``yd`` = f(t, y); ``t_end`` if none;
+      with ``switch_passed(t, y, yd, lo, hi) -> float``: how long before t a kink was passed
+      (the largest in (lo, hi)), 0.0 if none. Used by the methods that ``locates_switches``.
     """
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray: ...
@@ -206,6 +224,8 @@ class Controlled(Integrator):
     q1: int = 2
     #: the method substeps on a grid; the step level is carried between calls
     level: int = 0
+    #: chunks end at the kinks the system predicts (``OdeSystem.switch_time``)
+    locates_switches: bool = False
 
     def __init__(self, max_step: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-12,
                  max_substeps: int = MAX_SUBSTEPS) -> None:
@@ -258,18 +278,30 @@ class Controlled(Integrator):
         nsub, h0 = self._base(t0, t1)
         return [(t0 + c * h0, h0) for c in range(nsub)], None
 
-    def _chunk(self, system, tc, y, hc, level, q1, step):
+    def _chunk(self, system, tc, y, hc, level, q1, step, passed=None):
         """One chunk of ``hc`` s from (tc, y) by ``step`` (``_substeps`` or ``_tail``) at
         ``2^level`` substeps, redone finer until accepted: (y1, norm, est, n_rhs, level,
-        rejected). Raises the refusal beyond the budget."""
+        rejected, hc). Raises the refusal beyond the budget. ``passed`` (switch location):
+        the system's ``switch_passed``; once per chunk, a kink it finds inside the chunk (judged
+        from the end of its last substep) shortens the chunk to end there, redone at the same
+        level (one rejection)."""
         nrhs = rejected = 0
         while True:
             nsub = 1 << level
             h = hc / nsub
             y1, norm, est, n, t_bad = step(system, tc, y, nsub, h)
             nrhs += n
+            if passed is not None and norm < math.inf and (norm <= 1.0 or t_bad == tc + (nsub - 1) * h):
+                d = passed(tc + hc, y1, system.rhs(tc + hc, y1), SWITCH_MIN * self.max_step,
+                           hc - max(SWITCH_EDGE * hc, 4 * SWITCH_MIN * self.max_step))
+                nrhs += 1
+                if d > 0.0:
+                    hc -= d
+                    passed = None
+                    rejected += 1
+                    continue
             if norm <= 1.0:
-                return y1, norm, est, nrhs, level, rejected
+                return y1, norm, est, nrhs, level, rejected, hc
             rejected += 1
             new = next_level(level, norm, q1)
             if not norm < math.inf:
@@ -286,17 +318,36 @@ class Controlled(Integrator):
         nrhs = self._prepare(system, t0, y)
         level, rejected = self.level, 0
         steps, est_all, worst, top = 0, 0.0, 0.0, level
-        for tc, hc in chunks:
-            y, norm, est, n, level, rej = self._chunk(system, tc, y, hc, level, self.q1, self._substeps)
-            nrhs += n
-            rejected += rej
-            steps += 1 << level
-            est_all = max(est_all, est)
-            worst = max(worst, norm)
-            top = max(top, level)
-            level = coarser_level(level, norm, self.q1)
+        switch = getattr(system, "switch_time", None) if self.locates_switches else None
+        h_min = SWITCH_MIN * self.max_step
+        for tg, hg in chunks:
+            tc, hc, end, n_sw = tg, hg, tg + hg, 0
+            while True:
+                # the piece ends at the next predicted kink (the rest of the chunk follows), or
+                # is the whole (rest of the) chunk
+                ts = end
+                passed = None
+                if switch is not None and n_sw < MAX_SWITCHES:
+                    ts = switch(tc, y, system.rhs(tc, y), end, h_min)
+                    nrhs += 1
+                    passed = system.switch_passed
+                hp = hc if ts >= end else ts - tc
+                y, norm, est, n, level, rej, hq = self._chunk(system, tc, y, hp, level, self.q1, self._substeps,
+                                                              passed)
+                if hq != hp:                # shortened to a kink found inside
+                    ts = tc + hq
+                nrhs += n
+                rejected += rej
+                steps += 1 << level
+                est_all = max(est_all, est)
+                worst = max(worst, norm)
+                top = max(top, level)
+                level = coarser_level(level, norm, self.q1)
+                if ts >= end:
+                    break
+                tc, hc, n_sw = ts, end - ts, n_sw + 1
         if tail is not None:     # its own level from 0; the chunks' controller level is not touched
-            y, norm, est, n, lv, rej = self._chunk(system, tail[0], y, tail[1], 0, self.q1, self._tail)
+            y, norm, est, n, lv, rej, _ = self._chunk(system, tail[0], y, tail[1], 0, self.q1, self._tail)
             nrhs += n
             rejected += rej
             steps += 1 << lv

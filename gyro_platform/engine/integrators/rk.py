@@ -16,7 +16,8 @@
 
 ``rk4``: classic RK4 with an embedded third-order estimate (the FSAL stage f(t+h, y1):
 ``err = h/6 (k4 − k5)``). Explicit: at h·ω > 2.8 it must substep; it damps nutation by
-≈ (hω)⁶/72 per step, which the tolerance bounds. (DOP853 and RK45 are scipy's:
+≈ (hω)⁶/72 per step, which the tolerance bounds. It ends its steps at the kinks the system
+predicts (``locates_switches``: the support friction's regime changes). (DOP853 and RK45 are scipy's:
 :mod:`.scipy_methods`.)
 """
 from __future__ import annotations
@@ -35,6 +36,7 @@ class RK4(Controlled):
     (first same as last: k5 is the next substep's k1)."""
 
     name, order, q1 = "rk4", 4, 4
+    locates_switches = True
 
     def _substeps(self, system, t0, y0, nsub, h):
         rhs = system.rhs
