@@ -31,6 +31,7 @@ import tempfile
 
 import numpy as np
 
+from ..engine.hardcases import engine_vibration
 from ..messages import jazzy_typestore
 from ..scenes.motions import RandomMotion
 
@@ -55,12 +56,14 @@ class VehicleImu:
     force: np.ndarray
 
 
-def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: float = 0.0) -> VehicleImu:
+def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: float = 0.0,
+                vibration: bool = False) -> VehicleImu:
     """A ground vehicle on a rough road: band-limited roll/pitch (RMS 2°/1.5°, 0.2–3 Hz), heading
     changes (RMS 25°, 0.005–0.2 Hz), body accelerations (RMS 0.8/0.4/0.5 m/s² x/y/z, 0.05–2 Hz) on
     top of gravity, plus a MEMS-grade gyro (white noise 0.005 °/s/√Hz, bias 0.05 °/s) and
     accelerometer (100 µg/√Hz, bias 5 mg). ``jitter`` > 0: sample times moved by up to
-    ±jitter periods (uniform), as a driver's header stamps are (the samples are those times')."""
+    ±jitter periods (uniform), as a driver's header stamps are (the samples are those times').
+    ``vibration``: plus a 37 Hz engine vibration of 0.3 rad/s (``engine.hardcases.engine_vibration``)."""
     road = RandomMotion(seed, angle_rms=(math.radians(2.0), math.radians(1.5), 0.0), band=(0.2, 3.0))
     heading = RandomMotion(seed + 1, angle_rms=(0.0, 0.0, math.radians(25.0)), band=(0.005, 0.2))
     t, w_road, f = road.arrays(duration, rate)      # f: gravity's reaction in body axes
@@ -79,6 +82,8 @@ def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: f
     sq = math.sqrt(rate)
     w = w + math.radians(0.05) * rng.standard_normal(3) + math.radians(0.005) * sq * rng.standard_normal(w.shape)
     f = f + 5e-3 * 9.80665 * rng.standard_normal(3) + 100e-6 * 9.80665 * sq * rng.standard_normal(f.shape)
+    if vibration:
+        w = w + engine_vibration(t, noise=False)
     return VehicleImu(t, w, f)
 
 
@@ -155,15 +160,16 @@ def cache_dir() -> Path:
 
 
 def cached_imu_bag(duration: float, storage: str, rate: float = 1000.0, seed: int = 12,
-                   jitter: float = 0.0) -> Path:
+                   jitter: float = 0.0, vibration: bool = False) -> Path:
     """The vehicle Imu bag of ``duration`` s at ``rate`` Hz in ``storage`` (``vehicle_imu``'s
-    ``seed`` and ``jitter``), made once and cached."""
+    ``seed``, ``jitter`` and ``vibration``), made once and cached."""
     variant = "" if (seed, jitter) == (12, 0.0) else f"_seed{seed}_jitter{jitter:g}"
+    variant += "_vibrating" if vibration else ""
     path = cache_dir() / f"vehicle_imu_v{BAG_VERSION}_{rate:g}hz_{duration:g}s{variant}_{storage}"
     if (path / "metadata.yaml").is_file():
         return path
     shutil.rmtree(path, ignore_errors=True)
-    return write_imu_bag(path, vehicle_imu(duration, rate, seed, jitter), storage)
+    return write_imu_bag(path, vehicle_imu(duration, rate, seed, jitter, vibration), storage)
 
 
 def husky_bag() -> tuple[Path | None, str]:

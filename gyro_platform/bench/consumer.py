@@ -18,7 +18,8 @@ Rows, all in one process run (medians of ``repeats``):
 
 * ``replay`` of a 1 kHz ``sensor_msgs/Imu`` bag of the benchmark's own making (:mod:`gyro_platform.bench.bags`;
   120 s, ``--quick`` 10 s), ``--output-rate 100``, sqlite3 and mcap, and of a second one it was
-  not tuned on (another vehicle, stamps jittered ±5 % of the period), through the real command
+  not tuned on (another vehicle, stamps jittered ±5 % of the period) and of a third with a 37 Hz
+  engine vibration (0.3 rad/s: the mount friction kinks ~220 times a second), through the real command
   (:mod:`gyro_platform.replay.command` in-process, after one untimed run that loads the compiled
   code: the summary's ``real_time_factor``, the first run's kept as ``first_run_rtf``; and the
   whole command in a subprocess, ``python -m gyro_platform replay …`` with default options:
@@ -312,9 +313,12 @@ def consumer(out_dir: Path, quick: bool = False, repeats: int = 3, whole_command
         k_imu = kernel_us(imu.t, imu.omega, imu.force, repeats)
         other = vehicle_imu(duration, seed=OTHER_SEED, jitter=OTHER_JITTER)
         k_other = kernel_us(other.t, other.omega, other.force, repeats)
+        vib = vehicle_imu(duration, vibration=True)
+        k_vib = kernel_us(vib.t, vib.omega, vib.force, repeats)
         for variant, kern, bag_kw, label in (("", k_imu, {}, ""),
                                              ("_other", k_other, {"seed": OTHER_SEED, "jitter": OTHER_JITTER},
-                                             f", another vehicle, stamps jittered ±{OTHER_JITTER:g} period")):
+                                             f", another vehicle, stamps jittered ±{OTHER_JITTER:g} period"),
+                                             ("_vibrating", k_vib, {"vibration": True}, ", 37 Hz engine vibration")):
             for storage in ("sqlite3", "mcap"):
                 name = f"replay_1khz{variant}_{storage}"
                 what = f"replay 1 kHz Imu{label}, {duration:g} s, --output-rate 100, {storage}"
