@@ -245,20 +245,20 @@ def test_bench_refuses_an_unwritable_out_before_running(tmp_path, capsys):
 @pytest.fixture
 def no_benchmark(monkeypatch):
     """Every benchmark runner fails the test if called: option checks must refuse first."""
-    from gyro_platform.bench import command, peer_mujoco
+    from gyro_platform.bench import command, peer_mujoco, roughness
     from gyro_platform.sweep import scaling
 
     def ran(*a, **k):
         raise AssertionError("a benchmark ran although its options are refused")
 
     for mod, names in ((command, ("consumer", "accuracy", "hard", "effects_cost", "hotpath")),
-                       (peer_mujoco, ("peer",)), (scaling, ("scaling",))):
+                       (peer_mujoco, ("peer",)), (roughness, ("roughness",)), (scaling, ("scaling",))):
         for name in names:
             monkeypatch.setattr(mod, name, ran)
 
 
-@pytest.mark.parametrize("what", [[], ["consumer"], ["peer"], ["accuracy"], ["effects"], ["hotpath"], ["hard"],
-                                  ["sweep"]], ids=lambda w: w[0] if w else "default")
+@pytest.mark.parametrize("what", [[], ["consumer"], ["roughness"], ["peer"], ["accuracy"], ["effects"], ["hotpath"],
+                                  ["hard"], ["sweep"]], ids=lambda w: w[0] if w else "default")
 @pytest.mark.parametrize("value", ["0", "-1", "10001"])
 def test_every_bench_refuses_bad_runs_before_writing(what, value, tmp_path, capsys, no_benchmark):
     out = tmp_path / "out"
@@ -285,3 +285,26 @@ def test_hard_table_refuses_an_unknown_case(tmp_path):
     with pytest.raises(ValueError, match="unknown case nope; known: carried_large_angles"):
         hard(tmp_path / "out", cases=["nope"])
     assert not (tmp_path / "out").exists()
+
+
+def test_roughness_bench_writes_the_cost_of_vibration_and_how_far_it_holds(tmp_path, capsys):
+    """``bench roughness --quick``: three tolerances, smooth beside vibrating (right-hand sides,
+    steps, rejections, delivered error against the reference), and the grid of vibration amplitudes
+    and frequencies; a vibration of 0.03 rad/s costs (almost) nothing more at any frequency, and
+    every error stays below the asked rtol in rad."""
+    import json
+
+    out = tmp_path / "bench"
+    assert cli.main(["bench", "roughness", "--quick", "--out", str(out)]) == 0
+    doc = json.loads((out / "roughness.json").read_text())
+    rows, cells = doc["rows"], doc["meta"]["grid"]
+    assert [r["rtol"] for r in rows] == [1e-4, 1e-6, 1e-8]
+    for r in rows:
+        assert 0 < r["smooth_error"] < r["rtol"] and 0 < r["vibrating_error"] < r["rtol"]
+        assert r["ratio"] == pytest.approx(r["vibrating_rhs"] / r["smooth_rhs"])
+    assert len(cells) == 16
+    assert all(c["ratio"] <= 1.2 for c in cells if c["amplitude"] == 0.03)
+    text = capsys.readouterr().out
+    assert "vibrating ÷ smooth" in text and "How far it holds" in text
+    md = (out / "roughness.md").read_text().splitlines()
+    assert sum(line.startswith("|---") for line in md) == 2 and (out / "roughness.png").stat().st_size > 0

@@ -21,8 +21,10 @@ with a 37 Hz engine vibration on top (:func:`gyro_platform.engine.hardcases.engi
 rtol·1e-3). Per tolerance: right-hand sides and steps per sample, rejected steps and the delivered
 error (largest gimbal-angle or drift-angle difference, rad) against a tight reference (RK4 at
 rtol 1e-12, steps ≤ 0.1 ms) for both inputs, and the ratio vibrating ÷ smooth of the right-hand
-sides per sample. Counts, not times: they do not depend on the machine. Writes
-``roughness.json``, ``roughness.md`` and ``roughness.png``.
+sides per sample. Then how far that holds: the same ratio at rtol 1e-6 for vibrations of
+0.03–3 rad/s (x axis; y ⅔, z ⅓ of it at twice the frequency) at 12–300 Hz (``GRID``). Counts, not
+times: they do not depend on the machine. Writes ``roughness.json`` (the grid under ``meta``),
+``roughness.md`` and ``roughness.png``.
 """
 from __future__ import annotations
 
@@ -38,12 +40,14 @@ from ..engine.simulator import Simulator
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1
 
-__all__ = ["roughness", "RoughRow", "surfaces", "run_surface", "RTOLS"]
+__all__ = ["roughness", "RoughRow", "surfaces", "run_surface", "RTOLS", "GRID", "grid"]
 
 RTOLS = (1e-4, 1e-6, 1e-8)
 #: the reference: RK4 held to rtol 1e-12 (atol 1e-15) with steps ≤ 0.1 ms and an ample budget
 REFERENCE = ("rk4", 1e-12, 1e-15, 1e-4, 1 << 16)
 OUT_EVERY = 10                       # compare at 100 Hz
+#: vibration amplitudes (rad/s, x axis) and frequencies (Hz) of the grid, at rtol 1e-6
+GRID = ((0.03, 0.3, 1.0, 3.0), (12.0, 37.0, 120.0, 300.0))
 
 
 @dataclass
@@ -100,9 +104,37 @@ def roughness(out_dir: Path, quick: bool = False) -> list[RoughRow]:
                       st["integrator"])
         s, v = got["smooth"], got["vibrating"]
         rows.append(RoughRow(rtol, s[4], s[0], v[0], s[1], v[1], s[2], v[2], s[3], v[3]))
-    write_report("roughness", rows, table(rows, duration), out_dir, plot, duration_s=duration,
-                 reference=list(REFERENCE[:4]))
+    cells = grid(inputs["smooth"], rows[1].smooth_rhs)
+    write_report("roughness", rows, table(rows, duration) + "\n" + grid_table(cells), out_dir, plot,
+                 duration_s=duration, reference=list(REFERENCE[:4]), grid=cells)
     return rows
+
+
+def grid(imu: VehicleImu, smooth_rhs: float, rtol: float = 1e-6) -> list[dict]:
+    """Right-hand sides per sample of ``imu`` plus each vibration of ``GRID`` (auto at ``rtol``),
+    and their ratio to ``smooth_rhs`` (the smooth input's at the same rtol)."""
+    from ..engine.hardcases import VIBRATION_AMP
+
+    cells = []
+    for amp in GRID[0]:
+        for hz in GRID[1]:
+            w = imu.omega + engine_vibration(imu.t, noise=False, scale=amp / VIBRATION_AMP[0], hz=hz)
+            _, st = run_surface(VehicleImu(imu.t, w, imu.force), "auto", rtol, rtol * 1e-3)
+            rhs = st["n_rhs"] / st["n_samples"]
+            cells.append({"amplitude": amp, "hz": hz, "rhs": rhs, "ratio": rhs / smooth_rhs})
+    return cells
+
+
+def grid_table(cells: list[dict]) -> str:
+    """The grid as a Markdown table of ratios (rows: amplitude, columns: frequency)."""
+    lines = ["How far it holds: right-hand sides per sample ÷ the smooth input's at rtol 1e-6, by vibration "
+             "amplitude (rad/s, x axis) and frequency", "",
+             "| amplitude \\ frequency | " + " | ".join(f"{hz:g} Hz" for hz in GRID[1]) + " |",
+             "|---|" + "---|" * len(GRID[1])]
+    for amp in GRID[0]:
+        row = [c for c in cells if c["amplitude"] == amp]
+        lines.append(f"| {amp:g} rad/s | " + " | ".join(f"×{c['ratio']:.2f}" for c in row) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def table(rows: list[RoughRow], duration: float) -> str:

@@ -84,13 +84,15 @@ VIBRATION_HZ = 37.0
 VIBRATION_AMP = (0.3, 0.2, 0.1)
 
 
-def engine_vibration(t: np.ndarray, noise: bool = True, seed: int = 37) -> np.ndarray:
+def engine_vibration(t: np.ndarray, noise: bool = True, seed: int = 37, scale: float = 1.0,
+                     hz: float = VIBRATION_HZ) -> np.ndarray:
     """A 37 Hz engine vibration (rad/s, vehicle axes; ``VIBRATION_AMP``, yaw at 74 Hz), with
     ``noise`` plus the white noise of a MEMS gyro sampled at 1 kHz (0.005 °/s/√Hz: 2.8e-3 rad/s
     RMS per sample): the vehicle rate sweeps through zero ~220 times a second, each time a kink
-    of the support friction (:mod:`gyro_platform.physics.switching`)."""
-    w = 2.0 * math.pi * VIBRATION_HZ
-    a0, a1, a2 = VIBRATION_AMP
+    of the support friction (:mod:`gyro_platform.physics.switching`). ``scale`` multiplies the
+    amplitudes, ``hz`` replaces the frequency (Hz)."""
+    w = 2.0 * math.pi * hz
+    a0, a1, a2 = (scale * a for a in VIBRATION_AMP)
     v = np.column_stack([a0 * np.sin(w * t), a1 * np.sin(w * t + 1.0), a2 * np.sin(2.0 * w * t + 0.3)])
     if noise:
         v += math.radians(0.005) * math.sqrt(1000.0) * np.random.default_rng(seed).standard_normal((len(t), 3))
