@@ -17,15 +17,18 @@ a vibrating vehicle costs about as much as a smooth one, and the accuracy asked 
 
 The kink times are checked against the closed form of a linear input; the cost and the delivered
 error on a vibrating 1 kHz IMU against a smooth one and against a tight reference (the figures
-of ``gyro-platform bench roughness``); the compiled step plan against the Python controller's is
-in ``test_push_block.py``, every method on a vibrating vehicle in the hard-case catalogue
-(``vibrating_vehicle``, ``test_accuracy_on_request.py``)."""
+of ``gyro-platform bench roughness``); the compiled kernel's pieces against the Python
+controller's on the vibrating input (also ``test_push_block.py``); every method on a vibrating
+vehicle in the hard-case catalogue (``vibrating_vehicle``, ``test_accuracy_on_request.py``)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from gyro_platform.bench.roughness import REFERENCE, run_surface, surfaces
+from gyro_platform.engine.buffers import J_LEVEL
+from gyro_platform.engine.inputs import RateSample
+from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import NAV1
 from gyro_platform.physics.system import PlatformSystem
@@ -82,3 +85,21 @@ def test_a_vibrating_vehicle_costs_at_most_half_again_a_smooth_one_at_the_accura
         err[name] = float(np.abs(ang - ref).max())
     assert rhs["vibrating"] <= 1.5 * rhs["smooth"], rhs
     assert max(err.values()) <= 1e-9, err
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-9])
+def test_compiled_kernel_plans_the_pieces_of_the_python_controller_on_a_vibrating_vehicle(rtol):
+    """0.3 s of the vibrating input (~65 kinks), RK4: sample by sample the compiled kernel takes
+    the same pieces, redos and levels as ``Controlled._advance`` (the reference), and the same
+    state to round-off."""
+    imu = surfaces(0.3)["vibrating"]
+    opt = ModelOptions.make("stabilised", "linear", integrator="rk4", rtol=rtol, atol=rtol * 1e-3)
+    fast, ref = Simulator(options=opt), Simulator(options=opt, compiled=False)
+    for i in range(len(imu.t)):
+        s = RateSample(float(imu.t[i]), imu.omega[i].copy(), imu.force[i].copy())
+        fast.push(s)
+        ref.push(s)
+        assert (fast.n_steps, fast.n_rejected) == (ref.n_steps, ref.n_rejected), f"sample {i}"
+        assert int(fast.engine.ih[J_LEVEL]) == ref.integrator.level, f"sample {i}"
+    assert fast.n_rejected > 0 and fast.n_steps > len(imu.t)     # pieces and redos happened
+    np.testing.assert_allclose(fast.y, ref.y, rtol=0, atol=1e-15)
