@@ -132,6 +132,37 @@ def test_package_kernels_cached_by_content_under_the_cache_dir(tmp_path, monkeyp
     assert jit.cache_dir() == tmp_path / "xdg" / "gyro_platform" / "numba" / jit.source_digest()
 
 
+def test_cache_folder_changes_with_every_source_a_kernel_freezes_and_only_those(tmp_path, monkeypatch):
+    """numba freezes a kernel's globals when it compiles, constants imported from other modules
+    included (the step controller's ``SWITCH_EDGE`` from ``integrators/base.py``, which takes no
+    ``njit``): on a copy of the package, changing one gives another cache folder (a stale kernel
+    would otherwise plan other steps than the Python controller); changing the ROS node or the
+    bench does not."""
+    import shutil
+
+    pkg = tmp_path / "gyro_platform"
+    shutil.copytree(jit.PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(jit, "PACKAGE", pkg)
+
+    def digest() -> str:
+        monkeypatch.setattr(jit, "_DIGEST", None)
+        return jit.source_digest()
+
+    names = {str(p.relative_to(pkg.resolve())) for p in jit.digest_sources()}
+    assert {"engine/batch.py", "engine/integrators/base.py", "physics/switching.py", "physics/params.py",
+            "engine/integrators/__init__.py"} <= names
+    assert not any(n.startswith(("ros/", "bench/", "replay/", "scenes/", "sweep/")) for n in names)
+    d0 = digest()
+    node = pkg / "ros" / "node.py"
+    node.write_text(node.read_text() + "\n# a comment\n")
+    assert digest() == d0
+    base = pkg / "engine" / "integrators" / "base.py"
+    text = base.read_text()
+    assert "SWITCH_EDGE = 1e-3" in text
+    base.write_text(text.replace("SWITCH_EDGE = 1e-3", "SWITCH_EDGE = 2e-3"))
+    assert digest() != d0
+
+
 def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch):
     """The bench row logic without running the commands: the first run of each on its fresh cache
     folder is cold (and says so), the later ones warm; ratio, table, JSON, Markdown, PNG."""

@@ -18,7 +18,8 @@ Every kernel module takes ``njit`` from here, so that importing any of them inst
 :class:`PackageCacheLocator` first: the package's kernels are cached under
 ``$NUMBA_CACHE_DIR/gyro_platform`` if that is set, else ``$XDG_CACHE_HOME/gyro_platform/numba``
 (``~/.cache/…``), in a folder named by a digest of the package's kernel sources (the ``.py``
-files that take ``njit`` from here) and the numba version. A fresh clone, a reinstall, a colcon
+files that take ``njit`` from here, and the package modules they import from: numba freezes
+imported constants into the kernels) and the numba version. A fresh clone, a reinstall, a colcon
 workspace or a container sharing that folder reuses what any of them compiled from the same
 sources; a change to any kernel file gives a new folder (numba's own in-tree cache misses a
 change in a callee's file). ``GYRO_PLATFORM_IN_TREE_CACHE=1`` restores numba's in-tree cache.
@@ -37,6 +38,7 @@ from contextlib import contextmanager
 import hashlib
 import os
 from pathlib import Path
+import re
 import sys
 import threading
 import time
@@ -49,23 +51,65 @@ from numba.core.dispatcher import Dispatcher
 from ..signals import StopSignals
 
 __all__ = ["njit", "cache_dir", "compile_notices", "abandon_compiles_when", "CompileAbandoned", "PackageCacheLocator",
-           "source_digest"]
+           "source_digest", "digest_sources"]
 
 #: the package folder (the kernel sources below it get the locator)
 PACKAGE = Path(__file__).resolve().parents[1]
 
 
+#: ``from X import names`` (names on one line or in parentheses over several)
+_FROM_IMPORT = re.compile(rb"^[ \t]*from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)", re.M)
+
+
+def _package_imports(path: Path, data: bytes) -> set[Path]:
+    """The package's own modules (files) that the module at ``path`` (source ``data``) imports
+    from (``from .x import y``, ``from . import y``, ``from gyro_platform.x import y``)."""
+    found: set[Path] = set()
+    for m in _FROM_IMPORT.finditer(data):
+        dots, module = len(m.group(1)), m.group(2).decode()
+        if dots:
+            base = path.parents[dots - 1]
+        elif module.split(".")[0] == PACKAGE.name:
+            base = PACKAGE.parent
+        else:
+            continue
+        stem = base.joinpath(*module.split(".")) if module else base
+        names = [n.split()[0] for n in m.group(3).decode().strip("()").replace("\n", " ").split(",")
+                 if n.split() and not n.split()[0].startswith("#")]
+        for cand in [stem] + [stem / n for n in names]:     # a module, or modules named in it
+            for f in (cand.with_suffix(".py"), cand / "__init__.py"):
+                if f.is_file():
+                    found.add(f.resolve())
+    return found
+
+
+def digest_sources() -> list[Path]:
+    """The files whose bytes name the cache folder: the kernel modules (taking ``njit`` from
+    here) and every package module they import from, transitively. numba freezes a kernel's
+    globals when it compiles, constants imported from other modules (the step controller's
+    ``COARSEN``, ``SWITCH_MIN`` …) included, so a change there must give a new folder too."""
+    todo = [p.resolve() for p in PACKAGE.rglob("*.py")
+            if p.name != "jit.py" and b"jit import njit" in p.read_bytes()]
+    seen: set[Path] = set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        todo.extend(_package_imports(p, p.read_bytes()) - seen)
+    seen.discard((PACKAGE / "physics" / "jit.py").resolve())
+    return sorted(seen)
+
+
 def source_digest() -> str:
-    """Digest (16 hex) of every package source that compiles kernels (the files taking ``njit``
-    from this module, read as bytes) and of the numba version: the cache folder's name."""
+    """Digest (16 hex) of :func:`digest_sources` (read as bytes) and of the numba version: the
+    cache folder's name."""
     global _DIGEST
     if _DIGEST is None:
         h = hashlib.sha256(numba.__version__.encode())
-        for p in sorted(PACKAGE.rglob("*.py")):
-            data = p.read_bytes()
-            if b"jit import njit" in data and p.name != "jit.py":     # the kernel modules
-                h.update(str(p.relative_to(PACKAGE)).encode())
-                h.update(data)
+        for p in digest_sources():
+            h.update(str(p.relative_to(PACKAGE.resolve())).encode())
+            h.update(p.read_bytes())
         _DIGEST = h.hexdigest()[:16]
     return _DIGEST
 
