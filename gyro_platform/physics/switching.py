@@ -45,9 +45,10 @@ __all__ = ["support_switch_time", "support_switch_passed"]
 
 @njit(cache=True, inline="always")
 def _rel_and_rate(t, y, yd, I, seg):
-    """(rel, rel̇) of the three mount axes at (t, y), rel̇ to first order from yd = ẏ(t, y):
-    rel̇_i = Ω̇_i − (R_PB ω̇_B)_i + (Ω × R_PB ω_B)_i (``seg``: the input interval, ω_B linear in t).
-    None when an attitude quaternion is degenerate (the step itself reports it)."""
+    """(ok, rel_0, rel_1, rel_2, rel̇_0, rel̇_1, rel̇_2) of the three mount axes at (t, y), rad/s
+    and rad/s², rel̇ to first order from yd = ẏ(t, y): rel̇_i = Ω̇_i − (R_PB ω̇_B)_i + (Ω × R_PB ω_B)_i
+    (``seg``: the input interval, ω_B linear in t). ok is False (and the rest 0) when an attitude
+    quaternion is degenerate (the step itself reports it)."""
     lay = I[0]
     iqp = lay[LAY_QIP]
     iqb = lay[LAY_QIB]

@@ -39,8 +39,9 @@ exponential ones cut whole steps of a grid and end the interval with a short las
 ``_tail``, controlled alike from level 0). A method that ``locates_switches`` (rk4) also ends a
 chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
 regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
-chunk: a step across a kink is only first-order accurate, so a vibrating input otherwise costs
-3–8× the substeps of a smooth one. The compiled batch loop
+chunk; once per piece, a kink it finds looking back from the piece's end (``switch_passed``)
+shortens the piece to end there (redone: one rejection). A step across a kink is only
+first-order accurate, so a vibrating input otherwise costs 3–8× the substeps of a smooth one. The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
 Non-finite results are never returned: ``SimulationError``.
