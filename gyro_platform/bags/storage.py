@@ -53,6 +53,7 @@ from .rows import (as_bytes_list, channel_groups, cut_rows, fixed_width, id_coun
                    segments)
 from .yaml_dump import fast_yaml
 from ..messages.blocks import RawRows, readonly, row_lens
+from ..signals import deferred_signals
 
 #: commit bound: a chunk is committed after this many messages …
 COMMIT_ROWS = 100_000
@@ -167,8 +168,12 @@ class BatchedSqlite3:
                 acc += size
             row += k
         bounds = sorted(bounds)
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            self._transaction(cids[a:b], ts[a:b], raws[a:b])
+        # the rows are off the pending list now: a Ctrl-C/SIGTERM landing here would roll the
+        # transaction back and lose them, so it waits until the commit is done (on the main
+        # thread; a writer thread gets no signals)
+        with deferred_signals():
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                self._transaction(cids[a:b], ts[a:b], raws[a:b])
 
     def _transaction(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
         self.dirty = True        # stays set if anything below is cut short (error, Ctrl-C)
