@@ -215,3 +215,32 @@ def test_a_kernel_numba_cannot_cache_is_a_warning_not_a_crash():
                            fndesc=SimpleNamespace(qualname="kinematics"))
     with pytest.warns(NumbaWarning, match='Cannot cache compiled function "kinematics"'):
         assert cache._impl.check_cachable(cres) is False
+
+
+_SAVER = """
+import sys, time
+from numba.core import caching
+import gyro_platform.physics.jit  # noqa: F401  (the locked save)
+who, path, start = sys.argv[1], sys.argv[2], float(sys.argv[3])
+cache = caching.IndexDataCacheFile(path, "kernel", "stamp")
+while time.time() < start:          # both processes begin together
+    time.sleep(0.001)
+for i in range(150):
+    cache.save((who, i), (who, i))
+"""
+
+
+def test_processes_adding_signatures_of_one_kernel_at_once_keep_every_entry_and_its_own_data(tmp_path):
+    """Two processes add 150 signatures each to one kernel's cache index at the same time (the
+    parallel parts of ``gyro-platform compile``, Dask workers): every entry is in the index and
+    loads its own data (numba's unlocked save loses entries and pairs keys with the other
+    process's data files)."""
+    from numba.core import caching
+
+    start = str(time.time() + 5.0)
+    procs = [subprocess.Popen([sys.executable, "-c", _SAVER, who, str(tmp_path), start], cwd=ROOT) for who in "ab"]
+    assert [p.wait(timeout=120) for p in procs] == [0, 0]
+    cache = caching.IndexDataCacheFile(str(tmp_path), "kernel", "stamp")
+    keys = [(who, i) for who in "ab" for i in range(150)]
+    assert sorted(cache._load_index()) == sorted(keys)
+    assert all(cache.load(k) == k for k in keys)

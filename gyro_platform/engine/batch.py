@@ -584,8 +584,10 @@ def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f, gen, ex
     else:
         fb[o + 4], fb[o + 5], fb[o + 6] = 0.0, 0.0, 0.0
     n = ib[SLOT_W * F_Y + 1]
+    # ``first`` as an int64, not the literal 0: the replay's block_kernel is then this one (numba
+    # would otherwise compile a second block_kernel for Literal[int](0), ~10 s at first contact)
     return block_kernel(fb, ib, mi, md, fb[o:o + 1], view2(fb, o + 1, (1, 3)), view2(fb, o + 4, (1, 3)),
-                        has_f, 0, ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0], gen, expo)
+                        has_f, np.int64(0), ib[0:0], view2(fb, 0, (0, n)), view2(fb, 0, (0, SEG_N)), ib[0:0], gen, expo)
 
 
 # ---------------------------------------------------------------------------- Python side

@@ -23,6 +23,11 @@ imported constants into the kernels) and the numba version. A fresh clone, a rei
 workspace or a container sharing that folder reuses what any of them compiled from the same
 sources; a change to any kernel file gives a new folder (numba's own in-tree cache misses a
 change in a callee's file). ``GYRO_PLATFORM_IN_TREE_CACHE=1`` restores numba's in-tree cache.
+Processes compiling at once (``gyro-platform compile``'s parallel parts, Dask workers) add
+their kernels to a cache index under an exclusive lock (:func:`_locked_save`): numba's own
+save reads, extends and rewrites the index unlocked, so two processes adding different
+signatures of one kernel could both take data file ``.1.nbc`` and leave an index entry naming
+the other's machine code.
 
 :func:`compile_notices` (command-line processes, Dask workers, the rclpy node): while kernels
 compile, one line on stderr, then one line per compiled kernel; and a compile asked for on the
@@ -36,6 +41,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 import hashlib
+import itertools
 import os
 from pathlib import Path
 import re
@@ -163,6 +169,42 @@ class PackageCacheLocator(caching._CacheLocator):
 
 if PackageCacheLocator not in caching.CacheImpl._locator_classes:
     caching.CacheImpl._locator_classes.insert(0, PackageCacheLocator)
+
+
+@contextmanager
+def _index_lock(index_path: str):
+    """An exclusive ``flock`` on ``<index>.lock`` for the block (none where ``fcntl`` is not)."""
+    try:
+        import fcntl
+    except ImportError:                     # pragma: no cover - not POSIX
+        yield
+        return
+    with open(index_path + ".lock", "ab") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _locked_save(self, key, data) -> None:
+    """``numba``'s ``IndexDataCacheFile.save`` under :func:`_index_lock`: the index is read,
+    a free data file name chosen, the data written, and then the index (a process loading the
+    index without the lock finds an entry only once its data is there)."""
+    with _index_lock(self._index_path):
+        overloads = self._load_index()
+        name = overloads.get(key)
+        new = name is None
+        if new:
+            taken = set(overloads.values())
+            name = next(n for n in map(self._data_name, itertools.count(1)) if n not in taken)
+            overloads[key] = name
+        self._save_data(name, data)
+        if new:
+            self._save_index(overloads)
+
+
+caching.IndexDataCacheFile.save = _locked_save
 
 
 # ---- compile notices and interruptible compiles ------------------------------------------------
