@@ -59,7 +59,7 @@ def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig
         args = ["replay", str(HUSKY), "--out", str(tmp_path / "out"), "--no-plot"]
     p = subprocess.Popen([sys.executable, "-m", "gyro_platform", *args],
                          cwd=ROOT, env=_cold_env(tmp_path), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                         text=True)
+                         text=True, start_new_session=True)
     lines: list[str] = []
     try:
         for line in p.stderr:            # the notice, then a line per compiled kernel
@@ -78,6 +78,14 @@ def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig
     assert p.returncode == code, "".join(lines) + rest
     assert ("terminated" if sig == signal.SIGTERM else "interrupted") in rest
     assert time.monotonic() - t0 < 30          # not after the compile (a generous bound, not a timing test)
+    if what == "compile":                       # its second process (--jobs 2) stopped too
+        try:
+            os.killpg(p.pid, 0)
+        except ProcessLookupError:
+            pass
+        else:
+            os.killpg(p.pid, signal.SIGKILL)
+            pytest.fail("a process of the compile outlived it")
 
 
 def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):

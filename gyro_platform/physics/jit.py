@@ -56,8 +56,8 @@ from numba.core.dispatcher import Dispatcher
 
 from ..signals import StopSignals
 
-__all__ = ["njit", "cache_dir", "compile_notices", "abandon_compiles_when", "CompileAbandoned", "PackageCacheLocator",
-           "source_digest", "digest_sources"]
+__all__ = ["njit", "cache_dir", "compile_notices", "quiet_compile_header", "abandon_compiles_when", "CompileAbandoned",
+           "PackageCacheLocator", "source_digest", "digest_sources"]
 
 #: the package folder (the kernel sources below it get the locator)
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -297,6 +297,13 @@ def _compile_off_main(self, sig):
     if ok:
         return value
     raise value
+
+
+def quiet_compile_header() -> None:
+    """No first line from :func:`compile_notices` in this process (another process of the same
+    command said it): the per-kernel lines only."""
+    if _notices is not None and _notices.started is None:
+        _notices.started = time.monotonic()
 
 
 def compile_notices(prog: str, stream=None) -> None:
