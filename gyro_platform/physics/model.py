@@ -96,6 +96,25 @@ SEG_T0, SEG_DT, SEG_W0, SEG_W1, SEG_F0, SEG_F1 = 0, 1, 2, 5, 8, 11
 SEG_N = 14
 
 
+@njit(cache=True, inline="always")
+def seg_at(seg, t, k):
+    """The input of the interval ``seg`` at time t (s), linear over the interval: the three
+    values from slot ``k`` (``SEG_W0``: vehicle rate, rad/s; ``SEG_F0``: specific force, m/s²;
+    vehicle axes; the end values are three slots on). The start value when it has no length."""
+    dt = seg[SEG_DT]
+    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
+    return (seg[k] + s * (seg[k + 3] - seg[k]), seg[k + 1] + s * (seg[k + 4] - seg[k + 1]),
+            seg[k + 2] + s * (seg[k + 5] - seg[k + 2]))
+
+
+@njit(cache=True, inline="always")
+def seg_slope(seg, k):
+    """d/dt of :func:`seg_at` (per second; 0 on an interval of no length)."""
+    dt = seg[SEG_DT]
+    inv_dt = 1.0 / dt if dt > 0.0 else 0.0
+    return ((seg[k + 3] - seg[k]) * inv_dt, (seg[k + 4] - seg[k + 1]) * inv_dt, (seg[k + 5] - seg[k + 2]) * inv_dt)
+
+
 @dataclass(frozen=True)
 class StateLayout:
     """Slices of the state vector for one mode/fidelity."""

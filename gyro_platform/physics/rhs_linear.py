@@ -28,8 +28,8 @@ from __future__ import annotations
 
 from . import effects as fx
 from .jit import njit
-from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, SEG_DT, SEG_T0, SEG_W0, SEG_W1
-from .rotations import quat_matrix_elems, quat_rate_at
+from .model import LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z, seg_at, SEG_W0
+from .rotations import quat_rate_at, rpb_elems
 
 __all__ = ["stabilised_linear_rhs", "takes_linear_path", "rest_model_accel"]
 
@@ -76,11 +76,7 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     (a store into ``yd`` could alias any float argument for the compiler and force reloads);
     the sums are those of ``rest_model_accel`` in the same order (bit-identical results)."""
     # vehicle rate at t (linear over the interval), vehicle axes
-    dt = seg[SEG_DT]
-    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
-    wB0 = seg[SEG_W0] + s * (seg[SEG_W1] - seg[SEG_W0])
-    wB1 = seg[SEG_W0 + 1] + s * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
-    wB2 = seg[SEG_W0 + 2] + s * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
+    wB0, wB1, wB2 = seg_at(seg, t, SEG_W0)
     io = I[0, LAY_OM]
     iqd = I[0, LAY_QD]
     iqp = I[0, LAY_QIP]
@@ -90,18 +86,7 @@ def stabilised_linear_rhs(t, y, yd, I, P, seg, mats, F):
     # platform torque: support friction, then the servo
     MP0, MP1, MP2 = 0.0, 0.0, 0.0
     if I[1, fx.SUPPORT]:
-        # R_PB = R_IPᵀ R_IB
-        a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
-        b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
-        r00 = a00 * b00 + a10 * b10 + a20 * b20
-        r01 = a00 * b01 + a10 * b11 + a20 * b21
-        r02 = a00 * b02 + a10 * b12 + a20 * b22
-        r10 = a01 * b00 + a11 * b10 + a21 * b20
-        r11 = a01 * b01 + a11 * b11 + a21 * b21
-        r12 = a01 * b02 + a11 * b12 + a21 * b22
-        r20 = a02 * b00 + a12 * b10 + a22 * b20
-        r21 = a02 * b01 + a12 * b11 + a22 * b21
-        r22 = a02 * b02 + a12 * b12 + a22 * b22
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rpb_elems(y, iqp, iqb)
         MP0 += fx.support_friction_axis(P, Om0 - (r00 * wB0 + r01 * wB1 + r02 * wB2))
         MP1 += fx.support_friction_axis(P, Om1 - (r10 * wB0 + r11 * wB1 + r12 * wB2))
         MP2 += fx.support_friction_axis(P, Om2 - (r20 * wB0 + r21 * wB1 + r22 * wB2))

@@ -64,6 +64,18 @@ def quat_matrix_elems(y, i):
             s * (x * z - yy * w), s * (yy * z + x * w), 1.0 - s * (x * x + yy * yy))
 
 
+@njit(cache=True, inline="always")
+def rpb_elems(y, iqp, iqb):
+    """The nine elements (row-major) of R_PB = R_IPᵀ R_IB (platform <- vehicle) for the attitude
+    quaternions y[iqp:iqp+4] (platform) and y[iqb:iqb+4] (vehicle), each normalised on the fly
+    (no arrays: the kernels' hot path; every caller sums in this order)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
+    return (a00 * b00 + a10 * b10 + a20 * b20, a00 * b01 + a10 * b11 + a20 * b21, a00 * b02 + a10 * b12 + a20 * b22,
+            a01 * b00 + a11 * b10 + a21 * b20, a01 * b01 + a11 * b11 + a21 * b21, a01 * b02 + a11 * b12 + a21 * b22,
+            a02 * b00 + a12 * b10 + a22 * b20, a02 * b01 + a12 * b11 + a22 * b21, a02 * b02 + a12 * b12 + a22 * b22)
+
+
 @njit(cache=True)
 def quat_to_matrix_at(y, i, RR, k):
     """RR[k] = R(q) for the quaternion q = y[i:i+4] (normalised on the fly; no views)."""

@@ -37,8 +37,8 @@ import math
 
 from . import effects as fx
 from .jit import njit
-from .model import LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, SEG_DT, SEG_T0, SEG_W0, SEG_W1
-from .rotations import quat_matrix_elems
+from .model import LAY_OM, LAY_QIB, LAY_QIP, LAY_STAB, seg_at, seg_slope, SEG_W0
+from .rotations import rpb_elems
 
 __all__ = ["support_switch_time", "support_switch_passed"]
 
@@ -56,27 +56,9 @@ def _rel_and_rate(t, y, yd, I, seg):
         nq = y[iq] ** 2 + y[iq + 1] ** 2 + y[iq + 2] ** 2 + y[iq + 3] ** 2
         if not (nq > 0.0 and nq < math.inf):
             return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = quat_matrix_elems(y, iqp)
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = quat_matrix_elems(y, iqb)
-    # R_PB = R_IPᵀ R_IB
-    r00 = a00 * b00 + a10 * b10 + a20 * b20
-    r01 = a00 * b01 + a10 * b11 + a20 * b21
-    r02 = a00 * b02 + a10 * b12 + a20 * b22
-    r10 = a01 * b00 + a11 * b10 + a21 * b20
-    r11 = a01 * b01 + a11 * b11 + a21 * b21
-    r12 = a01 * b02 + a11 * b12 + a21 * b22
-    r20 = a02 * b00 + a12 * b10 + a22 * b20
-    r21 = a02 * b01 + a12 * b11 + a22 * b21
-    r22 = a02 * b02 + a12 * b12 + a22 * b22
-    dt = seg[SEG_DT]
-    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
-    inv_dt = 1.0 / dt if dt > 0.0 else 0.0
-    w0 = seg[SEG_W0] + s * (seg[SEG_W1] - seg[SEG_W0])
-    w1 = seg[SEG_W0 + 1] + s * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
-    w2 = seg[SEG_W0 + 2] + s * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
-    d0 = (seg[SEG_W1] - seg[SEG_W0]) * inv_dt
-    d1 = (seg[SEG_W1 + 1] - seg[SEG_W0 + 1]) * inv_dt
-    d2 = (seg[SEG_W1 + 2] - seg[SEG_W0 + 2]) * inv_dt
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rpb_elems(y, iqp, iqb)      # R_PB = R_IPᵀ R_IB
+    w0, w1, w2 = seg_at(seg, t, SEG_W0)
+    d0, d1, d2 = seg_slope(seg, SEG_W0)
     p0 = r00 * w0 + r01 * w1 + r02 * w2          # ω_B in platform axes
     p1 = r10 * w0 + r11 * w1 + r12 * w2
     p2 = r20 * w0 + r21 * w1 + r22 * w2

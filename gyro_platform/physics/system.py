@@ -31,7 +31,8 @@ from . import effects as fx
 from .jit import njit
 from .model import (check_precession_valid, LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z,
                     linear_coefficients, linear_gimbal_accel, LOCK_COS, platform_tree, precession_rates, rest_matrices,
-                    SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1, spin_momentum, StateLayout)
+                    seg_at, SEG_DT, SEG_F0, SEG_F1, SEG_N, seg_slope, SEG_T0, SEG_W0, SEG_W1, spin_momentum,
+                    StateLayout)
 from .options import ModelOptions
 from .params import ParameterError, PlatformParams
 from .rhs_linear import rest_model_accel, stabilised_linear_rhs, takes_linear_path
@@ -173,15 +174,8 @@ def general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     nv = lay[LAY_NV]
     status = 0
     # --- input at time t (linear over the interval) ---------------------------------------
-    dt = seg[SEG_DT]
-    s = (t - seg[SEG_T0]) / dt if dt > 0.0 else 0.0
-    inv_dt = 1.0 / dt if dt > 0.0 else 0.0
-    wB0 = seg[SEG_W0] + s * (seg[SEG_W1] - seg[SEG_W0])
-    wB1 = seg[SEG_W0 + 1] + s * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
-    wB2 = seg[SEG_W0 + 2] + s * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
-    fB0 = seg[SEG_F0] + s * (seg[SEG_F1] - seg[SEG_F0])
-    fB1 = seg[SEG_F0 + 1] + s * (seg[SEG_F1 + 1] - seg[SEG_F0 + 1])
-    fB2 = seg[SEG_F0 + 2] + s * (seg[SEG_F1 + 2] - seg[SEG_F0 + 2])
+    wB0, wB1, wB2 = seg_at(seg, t, SEG_W0)
+    fB0, fB1, fB2 = seg_at(seg, t, SEG_F0)
     iqb = lay[LAY_QIB]
     quat_rate_at(y, iqb, wB0, wB1, wB2, yd)
     # R_PB: platform <- vehicle
@@ -206,9 +200,7 @@ def general_rhs(t, y, yd, fid, I, P, seg, mats, axis, inertia, rhost, raxis,
     wBP2 = RR[2, 2, 0] * wB0 + RR[2, 2, 1] * wB1 + RR[2, 2, 2] * wB2
     if not stab:
         Om0, Om1, Om2 = wBP0, wBP1, wBP2
-        d0 = (seg[SEG_W1] - seg[SEG_W0]) * inv_dt
-        d1 = (seg[SEG_W1 + 1] - seg[SEG_W0 + 1]) * inv_dt
-        d2 = (seg[SEG_W1 + 2] - seg[SEG_W0 + 2]) * inv_dt
+        d0, d1, d2 = seg_slope(seg, SEG_W0)
         Omd0 = RR[2, 0, 0] * d0 + RR[2, 0, 1] * d1 + RR[2, 0, 2] * d2
         Omd1 = RR[2, 1, 0] * d0 + RR[2, 1, 1] * d1 + RR[2, 1, 2] * d2
         Omd2 = RR[2, 2, 0] * d0 + RR[2, 2, 1] * d1 + RR[2, 2, 2] * d2
