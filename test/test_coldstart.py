@@ -100,6 +100,12 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
     assert setup.returncode == 0, setup.stdout + setup.stderr
     assert "compiling the simulation kernels" in setup.stderr
     assert "4 of 4 steps" in setup.stdout, setup.stdout
+    if (os.cpu_count() or 1) >= 2:              # cold: the node's and replay's kernels in a second process
+        assert "1 more process compiling: node" in setup.stdout, setup.stdout
+    again = subprocess.run([sys.executable, "-m", "gyro_platform", "compile"], cwd=ROOT, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0 and "4 of 4 steps" in again.stdout, again.stdout + again.stderr
+    assert "more process" not in again.stdout and "compiling" not in again.stderr   # warm: no process started
     runs = [["run", "default", "--no-files"]]
     if HUSKY.exists():
         runs.append(["replay", str(HUSKY), "--out", str(tmp_path / "husky"), "--no-plot"])

@@ -56,7 +56,8 @@ from numba.core.dispatcher import Dispatcher
 
 from ..signals import StopSignals
 
-__all__ = ["njit", "cache_dir", "compile_notices", "quiet_compile_header", "abandon_compiles_when", "CompileAbandoned",
+__all__ = ["njit", "cache_dir", "compile_notices", "quiet_compile_header", "when_compiling",
+           "not_when_compiling", "abandon_compiles_when", "CompileAbandoned",
            "PackageCacheLocator", "source_digest", "digest_sources"]
 
 #: the package folder (the kernel sources below it get the locator)
@@ -232,6 +233,8 @@ class _Notices(event.Listener):
                 self.started = self.t0
                 self._print(f"{self.prog}: compiling the simulation kernels (first run of this version on this "
                             f"machine; cached in {cache_dir()} for later runs) …")
+            while _first_compile:
+                _first_compile.pop(0)()
         self.depth += 1
 
     def on_end(self, ev) -> None:
@@ -297,6 +300,28 @@ def _compile_off_main(self, sig):
     if ok:
         return value
     raise value
+
+
+_first_compile: list = []                  # callables for the next first compile (when_compiling)
+
+
+def when_compiling(callback) -> bool:
+    """Call ``callback()`` once, when this process next starts compiling a kernel (at once if
+    it is compiling now). Needs :func:`compile_notices` installed; False (and nothing is
+    registered) without it. :func:`not_when_compiling` takes it back."""
+    if _notices is None:
+        return False
+    if _notices.depth > 0:
+        callback()
+    else:
+        _first_compile.append(callback)
+    return True
+
+
+def not_when_compiling(callback) -> None:
+    """Take back a callback of :func:`when_compiling` that has not run."""
+    if callback in _first_compile:
+        _first_compile.remove(callback)
 
 
 def quiet_compile_header() -> None:

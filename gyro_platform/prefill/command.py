@@ -30,7 +30,8 @@ writing anything outside a temporary folder,
 The scene's kernels (its model's) and the node's and replay's (the node's model) share
 nothing, so with ``--jobs 2`` (the default on a machine of two or more cores) a second process
 (``--part 1``) compiles the node's and the replay's while this one compiles the scene's: about
-half the wall time (the cache index takes both: ``physics.jit``). A signal stops both.
+half the wall time (the cache index takes both: ``physics.jit``). It starts when this process
+starts compiling (on a warm cache the steps run here, in turn). A signal stops both.
 
 One line per step with its time on stdout; compile notices on stderr as for every command.
 Exit 0, or 1 when a step failed (what the other steps compiled stays cached).
@@ -49,7 +50,7 @@ import time
 from typing import Callable
 
 from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE
-from ..physics.jit import cache_dir, PACKAGE, quiet_compile_header
+from ..physics.jit import cache_dir, not_when_compiling, PACKAGE, quiet_compile_header, when_compiling
 from ..signals import Terminated
 
 __all__ = ["add_arguments", "parts", "run", "steps"]
@@ -183,7 +184,6 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     own = args.part is not None                 # a share of a parallel compile (see _start_part)
     work = Path(args.part_dir) if own else Path(tempfile.mkdtemp(prefix="gyro_platform_compile_"))
-    children: list[subprocess.Popen] = []
     try:
         try:
             todo = steps(args.scene, args.params_file, work)
@@ -197,13 +197,26 @@ def run(args: argparse.Namespace) -> int:
             failed = _run_steps(prog, shares[args.part])
             (work / f"part-{args.part}").write_text(str(failed))
             return EXIT_FAILED if failed else EXIT_OK
-        print(f"{prog}: kernels cached in {cache_dir()}" + (f" ({len(shares)} processes)" if len(shares) > 1 else ""),
-              flush=True)
+        print(f"{prog}: kernels cached in {cache_dir()}", flush=True)
         t_all = time.perf_counter()
-        children = [_start_part(args, k, work) for k in range(1, len(shares))]
+        started: dict[int, subprocess.Popen] = {}
+
+        def start_the_others() -> None:         # this process compiles: the other parts beside it
+            for k in range(1, len(shares)):
+                started[k] = _start_part(args, k, work)
+            print(f"  ({len(started)} more process{'es' if len(started) > 1 else ''} compiling: "
+                  + "; ".join(", ".join(w for w, _ in shares[k]) for k in started) + ")", flush=True)
+
+        if len(shares) > 1:
+            when_compiling(start_the_others)    # a warm cache: no process started, nothing to wait for
         try:
             failed = _run_steps(prog, shares[0])
-            for k, ch in enumerate(children, start=1):
+            not_when_compiling(start_the_others)
+            for k in range(1, len(shares)):
+                ch = started.get(k)
+                if ch is None:                  # not started: here, in turn
+                    failed += _run_steps(prog, shares[k])
+                    continue
                 rc = ch.wait()
                 if rc == EXIT_TERMINATED:
                     raise Terminated("terminated")
@@ -215,7 +228,8 @@ def run(args: argparse.Namespace) -> int:
                     print(f"{prog}: the process compiling {', '.join(w for w, _ in shares[k])} ended with "
                           f"status {rc}", file=sys.stderr)
         except BaseException as e:
-            _stop_parts(children, e)
+            not_when_compiling(start_the_others)
+            _stop_parts(list(started.values()), e)
             raise
         print(f"{prog}: {len(todo) - failed} of {len(todo)} steps in {time.perf_counter() - t_all:.1f} s", flush=True)
     finally:
