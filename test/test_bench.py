@@ -308,3 +308,52 @@ def test_roughness_bench_writes_the_cost_of_vibration_and_how_far_it_holds(tmp_p
     assert "vibrating ÷ smooth" in text and "How far it holds" in text
     md = (out / "roughness.md").read_text().splitlines()
     assert sum(line.startswith("|---") for line in md) == 2 and (out / "roughness.png").stat().st_size > 0
+
+
+def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_report(tmp_path, capsys):
+    """The headline of ``gyro-platform bench``: each figure of the four section reports as a ratio
+    beside its bar (✓/✗ computed, not copied), and a report older than the run (a section the
+    run left out) not in it."""
+    import json
+    import os
+    import time
+
+    from gyro_platform.bench.headline import headline
+
+    def put(stem, doc, age=0.0):
+        p = tmp_path / f"{stem}.json"
+        p.write_text(json.dumps(doc))
+        if age:
+            os.utime(p, (time.time() - age, time.time() - age))
+
+    t0 = time.time() - 60
+    put("coldstart", {"rows": [
+        {"name": "compile", "what": "compile", "status": "ok", "cold_s": 60.0, "warm_s": 1.5, "extra": {}},
+        {"name": "run_default", "what": "run default", "status": "ok", "cold_s": 60.0, "warm_s": 4.0,
+         "extra": {"after_setup_s": 4.4}},
+        {"name": "node", "what": "node", "status": "ok", "cold_s": 5.0, "warm_s": 2.0, "extra": {}}]})
+    put("consumer", {"rows": [
+        {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "≥ 500×",
+         "us_per_sample": 4.0, "extra": {"replay_over_floor": 1.6, "floor_rtf": 400.0}},
+        {"name": "replay_husky", "what": "replay husky", "status": "ok", "rtf": 520.0, "target": "≥ 300×",
+         "us_per_sample": 60.0, "extra": {}},
+        {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "≤ 10 µs",
+         "us_per_sample": 12.5, "extra": {}}]})
+    put("roughness", {"rows": [{"rtol": 1e-6, "integrator": "auto:rk4", "ratio": 1.34, "smooth_error": 7e-11,
+                                "vibrating_error": 2e-10}]})
+    put("peer", {"scenes": [{"scene": "ship", "comparison": [{"error_level": 1e-11, "ratio_kernel": 1.6,
+                                                              "ratio_consumer": 1.1}]}]}, age=3600)
+    rows = headline(tmp_path, since=t0)
+    got = {r["figure"]: r["met"] for r in rows}
+    assert got == {
+        "set-up step `gyro-platform compile`, empty kernel cache": None,
+        "run default: cold ÷ warm": False,                                 # ×15
+        "run default: first run after the set-up step ÷ warm": True,       # ×1.1
+        "node: cold ÷ warm": True,                                         # ×2.5
+        "replay 1 kHz: real-time ×": False, "replay 1 kHz: replay ÷ its I/O floor": True,
+        "replay husky: real-time ×": True, "node (median)": False,
+        "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol 1e-06 (auto:rk4)": True}
+    assert not any("MuJoCo" in f for f in got)                            # the peer report is older than the run
+    text = (tmp_path / "headline.md").read_text()
+    assert "| run default: cold ÷ warm | ×15.0 (60.0 s / 4.00 s) | ≤ ×3 | ✗ |" in text
+    assert text in capsys.readouterr().out

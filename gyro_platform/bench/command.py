@@ -14,7 +14,7 @@
 
 """``gyro-platform bench [WHAT]``: the benchmarks' command line (coldstart, consumer, peer,
 accuracy, hard, effects, hotpath, roughness, sweep; without WHAT: coldstart, consumer, roughness,
-then peer).
+then peer, and last the headline table of the four, :mod:`.headline`).
 
 ``coldstart`` (:mod:`.coldstart`): whole commands (``run default``, the husky replay, the DDS
 node's time to ready, a Dask worker's first run) on an empty kernel cache beside warm, and
@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import sys
+import time
 
 from .accuracy import accuracy
 from .consumer import consumer
@@ -101,6 +102,7 @@ def run(args) -> int:
         check_output_path(out, "--out")
     except OutputError as e:
         return _error(str(e))
+    t_run = time.time()                 # the headline takes the reports written from here on
     if args.what in ("default", "coldstart"):
         from .coldstart import coldstart
 
@@ -116,7 +118,12 @@ def run(args) -> int:
     if args.what in ("default", "peer"):
         from .peer_mujoco import peer
 
-        return peer(out, quick=args.quick, repeats=args.repeats, required=args.what == "peer")
+        rc = peer(out, quick=args.quick, repeats=args.repeats, required=args.what == "peer")
+        if args.what == "default":
+            from .headline import headline
+
+            headline(out, since=t_run)
+        return rc
     if args.what in ("default", "consumer", "roughness", "peer"):
         return 0
     if args.what == "accuracy":

@@ -1,0 +1,130 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The headline table of ``gyro-platform bench`` (no WHAT): one line per figure a user meets,
+as a ratio beside its target, gathered from the section reports of the same run (``coldstart``,
+``consumer``, ``roughness``, ``peer`` JSON in the output folder; a section not run is left
+out). Printed last and written to ``headline.md`` and ``headline.json``; the README's table is
+this table. Imports ``reports.jsonio`` only."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+import re
+from typing import Any
+
+from ..reports.jsonio import write_json
+
+__all__ = ["headline", "headline_rows", "table"]
+
+#: the bars (issue 31) the rows are held to
+COLD_MAX, FLOOR_MAX, ROUGH_MAX, PEER_MIN = 3.0, 2.0, 1.5, 10.0
+
+
+def _load(out_dir: Path, stem: str, since: float) -> dict | None:
+    """The report ``stem``, if written at or after ``since`` (s since the epoch): this run's."""
+    path = out_dir / f"{stem}.json"
+    try:
+        if path.stat().st_mtime < since:
+            return None
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _target_met(value: float, target: str) -> bool | None:
+    """``value`` against a consumer target text (``≥ 500×``, ``≤ 10 µs``); None if unparsed."""
+    m = re.match(r"\s*([≥≤])\s*([0-9.]+)", target or "")
+    if m is None:
+        return None
+    bound = float(m.group(2))
+    return value >= bound if m.group(1) == "≥" else value <= bound
+
+
+def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
+    """The rows of the reports in ``out_dir`` written since ``since`` (s since the epoch; an
+    older report, of a section this run left out, is not this run's): ``figure``, ``measured``
+    (text), ``value`` (the number held to the target), ``target`` (text) and ``met`` (True,
+    False, or None where there is no bar)."""
+    rows: list[dict[str, Any]] = []
+
+    def add(figure: str, measured: str, value: float | None, target: str = "", met: bool | None = None) -> None:
+        rows.append({"figure": figure, "measured": measured, "value": value, "target": target, "met": met})
+
+    cold = _load(out_dir, "coldstart", since)
+    for r in (cold or {}).get("rows", []):
+        if r.get("status") != "ok" or r.get("cold_s") is None or not r.get("warm_s"):
+            continue
+        if r["name"] == "compile":
+            add("set-up step `gyro-platform compile`, empty kernel cache", f"{r['cold_s']:.1f} s", r["cold_s"])
+            continue
+        ratio = r["cold_s"] / r["warm_s"]
+        add(f"{r['what']}: cold ÷ warm", f"×{ratio:.1f} ({r['cold_s']:.1f} s / {r['warm_s']:.2f} s)", ratio,
+            f"≤ ×{COLD_MAX:g}", ratio <= COLD_MAX)
+        after = (r.get("extra") or {}).get("after_setup_s")
+        if after is not None:
+            a = after / r["warm_s"]
+            add(f"{r['what']}: first run after the set-up step ÷ warm", f"×{a:.1f} ({after:.2f} s)", a,
+                f"≤ ×{COLD_MAX:g}", a <= COLD_MAX)
+    cons = _load(out_dir, "consumer", since)
+    for r in (cons or {}).get("rows", []):
+        if r.get("status") != "ok":
+            continue
+        extra = r.get("extra") or {}
+        if r.get("rtf") is not None and r["name"] != "sqlite3_floor":
+            add(f"{r['what']}: real-time ×", f"×{r['rtf']:.3g}", r["rtf"], r.get("target", ""),
+                _target_met(r["rtf"], r.get("target", "")))
+            over = extra.get("replay_over_floor")
+            if over is not None:
+                add(f"{r['what']}: replay ÷ its I/O floor", f"{over:.2f} (floor ×{extra.get('floor_rtf', 0):.3g})",
+                    over, f"≤ {FLOOR_MAX:g}", over <= FLOOR_MAX)
+        elif r["name"].startswith("node") and r.get("us_per_sample") is not None:
+            us = r["us_per_sample"]
+            add(r["what"], f"{us:.1f} µs", us, r.get("target", ""), _target_met(us, r.get("target", "")))
+    rough = _load(out_dir, "roughness", since)
+    for r in (rough or {}).get("rows", []):
+        add(f"vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol {r['rtol']:g} ({r['integrator']})",
+            f"×{r['ratio']:.2f} (errors {r['smooth_error']:.1e} / {r['vibrating_error']:.1e} rad)", r["ratio"],
+            f"≤ ×{ROUGH_MAX:g}", r["ratio"] <= ROUGH_MAX)
+    peer = _load(out_dir, "peer", since)
+    for sc in (peer or {}).get("scenes", []):
+        c = next((c for c in sc.get("comparison", []) if "ratio_kernel" in c), None)
+        if c is None:
+            continue
+        add(f"MuJoCo ÷ kernel CPU at equal accuracy, {sc['scene']} ({c['error_level']:.1e} rad)",
+            f"×{c['ratio_kernel']:.1f} (÷ consumer ×{c['ratio_consumer']:.2f})", c["ratio_kernel"],
+            f"≥ ×{PEER_MIN:g}", c["ratio_kernel"] >= PEER_MIN)
+    return rows
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """Markdown: figure, measured, target, ✓/✗."""
+    lines = ["| figure | measured | target | |", "|---|---|---|---|"]
+    for r in rows:
+        mark = "" if r["met"] is None else ("✓" if r["met"] else "✗")
+        lines.append(f"| {r['figure']} | {r['measured']} | {r['target']} | {mark} |")
+    return "\n".join(lines) + "\n"
+
+
+def headline(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
+    """Print the headline table of the reports in ``out_dir`` written since ``since``; write
+    ``headline.md`` and ``headline.json`` there (nothing when there is no such report)."""
+    rows = headline_rows(out_dir, since)
+    if not rows:
+        return rows
+    text = table(rows)
+    print("\nheadline (this run's figures; the README's table)\n" + text, end="")
+    (out_dir / "headline.md").write_text(text)
+    write_json(out_dir / "headline.json", {"rows": rows}, indent=1)
+    return rows
