@@ -354,5 +354,6 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
         "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol 1e-06 (auto:rk4)": True}
     assert not any("MuJoCo" in f for f in got)                            # the peer report is older than the run
     text = (tmp_path / "headline.md").read_text()
-    assert "| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s); ×1.1 | ≤ ×3 | ✗; ✓ |" in text
+    assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s); ×1.1 "
+            "| ≤ ×3 | ✗; ✓ |") in text
     assert text in capsys.readouterr().out
