@@ -119,12 +119,17 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
     assert "compiling" not in out, out
 
 
-def test_compile_refuses_a_scene_that_does_not_exist(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "gyro_platform", "compile", "--scene", "no_such_scene"], cwd=ROOT,
+@pytest.mark.parametrize("args, says", [(["--scene", "no_such_scene"], "no_such_scene"),
+                                        (["--jobs", "0"], "--jobs"),
+                                        (["--part", "1"], "--part"),                   # without --part-dir
+                                        (["--part", "7", "--part-dir", "."], "--part")])
+def test_compile_refuses_bad_arguments_in_one_line(tmp_path, args, says):
+    p = subprocess.run([sys.executable, "-m", "gyro_platform", "compile", *args], cwd=ROOT,
                        env=_cold_env(tmp_path), capture_output=True, text=True, timeout=120)
     assert p.returncode == 2, p.stderr
-    assert p.stderr.startswith("gyro-platform compile: error:") and "no_such_scene" in p.stderr
+    assert p.stderr.startswith("gyro-platform compile: error:") and says in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+    assert not (tmp_path / "numba").exists() or not any((tmp_path / "numba").rglob("*.nbc"))   # nothing compiled
 
 
 def test_package_kernels_cached_by_content_under_the_cache_dir(tmp_path, monkeypatch):

@@ -234,7 +234,10 @@ class _Notices(event.Listener):
                 self._print(f"{self.prog}: compiling the simulation kernels (first run of this version on this "
                             f"machine; cached in {cache_dir()} for later runs) …")
             while _first_compile:
-                _first_compile.pop(0)()
+                try:
+                    _first_compile.pop(0)()
+                except Exception:       # noqa: BLE001 - a callback's failure must not fail the compile
+                    pass
         self.depth += 1
 
     def on_end(self, ev) -> None:

@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the node's ROS 2 parameters file (default: the node's defaults)")
     parser.add_argument("--jobs", type=int, default=None, metavar="N",
                         help="processes compiling at once: 1, or 2 (the scene's kernels in one, the node's and the "
-                             "replay's in the other; default 2 on a machine of two or more cores)")
+                             "replay's in the other; more act as 2; default 2 on a machine of two or more cores)")
     parser.add_argument("--part", type=int, default=None, help=argparse.SUPPRESS)       # a second process's
     parser.add_argument("--part-dir", default=None, help=argparse.SUPPRESS)             # share (see run)
 
@@ -183,6 +183,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{prog}: error: --jobs must be 1 or more", file=sys.stderr)
         return EXIT_USAGE
     own = args.part is not None                 # a share of a parallel compile (see _start_part)
+    if own and (args.part_dir is None or not 1 <= args.part < len(parts([None, None], args.jobs))):
+        print(f"{prog}: error: --part is the second process's own (given with --part-dir by the first)",
+              file=sys.stderr)
+        return EXIT_USAGE
     work = Path(args.part_dir) if own else Path(tempfile.mkdtemp(prefix="gyro_platform_compile_"))
     try:
         try:
@@ -203,7 +207,11 @@ def run(args: argparse.Namespace) -> int:
 
         def start_the_others() -> None:         # this process compiles: the other parts beside it
             for k in range(1, len(shares)):
-                started[k] = _start_part(args, k, work)
+                try:
+                    started[k] = _start_part(args, k, work)
+                except OSError as e:            # not started: that part runs here, in turn
+                    print(f"{prog}: a second process could not start ({e}): one process", file=sys.stderr)
+                    return
             print(f"  ({len(started)} more process{'es' if len(started) > 1 else ''} compiling: "
                   + "; ".join(", ".join(w for w, _ in shares[k]) for k in started) + ")", flush=True)
 
