@@ -14,7 +14,8 @@
 
 """Output paths: :func:`check_output_path` refuses an unwritable output before a run, and
 :func:`write_failure` says which write errors are the disk's (full, read-only, size limit), not a
-bug. A leaf room: imports ``errors`` and the standard library."""
+bug; :func:`child_env`: the environment of a child ``python -m gyro_platform…`` that imports this
+very package. A leaf room: imports ``errors`` and the standard library."""
 import errno
 import os
 from pathlib import Path
@@ -22,6 +23,19 @@ import sqlite3
 import tempfile
 
 from .errors import OutputError
+
+#: the folder holding the gyro_platform package (a source tree or site-packages)
+PACKAGE_PARENT = Path(__file__).resolve().parents[1]
+
+
+def child_env(**extra: str) -> dict[str, str]:
+    """This process's environment with ``extra`` set and the folder holding this package first
+    on ``PYTHONPATH``: a child ``python -m gyro_platform…`` (the plot helper, the second compile
+    process, the benches' whole commands) imports this package, not another installed one."""
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT), env.get("PYTHONPATH")]))
+    return env
+
 
 #: OSError numbers of a write that cannot succeed (not a bug, not the input)
 WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES,

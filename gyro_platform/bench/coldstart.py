@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass, field
-import os
 from pathlib import Path
 import shutil
 import signal
@@ -54,6 +53,7 @@ import numpy as np
 
 from .bags import husky_bag, short_copy
 from .report import write_report
+from ..filesystem import child_env
 
 __all__ = ["ColdRow", "coldstart", "table", "TARGET_RATIO"]
 
@@ -92,9 +92,8 @@ class ColdRow:
 
 
 def _env(cache: Path) -> dict[str, str]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONUNBUFFERED="1")
+    env = child_env(NUMBA_CACHE_DIR=str(cache), PYTHONUNBUFFERED="1")
     env.pop("GYRO_PLATFORM_IN_TREE_CACHE", None)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     return env
 
 

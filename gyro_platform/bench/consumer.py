@@ -49,7 +49,6 @@ import contextlib
 from dataclasses import dataclass, field
 import io
 import json
-import os
 from pathlib import Path
 import shutil
 import subprocess
@@ -62,6 +61,7 @@ import numpy as np
 
 from .bags import cache_dir, cached_imu_bag, husky_bag, IMU_TOPIC, short_copy, vehicle_imu
 from .report import write_report
+from ..filesystem import child_env
 
 __all__ = ["Row", "add_floor", "consumer", "kernel_us", "replay_once", "node_us", "table", "TARGETS"]
 
@@ -166,10 +166,9 @@ def replay_once(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> dict:
 def replay_subprocess(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> float:
     """Wall seconds of the whole ``python -m gyro_platform replay BAG --out OUT --quiet …`` (start-up,
     imports, compiled-code loading, the plot: what a user waits for)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     cmd = [sys.executable, "-m", "gyro_platform", "replay", str(bag), "--out", str(out), "--quiet", *extra]
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, cwd=str(ROOT), env=env, capture_output=True, text=True)
+    r = subprocess.run(cmd, cwd=str(ROOT), env=child_env(), capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if r.returncode != 0:
         raise RuntimeError(f"replay exited {r.returncode}: {r.stderr.strip().splitlines()[-1:] or ''}")

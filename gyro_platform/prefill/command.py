@@ -50,7 +50,8 @@ import time
 from typing import Callable
 
 from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE
-from ..physics.jit import cache_dir, not_when_compiling, PACKAGE, quiet_compile_header, when_compiling
+from ..filesystem import child_env
+from ..physics.jit import cache_dir, not_when_compiling, quiet_compile_header, when_compiling
 from ..signals import Terminated
 
 __all__ = ["add_arguments", "parts", "run", "steps"]
@@ -156,9 +157,7 @@ def _start_part(args: argparse.Namespace, part: int, work: Path) -> subprocess.P
            "--part", str(part), "--part-dir", str(work)]
     if args.params_file:
         cmd += ["--params-file", args.params_file]
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE.parent), env.get("PYTHONPATH")]))
-    return subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL)
+    return subprocess.Popen(cmd, env=child_env(), stdin=subprocess.DEVNULL)
 
 
 def _stop_parts(children: list[subprocess.Popen], exc: BaseException | None) -> None:

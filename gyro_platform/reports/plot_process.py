@@ -24,17 +24,18 @@ until the PNG is written. Whatever goes wrong with the helper (it could not star
 killed, timed out, could not unpickle the job, failed to draw), :func:`draw` draws in this
 process instead, as without a helper: the plot never depends on it. The helper ignores SIGINT
 (a Ctrl-C stops the command in order, which then still plots) and exits at the end of its
-stdin (the command ended without a plot). May import ``recording`` only.
+stdin (the command ended without a plot). May import ``recording`` and ``filesystem`` only.
 """
 from __future__ import annotations
 
 import atexit
-import os
 from pathlib import Path
 import pickle
 import subprocess
 import sys
 from typing import Any
+
+from ..filesystem import child_env
 
 #: the longest wait for the helper's plot (s), after which it is killed and this process draws
 TIMEOUT_S = 120.0
@@ -47,12 +48,9 @@ def start() -> None:
     global _helper
     if _helper is not None:
         return
-    root = str(Path(__file__).resolve().parents[2])        # the folder holding gyro_platform
-    path = os.environ.get("PYTHONPATH")
-    env = dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))
     try:
         _helper = subprocess.Popen([sys.executable, "-m", "gyro_platform.reports.plot_process"], stdin=subprocess.PIPE,
-                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=child_env())
     except (OSError, ValueError):
         _helper = None
         return
