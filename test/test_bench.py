@@ -333,11 +333,11 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
          "extra": {"after_setup_s": 4.4}},
         {"name": "node", "what": "node", "status": "ok", "cold_s": 5.0, "warm_s": 2.0, "extra": {}}]})
     put("consumer", {"rows": [
-        {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "≥ 500×",
+        {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "replay_1khz",
          "us_per_sample": 4.0, "extra": {"replay_over_floor": 1.6, "floor_rtf": 400.0, "whole_command_rtf": 38.0}},
-        {"name": "replay_husky", "what": "replay husky", "status": "ok", "rtf": 520.0, "target": "≥ 300×",
+        {"name": "replay_husky", "what": "replay husky", "status": "ok", "rtf": 520.0, "target": "replay_husky",
          "us_per_sample": 60.0, "extra": {}},
-        {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "≤ 10 µs",
+        {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "node_median",
          "us_per_sample": 12.5, "extra": {}}]})
     put("roughness", {"rows": [{"rtol": 1e-6, "integrator": "auto:rk4", "ratio": 1.34, "smooth_error": 7e-11,
                                 "vibrating_error": 2e-10}]})
@@ -356,5 +356,6 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
     text = (tmp_path / "headline.md").read_text()
     assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s); ×1.1 "
             "| ≤ ×3 | ✗; ✓ |") in text
-    assert "| ×250 (whole command ×38); 1.60 (floor ×400) | ≥ 500×; ≤ 2 | ✗; ✓ |" in text
+    assert "| ×250 (whole command ×38); 1.60 (floor ×400) | ≥ ×500; ≤ ×2 | ✗; ✓ |" in text
+    assert "| node (median) | 12.5 µs | ≤ 10 µs | ✗ |" in text
     assert text in capsys.readouterr().out

@@ -52,13 +52,14 @@ from typing import Any
 import numpy as np
 
 from .bags import husky_bag, short_copy
+from .bars import BARS
 from .report import write_report
 from ..filesystem import child_env
 
-__all__ = ["ColdRow", "coldstart", "table", "TARGET_RATIO"]
+__all__ = ["ColdRow", "coldstart", "table"]
 
 #: the issue's bar: cold within this factor of warm
-TARGET_RATIO = 3.0
+TARGET = BARS["cold_over_warm"]
 ROOT = Path(__file__).resolve().parents[2]
 LOOPBACK_XML = ROOT / "config" / "cyclonedds_loopback.xml"
 NOTICE = "compiling the simulation kernels"
@@ -270,7 +271,7 @@ def _after(r: ColdRow) -> str:
     a = r.extra.get("after_setup_s")
     if a is None or not r.warm_s:
         return ""
-    ok = "✓" if a / r.warm_s <= TARGET_RATIO and not r.extra.get("after_setup_notice") else "✗"
+    ok = "✓" if TARGET.met(a / r.warm_s) and not r.extra.get("after_setup_notice") else "✗"
     return f"{a:.2f} (×{a / r.warm_s:.1f} {ok})"
 
 
@@ -289,16 +290,16 @@ def table(rows: list[ColdRow]) -> str:
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         if r.status != "ok":
-            lines.append(f"| {r.what} | {r.status} | | | ≤ ×{TARGET_RATIO:g} | | |")
+            lines.append(f"| {r.what} | {r.status} | | | {TARGET} | | |")
             continue
         if r.name == "compile":
             lines.append(f"| {r.what} | {r.cold_s:.2f} | {r.warm_s:.2f} | | | {'yes' if r.notice else 'no'} | |")
             continue
-        ok = "✓" if r.ratio is not None and r.ratio <= TARGET_RATIO else "✗"
+        ok = "✓" if TARGET.met(r.ratio) else "✗"
         cmd = ""
         if "cold_command_s" in r.extra:
             cmd = f" (whole command {r.extra['cold_command_s']:.1f} / {r.extra['warm_command_s']:.1f} s)"
-        lines.append(f"| {r.what}{cmd} | {r.cold_s:.2f} | {r.warm_s:.2f} | ×{r.ratio:.1f} | ≤ ×{TARGET_RATIO:g} {ok} "
+        lines.append(f"| {r.what}{cmd} | {r.cold_s:.2f} | {r.warm_s:.2f} | ×{r.ratio:.1f} | {TARGET} {ok} "
                      f"| {'yes' if r.notice else 'no'} | {_after(r)} |")
     return "\n".join(lines) + "\n"
 
@@ -327,7 +328,7 @@ def plot(rows: list[ColdRow], path: Path) -> None:
     ax.set_xlabel("wall seconds, whole command (lower is better)")
     ax.invert_yaxis()
     ax.legend(fontsize=8, loc="lower right")
-    ax.set_title(f"cold start beside warm (target: cold within ×{TARGET_RATIO:g} of warm)", fontsize=10)
+    ax.set_title(f"cold start beside warm (target: cold within ×{TARGET.bound:g} of warm)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -16,20 +16,18 @@
 as a ratio beside its target, gathered from the section reports of the same run (``coldstart``,
 ``consumer``, ``roughness``, ``peer`` JSON in the output folder; a section not run is left
 out). Printed last and written to ``headline.md`` and ``headline.json``; the README's table is
-this table. Imports ``reports.jsonio`` only."""
+this table. Each row is held to its bar of ``bars.BARS``. Imports ``bars`` and ``reports.jsonio``
+only."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
-import re
 from typing import Any
 
+from .bars import BARS
 from ..reports.jsonio import write_json
 
 __all__ = ["headline", "headline_rows", "table"]
-
-#: the bars (issue 31) the rows are held to
-COLD_MAX, FLOOR_MAX, ROUGH_MAX, PEER_MIN = 3.0, 2.0, 1.5, 10.0
 
 
 def _load(out_dir: Path, stem: str, since: float) -> dict | None:
@@ -43,15 +41,6 @@ def _load(out_dir: Path, stem: str, since: float) -> dict | None:
         return None
 
 
-def _target_met(value: float, target: str) -> bool | None:
-    """``value`` against a consumer target text (``≥ 500×``, ``≤ 10 µs``); None if unparsed."""
-    m = re.match(r"\s*([≥≤])\s*([0-9.]+)", target or "")
-    if m is None:
-        return None
-    bound = float(m.group(2))
-    return value >= bound if m.group(1) == "≥" else value <= bound
-
-
 def _mark(met) -> str:
     if met is None:
         return ""
@@ -63,13 +52,15 @@ def _mark(met) -> str:
 def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
     """The rows of the reports in ``out_dir`` written since ``since`` (s since the epoch; an
     older report, of a section this run left out, is not this run's): ``figure``, ``measured``
-    (text), ``value`` (the number held to the first target), ``target`` (text) and ``met``
+    (text), ``value`` (the number held to the first bar), ``target`` (the bars' text) and ``met``
     (True, False, None where there is no bar, or a list of them for a row of two figures)."""
     rows: list[dict[str, Any]] = []
 
     def add(figure: str, measured: str, value: float | None, target: str = "", met: Any = None) -> None:
         rows.append({"figure": figure, "measured": measured, "value": value, "target": target, "met": met})
 
+    keys = ("cold_over_warm", "replay_over_floor", "roughness", "peer")
+    cold_bar, floor_bar, rough_bar, peer_bar = (BARS[k] for k in keys)
     cold = _load(out_dir, "coldstart", since)
     for r in (cold or {}).get("rows", []):
         if r.get("status") != "ok" or r.get("cold_s") is None or not r.get("warm_s"):
@@ -81,35 +72,37 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
         after = (r.get("extra") or {}).get("after_setup_s")
         text = f"×{ratio:.1f} ({r['cold_s']:.1f} s / {r['warm_s']:.2f} s)"
         if after is None:
-            add(f"{r['what']}: cold ÷ warm", text, ratio, f"≤ ×{COLD_MAX:g}", ratio <= COLD_MAX)
+            add(f"{r['what']}: cold ÷ warm", text, ratio, str(cold_bar), cold_bar.met(ratio))
         else:
             a = after / r["warm_s"]
             add(f"{r['what']}: cold ÷ warm; after the set-up step ÷ warm", f"{text}; ×{a:.1f}", ratio,
-                f"≤ ×{COLD_MAX:g}", [ratio <= COLD_MAX, a <= COLD_MAX])
+                str(cold_bar), [cold_bar.met(ratio), cold_bar.met(a)])
     cons = _load(out_dir, "consumer", since)
     for r in (cons or {}).get("rows", []):
         if r.get("status") != "ok":
             continue
         extra = r.get("extra") or {}
-        target = r.get("target", "")
+        bar = BARS.get(r.get("target") or "")
+        target = "" if bar is None else str(bar)
+        met = (lambda v: None) if bar is None else bar.met
         if r.get("rtf") is not None and r["name"] != "sqlite3_floor":
             over = extra.get("replay_over_floor")
             whole = extra.get("whole_command_rtf")      # the command in a new process, start-up included
             rtf = f"×{r['rtf']:.3g}" + ("" if whole is None else f" (whole command ×{whole:.3g})")
             if over is None:
-                add(f"{r['what']}: real-time ×", rtf, r["rtf"], target, _target_met(r["rtf"], target))
+                add(f"{r['what']}: real-time ×", rtf, r["rtf"], target, met(r["rtf"]))
             else:
                 add(f"{r['what']}: real-time ×; replay ÷ its I/O floor",
                     f"{rtf}; {over:.2f} (floor ×{extra.get('floor_rtf', 0):.3g})", r["rtf"],
-                    f"{target}; ≤ {FLOOR_MAX:g}", [_target_met(r["rtf"], target), over <= FLOOR_MAX])
+                    f"{target}; {floor_bar}", [met(r["rtf"]), floor_bar.met(over)])
         elif r["name"].startswith("node") and r.get("us_per_sample") is not None:
             us = r["us_per_sample"]
-            add(r["what"], f"{us:.1f} µs", us, target, _target_met(us, target))
+            add(r["what"], f"{us:.1f} µs", us, target, met(us))
     rough = _load(out_dir, "roughness", since)
     for r in (rough or {}).get("rows", []):
         add(f"vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol {r['rtol']:g} ({r['integrator']})",
             f"×{r['ratio']:.2f} (errors {r['smooth_error']:.1e} / {r['vibrating_error']:.1e} rad)", r["ratio"],
-            f"≤ ×{ROUGH_MAX:g}", r["ratio"] <= ROUGH_MAX)
+            str(rough_bar), rough_bar.met(r["ratio"]))
     peer = _load(out_dir, "peer", since)
     for sc in (peer or {}).get("scenes", []):
         c = next((c for c in sc.get("comparison", []) if "ratio_kernel" in c), None)
@@ -117,7 +110,7 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
             continue
         add(f"MuJoCo ÷ kernel CPU at equal accuracy, {sc['scene']} ({c['error_level']:.1e} rad)",
             f"×{c['ratio_kernel']:.1f} (÷ consumer ×{c['ratio_consumer']:.2f})", c["ratio_kernel"],
-            f"≥ ×{PEER_MIN:g}", c["ratio_kernel"] >= PEER_MIN)
+            str(peer_bar), peer_bar.met(c["ratio_kernel"]))
     return rows
 
 

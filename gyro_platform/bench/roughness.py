@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .bags import vehicle_imu, VehicleImu
+from .bars import BARS
 from .report import write_report
 from ..engine.hardcases import engine_vibration
 from ..engine.simulator import Simulator
@@ -67,7 +68,7 @@ class RoughRow:
 
     @property
     def ratio(self) -> float:
-        """Right-hand sides per sample, vibrating ÷ smooth (the bar: ≤ 1.5)."""
+        """Right-hand sides per sample, vibrating ÷ smooth (its bar: ``bars.BARS["roughness"]``)."""
         return self.vibrating_rhs / self.smooth_rhs
 
 
@@ -142,7 +143,8 @@ def table(rows: list[RoughRow], duration: float) -> str:
     lines = [f"Input roughness ({duration:g} s of a 1 kHz vehicle IMU, smooth ÷ with a 37 Hz engine vibration; "
              "stabilised linear model, auto; error: largest gimbal or drift angle difference from RK4 at rtol "
              "1e-12)", "",
-             "| rtol | method | rhs/sample smooth | rhs/sample vibrating | vibrating ÷ smooth (bar ≤ 1.5) "
+             "| rtol | method | rhs/sample smooth | rhs/sample vibrating "
+             f"| vibrating ÷ smooth (bar {BARS['roughness']}) "
              "| steps/sample smooth / vibrating | rejected smooth / vibrating | error smooth / vibrating, rad |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
