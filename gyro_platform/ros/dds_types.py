@@ -75,6 +75,18 @@ _PRIMITIVES: dict[str, tuple[str, str]] = {
 _ONE_BYTE_UNSIGNED_IDL = ("byte", "char", "uint8")   # cyclonedds packs these arrays as bytes
 
 
+def _scalar_conv(name: str, byte: Callable[[Any], int]) -> Callable[[Any], Any]:
+    """Converter of one value of the ROS primitive ``name`` between rosbags and IDL objects;
+    ``byte``: the one for ``byte`` (int8 in rosbags, an octet in IDL: it differs by direction)."""
+    if name == "string":
+        return str
+    if name in ("float32", "float64"):
+        return float
+    if name == "bool":
+        return bool
+    return byte if name == "byte" else int
+
+
 class IdlTypes:
     """IDL classes for ROS message types, generated from a rosbags typestore, and conversions.
 
@@ -166,16 +178,7 @@ class IdlTypes:
 
         kind, args = desc
         if kind == Nodetype.BASE:
-            name, _ = args
-            if name == "string":
-                return str
-            if name in ("float32", "float64"):
-                return float
-            if name == "bool":
-                return bool
-            if name == "byte":
-                return lambda v: int(v) & 0xFF
-            return int
+            return _scalar_conv(args[0], lambda v: int(v) & 0xFF)        # IDL octet: 0…255
         if kind == Nodetype.NAME:
             return self.to_idl_fn(args)
         sub, n = args
@@ -204,16 +207,7 @@ class IdlTypes:
 
         kind, args = desc
         if kind == Nodetype.BASE:
-            name, _ = args
-            if name == "string":
-                return str
-            if name in ("float32", "float64"):
-                return float
-            if name == "bool":
-                return bool
-            if name == "byte":
-                return lambda v: (int(v) + 128) % 256 - 128
-            return int
+            return _scalar_conv(args[0], lambda v: (int(v) + 128) % 256 - 128)     # rosbags byte: int8
         if kind == Nodetype.NAME:
             return self.from_idl_fn(args)
         sub, _ = args
