@@ -302,6 +302,42 @@ def test_salvaged_mcap_blocks_are_the_row_by_row_rows(tmp_path, compression, dam
     assert isinstance(err, BagReadError) and 0 < len(ref) < len(rows)
 
 
+def _messages_in_whole_chunks(f, cut):
+    """Messages of an intact MCAP file whose chunk ends at or before byte ``cut`` (what a
+    salvage that drops the cut chunk reads)."""
+    from mcap.records import Message
+    from mcap.stream_reader import StreamReader
+
+    n = 0
+    with f.open("rb") as fh:
+        for rec in StreamReader(fh).records:       # a chunk's messages come when it is read whole
+            if isinstance(rec, Message) and fh.tell() <= cut:
+                n += 1
+    return n
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+@pytest.mark.parametrize("frac", [0.04, 0.6])
+def test_a_chunk_cut_by_the_end_of_the_file_gives_its_messages_before_the_cut(tmp_path, compression, frac):
+    """A recorder killed while writing a chunk (rosbag2's 768 KiB chunks; zstd and lz4 frames
+    decode block by block): the messages of the cut chunk's records before the cut are read
+    too, by the blocks and row by row alike, and are the bag's next rows byte for byte — also
+    when the cut falls in the first chunk, which holds the channels (before: no topic found)."""
+    rows = mixed_rows(12000)
+    f = write_mcap(tmp_path / "whole.mcap", rows, chunk_size=786432, compression=compression, index=False)
+    data = f.read_bytes()
+    cut = int(len(data) * frac)
+    g = tmp_path / "cut.mcap"
+    g.write_bytes(data[:cut])
+    ref, err = assert_same_rows(g, expect_source="salvage", max_rows=(5, 4096))
+    assert isinstance(err, BagReadError) and "cut chunk" in str(err)
+    assert [(t, raw) for _, t, raw in ref] == [(t, bytes(raw)) for _, _, t, raw in rows[:len(ref)]]
+    whole = _messages_in_whole_chunks(f, cut)
+    assert len(ref) > whole + 100, (len(ref), whole)     # more than a block's worth beyond the whole chunks
+    if frac < 0.1:
+        assert whole == 0
+
+
 def test_max_rows_must_be_positive(tmp_path):
     bag = write_rosbags(tmp_path / "b", mixed_rows(10), "sqlite3")
     with InputBag(bag) as b, pytest.raises(ValueError, match="max_rows"):

@@ -22,10 +22,13 @@ in file order up to the damage, then ``BagReadError`` names the file and where i
   chunks) and the replay's blocks (:meth:`Salvage.batches`) walk the top-level records by hand
   (message indexes skipped unread), check each chunk with rosbags' ``decompress`` (size, CRC)
   and walk its records with ``bag_fast``'s compiled passes, the rows left in the chunk's
-  buffer. :meth:`Salvage.messages` reads row by row through the ``mcap`` package's
-  :class:`mcap.stream_reader.StreamReader` (chunk CRCs checked; a short read turned into
-  "truncated" here, since its stream returns short data silently): the reference the blocks
-  are tested against (its Python objects per record cost ~35 µs a row).
+  buffer. The Chunk record the end of the file cuts (a recorder killed while writing it) is
+  read as far as it decompresses (:func:`cut_chunk_records`: unchecked, its CRC covering the
+  whole chunk), up to the first record the cut leaves incomplete. :meth:`Salvage.messages`
+  reads row by row through the ``mcap`` package's :class:`mcap.stream_reader.StreamReader`
+  (chunk CRCs checked; a short read turned into "truncated" here, since its stream returns
+  short data silently; the cut chunk's records parsed by it too): the reference the blocks are
+  tested against (its Python objects per record cost ~35 µs a row).
 * sqlite3: read by hand with the standard ``sqlite3`` module. rosbags (and rosbag2) open a
   ``.db3`` through its ``metadata.yaml``/schema checks and give up on a database whose header
   or pages are cut off; a read-only connection with ``writable_schema`` still reads its
@@ -192,7 +195,9 @@ class _ExactReads:
         pos = self.fh.tell()
         data = self.fh.read(n)
         if 0 < len(data) < n:
-            raise BagReadError(f"{self.f}: truncated record at offset {pos}: {len(data)} of {n} bytes")
+            err = BagReadError(f"{self.f}: truncated record at offset {pos}: {len(data)} of {n} bytes")
+            err.offset = pos                # (where the file ends inside a record: mcap_messages)
+            raise err
         return data
 
 
@@ -227,13 +232,21 @@ def mcap_records(f: Path) -> Iterator[Any]:
 
 #: MCAP opcodes (https://mcap.dev/spec): the records the salvage reads
 OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
+#: not an MCAP opcode: what :func:`top_records` yields for the Chunk record the end of the file cuts
+OP_CUT_CHUNK = 0x106
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: said of a cut chunk after the truncation
+CUT_CHUNK_NOTE = ("; the cut chunk's records before the cut were read, unchecked (its CRC covers the whole "
+                  "chunk)")
 
 
-def top_records(f: Path, want: frozenset[int]) -> Iterator[tuple[int, int, bytes]]:
+def top_records(f: Path, want: frozenset[int], cut_chunk: bool = False) -> Iterator[tuple[int, int, bytes]]:
     """(opcode, file offset, content) of the top-level records of an MCAP file whose opcode is
     in ``want``, in file order, the others skipped unread; stops at DataEnd or the footer;
-    BagReadError at a bad magic or a truncated record (what :func:`mcap_records` says)."""
+    BagReadError at a bad magic or a truncated record (what :func:`mcap_records` says).
+    ``cut_chunk``: a Chunk record the end of the file cuts (a recorder killed while writing it)
+    is yielded first as ``OP_CUT_CHUNK`` with the content up to the cut (:func:`cut_chunk_records`),
+    whether or not Chunk is in ``want``."""
     size = f.stat().st_size
     with f.open("rb") as fh:
         if fh.read(8) != MCAP_MAGIC:
@@ -249,7 +262,11 @@ def top_records(f: Path, want: frozenset[int]) -> Iterator[tuple[int, int, bytes
             if op in (OP_DATA_END, OP_FOOTER):
                 return
             if pos + 9 + n > size:
-                raise BagReadError(f"{f}: truncated record at offset {pos + 9}: {size - pos - 9} of {n} bytes")
+                why = f"{f}: truncated record at offset {pos + 9}: {size - pos - 9} of {n} bytes"
+                if cut_chunk and op == OP_CHUNK:
+                    yield OP_CUT_CHUNK, pos, fh.read(size - pos - 9)
+                    why += CUT_CHUNK_NOTE
+                raise BagReadError(why)
             if op in want:
                 yield op, pos, fh.read(n)
             else:
@@ -276,6 +293,39 @@ def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
         return np.frombuffer(decompress(c[p + 8:p + 8 + n], comp, usize, crc), np.uint8)
     except Exception as e:      # CRC or size mismatch, an unknown compression, garbled data
         raise BagReadError(f"{f}: corrupt record at offset {pos}: {type(e).__name__}: {e}") from None
+
+
+def cut_chunk_records(c: bytes) -> np.ndarray:
+    """The records of a Chunk record cut off by the end of the file (content ``c`` up to the
+    cut), as far as they decompress: zstd and lz4 frames decode block by block, so what the
+    blocks before the cut hold comes out (a prefix of the chunk's records); uncompressed records
+    are taken as they are. Unchecked (the chunk's size and CRC cover the whole chunk): the record
+    walk that follows ends at the first record the cut leaves incomplete. Empty when the cut
+    falls in the chunk's header or the compression is unknown."""
+    try:
+        usize = int.from_bytes(c[16:24], "little")
+        comp, p = _text(c, 28)
+        if len(c) < p + 8:
+            return _NO_RECORDS
+        data = c[p + 8:]
+        if comp == "zstd":
+            try:
+                from compression import zstd        # Python ≥ 3.14
+            except ImportError:
+                from backports import zstd          # rosbags' own dependency before 3.14
+            data = zstd.ZstdDecompressor().decompress(data)
+        elif comp == "lz4":
+            import lz4.frame
+
+            data = lz4.frame.LZ4FrameDecompressor().decompress(data)
+        elif comp != "":
+            return _NO_RECORDS
+    except Exception:           # a header cut inside its compression name, garbled compressed data
+        return _NO_RECORDS
+    return np.frombuffer(bytes(data[:usize]), np.uint8)
+
+
+_NO_RECORDS = np.zeros(0, np.uint8)
 
 
 def _spans(f: Path, pos: int, buf: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
@@ -326,11 +376,11 @@ def mcap_connections(f: Path) -> list[tuple[int, Any]]:
         )
 
     try:
-        for op, pos, c in top_records(f, frozenset((OP_SCHEMA, OP_CHANNEL, OP_CHUNK))):
-            if op != OP_CHUNK:
+        for op, pos, c in top_records(f, frozenset((OP_SCHEMA, OP_CHANNEL, OP_CHUNK)), cut_chunk=True):
+            if op not in (OP_CHUNK, OP_CUT_CHUNK):
                 record(op, c)
                 continue
-            buf = _chunk_buffer(f, pos, c)
+            buf = _chunk_buffer(f, pos, c) if op == OP_CHUNK else cut_chunk_records(c)
             ops, beg, end, why = _spans(f, pos, buf, want)
             raw = buf.tobytes()
             for o, a, b in zip(ops.tolist(), beg.tolist(), end.tolist()):
@@ -345,12 +395,38 @@ def mcap_connections(f: Path) -> list[tuple[int, Any]]:
 
 
 def mcap_messages(f: Path) -> Iterator[tuple[int, int, bytes]]:
-    """(channel id, log time ns, CDR bytes) in file order up to the damage, then BagReadError."""
-    from mcap.records import Message
+    """(channel id, log time ns, CDR bytes) in file order up to the damage, then BagReadError.
+    A chunk the end of the file cuts: the messages of its records before the cut, parsed by the
+    ``mcap`` package from :func:`cut_chunk_records` (the reference for :func:`mcap_batches`)."""
+    import io
 
-    for rec in mcap_records(f):
-        if isinstance(rec, Message):
-            yield rec.channel_id, rec.log_time, rec.data
+    from mcap.records import Message
+    from mcap.stream_reader import StreamReader
+
+    try:
+        for rec in mcap_records(f):
+            if isinstance(rec, Message):
+                yield rec.channel_id, rec.log_time, rec.data
+    except BagReadError as damage:
+        cut = None
+        try:
+            cut = next(((p, c) for op, p, c in top_records(f, frozenset(), cut_chunk=True) if op == OP_CUT_CHUNK),
+                       None)
+        except BagReadError:
+            pass
+        at = getattr(damage, "offset", None)
+        if cut is None or at is None or at < cut[0]:     # damage before the cut chunk (or none cut)
+            raise
+        buf = cut_chunk_records(cut[1]).tobytes()
+        records = StreamReader(_ExactReads(f, io.BytesIO(buf)), skip_magic=True).records
+        while True:
+            try:
+                rec = next(records)
+            except Exception:       # the record the cut leaves incomplete, or the end of the records
+                break
+            if isinstance(rec, Message):
+                yield rec.channel_id, rec.log_time, rec.data
+        raise BagReadError(str(damage) + CUT_CHUNK_NOTE) from None
 
 
 def mcap_batches(f: Path, lut: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
@@ -363,13 +439,13 @@ def mcap_batches(f: Path, lut: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndar
 
     sel = lut >= 0
     every = np.uint64(2 ** 64 - 1)
-    for op, pos, c in top_records(f, frozenset((OP_MESSAGE, OP_CHUNK))):
-        if op == OP_CHUNK:
-            raw = _chunk_buffer(f, pos, c)
+    for op, pos, c in top_records(f, frozenset((OP_MESSAGE, OP_CHUNK)), cut_chunk=True):
+        if op in (OP_CHUNK, OP_CUT_CHUNK):
+            raw = _chunk_buffer(f, pos, c) if op == OP_CHUNK else cut_chunk_records(c)
             err, at, n, ts, cid, beg, end = walk_records(raw, np.uint64(0), every, sel)
             if n:
                 yield lut[cid[:n]], ts[:n], RawRows(raw, beg[:n], end[:n])
-            if err:
+            if err and op == OP_CHUNK:      # (a cut chunk's walk ends at the cut: top_records says so next)
                 raise BagReadError(f"{f}: corrupt record at offset {pos}: {WALK_ERRORS[err]} at offset {at} "
                                    f"of its records")
         else:
