@@ -88,6 +88,9 @@ setup(
         "ruamel.yaml.clib>=0.2.7",  # rosbags reads metadata.yaml with ruamel: its C parser, 5x faster
         "apsw>=3.40",       # the sqlite3 output bag's writer (rosbags reads with it too)
         "mcap>=1.1",        # damaged-bag salvage: bags/salvage.py reads MCAP records in file order
+        # a cut MCAP chunk decompressed as far as it goes (bags/salvage.py); both are rosbags' own
+        "lz4>=4",
+        "backports.zstd>=1.0; python_version < '3.14'",     # from 3.14 the standard library's compression.zstd
         "tqdm>=4.60",       # replay progress bar
         "threadpoolctl>=3.1",  # one BLAS thread per process (engine/blas.py)
     ],

@@ -69,7 +69,12 @@ PROVIDERS = {
     "pandas": "python3-pandas",
     "pyarrow": PIP,
     "mujoco": PIP,
+    "lz4": PIP,
+    "backports": PIP,           # backports.zstd, before Python 3.14
 }
+#: standard-library modules of a later Python than some this package runs on (imported in a
+#: try/except beside their backport): compression.zstd from 3.14
+LATER_STDLIB = {"compression"}
 
 
 def _manifest():
@@ -85,7 +90,8 @@ def _imported_modules() -> set[str]:
                 names.update(a.name.split(".")[0] for a in node.names)
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
                 names.add(node.module.split(".")[0])
-    return {n for n in names if n not in sys.stdlib_module_names and n not in {"gyro_platform", "__future__"}}
+    return {n for n in names
+            if n not in sys.stdlib_module_names and n not in LATER_STDLIB and n not in {"gyro_platform", "__future__"}}
 
 
 def test_manifest_parses_as_colcon_reads_it():
