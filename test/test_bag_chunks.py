@@ -338,6 +338,57 @@ def test_a_chunk_cut_by_the_end_of_the_file_gives_its_messages_before_the_cut(tm
         assert whole == 0
 
 
+WAL_WRITER = """
+import os, sqlite3, sys
+c = sqlite3.connect(sys.argv[1])
+c.execute("PRAGMA journal_mode=WAL")
+c.execute("PRAGMA wal_autocheckpoint=0")
+rows = c.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id DESC LIMIT 50").fetchall()
+c.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)",
+              [(tid, t + 10**9, raw) for tid, t, raw in rows])
+c.commit()
+os._exit(0)                     # killed before closing: the transaction stays in the -wal file
+"""
+
+
+def test_a_write_ahead_log_left_beside_a_db3_is_said_not_silently_dropped(tmp_path):
+    """A recorder in SQLite's WAL mode (rosbag2's 'resilient' preset) killed before closing the
+    bag leaves its last transactions in ``<bag>.db3-wal``: rosbags (and so the reader) opens the
+    ``.db3`` immutable and does not read them. The reader says so, naming the log and how to
+    merge it; merged, the messages are read."""
+    import subprocess
+    import sys
+
+    rows = mixed_rows(300)
+    bag = write_rosbags(tmp_path / "wal", rows, "sqlite3")
+    (bag / "metadata.yaml").unlink()               # as a killed recorder leaves it: no metadata
+    db = next(bag.glob("*.db3"))
+    with InputBag(bag) as b:
+        assert not [w for w in b.warnings if "-wal" in w]      # none without a log
+    subprocess.run([sys.executable, "-c", WAL_WRITER, str(db)], check=True)
+    wal = db.with_name(db.name + "-wal")
+    assert wal.stat().st_size > 32
+    with InputBag(bag) as b:
+        said = [w for w in b.warnings if str(wal) in w]
+        assert len(said) == 1 and "not read" in said[0] and "wal_checkpoint" in said[0]
+    ref, err = read_messages(bag)
+    assert err is None and len(ref) == len(rows)               # the log's 50 are not in them
+    # a scene driven by the bag says it too (its summary's warnings)
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(f"name: wal\nmode: stabilised\nduration: 1\noutput_rate: 10\n"
+                     f"motion: {{type: bag, path: {bag}, topic: /imu}}\n")
+    cli.main(["run", str(scene), "--out", str(tmp_path / "run")])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert [w for w in summary["summary"]["warnings"] if str(wal) in w]
+    import sqlite3
+
+    sqlite3.connect(db).execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()    # the merge it names
+    with InputBag(bag) as b:
+        assert not [w for w in b.warnings if "-wal" in w]
+    ref, err = read_messages(bag)
+    assert err is None and len(ref) == len(rows) + 50
+
+
 def test_max_rows_must_be_positive(tmp_path):
     bag = write_rosbags(tmp_path / "b", mixed_rows(10), "sqlite3")
     with InputBag(bag) as b, pytest.raises(ValueError, match="max_rows"):

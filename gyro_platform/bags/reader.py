@@ -61,8 +61,9 @@ class InputBag:
     (non-ROS 2 profile, jsonschema/protobuf schemas) is read with the ``mcap`` package instead.
     Never read: channels whose messages are not CDR (``skipped_channels``: topic → reason)
     and connections of another type on the input topic (``skipped_input``: type → message
-    count; they are not merged into the input). ``warnings``: one line per such fact, for the
-    user. Use as a context manager.
+    count; they are not merged into the input), and the write-ahead log of a ``.db3`` left
+    beside it (:func:`wal_warning`). ``warnings``: one line per such fact, for the user. Use
+    as a context manager.
     """
 
     def __init__(self, path: str | Path, topic: str | None = None):
@@ -101,6 +102,8 @@ class InputBag:
         rb = rosbags_api()
         path = self.path = resolve_bag_path(self.path)
         self.storage = storage_of(path)
+        if self.storage == "sqlite3":
+            self.warnings += [w for w in map(wal_warning, storage_files(path)) if w]
         try:
             reader = rb["Reader"](reader_path(path))
             reader.open()
@@ -273,6 +276,28 @@ class InputBag:
     def deserialize(self, conn: Any, raw: bytes) -> Any:
         """CDR bytes → rosbags message object (raises on a corrupt payload)."""
         return self.store_for(conn).deserialize_cdr(raw, conn.msgtype)
+
+
+#: bytes of an SQLite write-ahead log's header: a longer log holds pages (frames)
+WAL_HEADER = 32
+
+
+def wal_warning(db: Path) -> str | None:
+    """The line to say when the SQLite database ``db`` has a non-empty write-ahead log beside
+    it (``<db>-wal``: a recorder in WAL mode, such as rosbag2's 'resilient' preset, stopped
+    without closing the bag): rosbags, and so this reader, opens the ``.db3`` immutable and
+    does not read the log, whose transactions (the last messages recorded) are then missing.
+    None when there is none."""
+    wal = db.with_name(db.name + "-wal")
+    try:
+        size = wal.stat().st_size
+    except OSError:
+        return None
+    if size <= WAL_HEADER:
+        return None
+    return (f"{wal}: a write-ahead log of {size} bytes beside the database (a recorder stopped without closing "
+            f"it): the messages in it are not read; merge it first by opening the bag once with SQLite, e.g. "
+            f"sqlite3 {db} 'PRAGMA wal_checkpoint(TRUNCATE)'")
 
 
 def typestore_for(conn: Any) -> Any:

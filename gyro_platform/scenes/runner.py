@@ -51,7 +51,8 @@ CHUNK = 4096                    # samples per push_block / rows per bag chunk
 
 class _Feed:
     """What a motion gave so far: samples simulated, the outcome counts (bag), the last
-    simulated sample's ``extra`` if it was not recorded, a read error after usable samples."""
+    simulated sample's ``extra`` if it was not recorded, a read error after usable samples,
+    the bag reader's warnings (``InputBag.warnings``)."""
 
     def __init__(self) -> None:
         self.n_in = 0
@@ -59,6 +60,7 @@ class _Feed:
         self.pending: dict[str, np.ndarray] | None = None
         self.error: str | None = None
         self.gate: TimeGate | None = None
+        self.bag_warnings: list[str] = []
 
 
 def synthetic_samples(scene: Scene) -> tuple[np.ndarray, ...]:
@@ -125,6 +127,7 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
     pipe.duration = scene.duration
     kw = {} if scene.motion.topic is None else {"topic": scene.motion.topic}
     with InputBag(scene.motion.path, **kw) as bag:
+        feed.bag_warnings = list(bag.warnings)
         pace = ChunkPacer(CHUNK)
         chunks = bag.chunks(CHUNK, input_only=True, pace=pace)
         while not pipe.stopped:
@@ -215,6 +218,7 @@ def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None
     warnings = list(summary.pop("notes", []))
     if scene.motion.is_bag:
         summary["bag"] = feed.counts
+        warnings += feed.bag_warnings       # skipped channels, a write-ahead log left unread …
         covered = summary.get("duration", 0.0) + 1.5 / scene.output_rate
         if error is None and covered < scene.duration:
             warnings.append(f"the bag ends {summary.get('duration', 0.0):.6g} s after its first usable sample, "
