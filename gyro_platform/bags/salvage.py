@@ -279,18 +279,24 @@ def _text(b: bytes, p: int) -> tuple[str, int]:
     return b[p + 4:p + 4 + n].decode(), p + 4 + n
 
 
+def _chunk_fields(c: bytes) -> tuple[int, int, str, int, int]:
+    """(uncompressed size, CRC, compression, offset of the records, their stored length) of a
+    Chunk record's content ``c`` (https://mcap.dev/spec#chunk-op0x06)."""
+    usize, crc = int.from_bytes(c[16:24], "little"), int.from_bytes(c[24:28], "little")
+    comp, p = _text(c, 28)
+    return usize, crc, comp, p + 8, int.from_bytes(c[p:p + 8], "little")
+
+
 def _chunk_buffer(f: Path, pos: int, c: bytes) -> np.ndarray:
     """The decompressed records of the Chunk record at file offset ``pos`` (content ``c``),
     its size and CRC checked (rosbags' ``decompress``); BagReadError if they do not hold."""
     from rosbags.rosbag2.storage_mcap import decompress
 
     try:
-        usize, crc = int.from_bytes(c[16:24], "little"), int.from_bytes(c[24:28], "little")
-        comp, p = _text(c, 28)
-        n = int.from_bytes(c[p:p + 8], "little")
-        if p + 8 + n > len(c):
+        usize, crc, comp, p, n = _chunk_fields(c)
+        if p + n > len(c):
             raise ValueError(f"records of {n} bytes run past the record's {len(c)}")
-        return np.frombuffer(decompress(c[p + 8:p + 8 + n], comp, usize, crc), np.uint8)
+        return np.frombuffer(decompress(c[p:p + n], comp, usize, crc), np.uint8)
     except Exception as e:      # CRC or size mismatch, an unknown compression, garbled data
         raise BagReadError(f"{f}: corrupt record at offset {pos}: {type(e).__name__}: {e}") from None
 
@@ -303,11 +309,10 @@ def cut_chunk_records(c: bytes) -> np.ndarray:
     walk that follows ends at the first record the cut leaves incomplete. Empty when the cut
     falls in the chunk's header or the compression is unknown."""
     try:
-        usize = int.from_bytes(c[16:24], "little")
-        comp, p = _text(c, 28)
-        if len(c) < p + 8:
+        usize, _, comp, p, _ = _chunk_fields(c)
+        if len(c) < p:
             return _NO_RECORDS
-        data = c[p + 8:]
+        data = c[p:]
         if comp == "zstd":
             try:
                 from compression import zstd        # Python ≥ 3.14
