@@ -141,7 +141,7 @@ class MessageTypes:
             pkg, sub, typ = name.split("/")
             return getattr(importlib.import_module(f"{pkg}.{sub}"), typ)
 
-        return cls(lookup, lambda v: array.array("d", (float(x) for x in v)))
+        return cls(lookup, lambda v: array.array("d", v))      # floats, a list or a numpy array
 
 
 _JAZZY = None

@@ -40,10 +40,12 @@ class InputLoss:
     counted at it); once ``CONFIRM`` singles confirm it, the steps of the window before it tell
     why it appeared:
 
-    * they are its multiples and differ by one or more of it: the period was hidden by losses —
-      the segment stays, counted at the new period from its first stamp;
-    * else the publisher sped up: the segment closes where the new rate began, counted at the
-      old period, and a new one starts there.
+    * they are a regular rate (¾ of them within half a period of their minimum) and not its
+      multiples: the publisher sped up — the segment closes where the new rate began, counted
+      at the old period, and a new one starts there;
+    * else the period was hidden by losses (its multiples, or the spread steps of an overload,
+      e.g. a node stalled at its start): the segment stays, counted at the new period from its
+      first stamp (and again at each shorter period learnt later).
 
     Exact stamps whose every step spans losses (no single ever, no drain): every ``WINDOW``
     steps, when the window's steps are spread, the largest step they are all multiples of (the
@@ -174,7 +176,7 @@ class InputLoss:
             if self._n >= self.CONFIRM and self._pending is None:
                 # sped up, or the period was hidden by losses: decided once the new one is
                 # confirmed; meanwhile the segment is counted at the new period
-                self._pending = (last, self._seg_steps - 1, self._current, list(self._sorted))
+                self._pending = (last, self._seg_steps - 1, self._current, list(self._sorted), ref)
             self._sum, self._n, self._ref, self._no_single = step, 1, float(step), 0
         elif step < self.SINGLE * ref:
             self._sum += step
@@ -187,14 +189,23 @@ class InputLoss:
             self._no_single += 1
 
     def _decide(self) -> None:
-        """The shorter period is confirmed: were the steps before it its multiples (losses hid
-        it: the segment stays, counted at it) or a regular slower rate (the publisher sped up:
-        the segment closes where the new rate began, with its count at the old period)?"""
-        at, steps_before, count_before, window = self._pending
+        """The shorter period is confirmed: were the steps before it a regular slower rate that
+        is not its multiples (the publisher sped up: the segment closes where the new rate
+        began, with its count at the old period), or its multiples or the spread steps of an
+        overload (losses hid it: the segment stays, counted at it)?"""
+        at, steps_before, count_before, window, old_ref = self._pending
         self._pending = None
-        if not self._multiples(window, self._ref):
+        if self._regular(window, old_ref) and not self._multiples(window, self._ref):
             self.closed += count_before
             self._seg_start, self._seg_steps = at, self._seg_steps - steps_before
+
+    @staticmethod
+    def _regular(srt: list[int], p: float) -> int:
+        """The sorted steps ``srt`` a regular rate of period ≈ ``p``: ¾ of them within half a
+        period of their minimum (not the spread steps of an overload)? The count of those
+        near the minimum if so, else 0."""
+        near = bisect_left(srt, srt[0] + 0.5 * p) if srt else 0
+        return near if near * 4 >= 3 * len(srt) else 0
 
     def _multiples(self, srt: list[int], p: float) -> bool:
         """Are the sorted steps ``srt`` multiples of ``p`` that differ (losses hid ``p``)?"""
@@ -228,10 +239,9 @@ class InputLoss:
 
     def _slowed_down(self, stamp_ns: int) -> None:
         """``WINDOW`` steps without a single: a regular slower rate starts a new segment there."""
-        srt, ref = self._sorted, self._ref
-        m = srt[0]
-        near = bisect_left(srt, m + 0.5 * ref)
-        if near * 4 < 3 * len(srt):
+        srt = self._sorted
+        near = self._regular(srt, self._ref)
+        if not near:
             self._no_single = 0            # spread: an overload, not a slower publisher
             return
         span = sum(self._steps)
