@@ -338,6 +338,28 @@ def test_a_chunk_cut_by_the_end_of_the_file_gives_its_messages_before_the_cut(tm
         assert whole == 0
 
 
+@pytest.mark.parametrize("compression", ["zstd", "lz4"])
+@pytest.mark.parametrize("tail", ["zeros", "random"])
+def test_a_cut_chunk_followed_by_garbage_still_gives_the_blocks_before_it(tmp_path, compression, tail):
+    """A power loss can leave the file's last bytes unwritten (zero-filled) or stale: the cut
+    chunk's compressed data then runs on into garbage, at which the decompressor stops. The
+    blocks before the garbage are read all the same (before: the whole cut chunk was lost —
+    here the first one, with the channels: "no readable topic")."""
+    rows = mixed_rows(12000)
+    f = write_mcap(tmp_path / "whole.mcap", rows, chunk_size=786432, compression=compression, index=False)
+    data = f.read_bytes()
+    cut = int(len(data) * 0.04)                       # inside the first chunk, and so is the garbage
+    assert _messages_in_whole_chunks(f, cut + 20000) == 0
+    (tmp_path / "clean.mcap").write_bytes(data[:cut])
+    garbage = bytes(20000) if tail == "zeros" else np.random.default_rng(4).bytes(20000)
+    g = tmp_path / "garbage.mcap"
+    g.write_bytes(data[:cut] + garbage)
+    clean, _ = read_messages(tmp_path / "clean.mcap")
+    ref, err = assert_same_rows(g, expect_source="salvage", max_rows=(5, 4096))
+    assert isinstance(err, BagReadError) and "cut chunk" in str(err)
+    assert len(ref) > 100 and ref == clean
+
+
 WAL_WRITER = """
 import os, sqlite3, sys
 c = sqlite3.connect(sys.argv[1])

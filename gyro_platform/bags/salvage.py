@@ -318,16 +318,40 @@ def cut_chunk_records(c: bytes) -> np.ndarray:
                 from compression import zstd        # Python ≥ 3.14
             except ImportError:
                 from backports import zstd          # rosbags' own dependency before 3.14
-            data = zstd.ZstdDecompressor().decompress(data)
+            data = _decoded_prefix(zstd.ZstdDecompressor, data)
         elif comp == "lz4":
             import lz4.frame
 
-            data = lz4.frame.LZ4FrameDecompressor().decompress(data)
+            data = _decoded_prefix(lz4.frame.LZ4FrameDecompressor, data)
         elif comp != "":
             return _NO_RECORDS
-    except Exception:           # a header cut inside its compression name, garbled compressed data
+    except Exception:           # a header cut inside its compression name
         return _NO_RECORDS
     return np.frombuffer(bytes(data[:usize]), np.uint8)
+
+
+def _decoded_prefix(decompressor: Any, data: bytes) -> bytes:
+    """What the longest prefix of the compressed ``data`` that decodes without an error gives
+    (a fresh ``decompressor()`` per try): all of it for a clean cut; for a cut followed by
+    garbage (a power loss that left the file's tail unwritten or zero-filled) the blocks before
+    the garbage, found by bisection (a prefix that fails makes every longer one fail)."""
+    try:
+        return decompressor().decompress(data)
+    except Exception:
+        pass
+    good, bad = 0, len(data)
+    while bad - good > 1:
+        mid = (good + bad) // 2
+        try:
+            decompressor().decompress(data[:mid])
+        except Exception:
+            bad = mid
+        else:
+            good = mid
+    try:
+        return decompressor().decompress(data[:good])
+    except Exception:
+        return b""
 
 
 _NO_RECORDS = np.zeros(0, np.uint8)
