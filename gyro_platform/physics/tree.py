@@ -91,6 +91,17 @@ def rot_axis(n, th, out):
 
 
 @njit(cache=True)
+def joint_rotation(jt, n, q, qi, out):
+    """out = R_pc of a joint of type ``jt``: Rot(n, q[qi]) for ``REVOLUTE``, else the identity."""
+    if jt == REVOLUTE:
+        rot_axis(n, q[qi], out)
+    else:
+        for a in range(3):
+            for b in range(3):
+                out[a, b] = 1.0 if a == b else 0.0
+
+
+@njit(cache=True)
 def _cross(a, b, out):
     """out = a × b (out must not alias a or b)."""
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -137,12 +148,7 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
             w[0, k] = w0[k]
     for i in range(1, nb):
         p = parent[i]
-        if jtype[i] == REVOLUTE:
-            rot_axis(axis[i], q[qidx[i]], R[i])
-        else:
-            for a in range(3):
-                for b in range(3):
-                    R[i, a, b] = 1.0 if a == b else 0.0
+        joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
         _matT_vec(R[i], w[p], tmp)
         rate = v[vidx[i]]
         for k in range(3):
@@ -167,12 +173,7 @@ def kinematics_rw(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w)
         w[0, k] = v[k] if root_dynamic else w0[k]
     for i in range(1, nb):
         p = parent[i]
-        if jtype[i] == REVOLUTE:
-            rot_axis(axis[i], q[qidx[i]], R[i])
-        else:
-            for a in range(3):
-                for b in range(3):
-                    R[i, a, b] = 1.0 if a == b else 0.0
+        joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
         rate = v[vidx[i]]
         t0 = R[i, 0, 0] * w[p, 0] + R[i, 1, 0] * w[p, 1] + R[i, 2, 0] * w[p, 2]
         t1 = R[i, 0, 1] * w[p, 0] + R[i, 1, 1] * w[p, 1] + R[i, 2, 1] * w[p, 2]
