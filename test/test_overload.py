@@ -260,3 +260,26 @@ def test_a_node_stalled_at_its_start_then_overloaded_counts_the_whole_span():
     loss = feed(InputLoss(), stamps, rx)
     assert loss.stamp_gaps == ks[-1] + 1 - len(ks)              # 945 (204 before the fix)
     assert loss.period_ns == pytest.approx(10**9 / 30, rel=1e-6)
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.01])
+def test_a_stalled_start_then_an_overload_is_counted_with_exact_and_jittered_stamps(jitter):
+    """30 Hz stamps (exact, or jittered ±1 % of the period), a node whose first callbacks are
+    slow (steps of 135, 334, 231 periods), then takes every 3rd to 12th sample, then drains its
+    queue: the whole span is counted (within 0.2 %) in each of eight runs. Before: −7 % in one
+    exact run (the shorter period learnt at a step of 3 or 4 taken for a publisher that sped up,
+    its steps regular-looking but whole periods apart), and up to +1.3 % / −7 % jittered (the
+    hidden period read from the smallest difference between groups of steps, off by the jitter,
+    so a long step's multiple was misread)."""
+    period = 10**9 / 30
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        ks = [0, 135, 469, 700]
+        while ks[-1] < 11000:
+            ks.append(ks[-1] + int(rng.integers(3, 13)))
+        ks += list(range(ks[-1] + 1, ks[-1] + 6))
+        stamps = [1000 * 10**9 + round((k + (rng.uniform(-jitter, jitter) if jitter else 0.0)) * period) for k in ks]
+        rx = [5 * 10**9 + k * 166_000 for k in ks]             # 6 kHz arrivals: no pause
+        loss = feed(InputLoss(), stamps, rx)
+        missing = ks[-1] - ks[0] + 1 - len(ks)
+        assert abs(loss.stamp_gaps - missing) <= 0.002 * missing, (seed, loss.stamp_gaps, missing)

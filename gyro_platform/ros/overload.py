@@ -40,16 +40,21 @@ class InputLoss:
     counted at it); once ``CONFIRM`` singles confirm it, the steps of the window before it tell
     why it appeared:
 
-    * they are a regular rate (¾ of them within half a period of their minimum) and not its
-      multiples: the publisher sped up — the segment closes where the new rate began, counted
-      at the old period, and a new one starts there;
-    * else the period was hidden by losses (its multiples, or the spread steps of an overload,
-      e.g. a node stalled at its start): the segment stays, counted at the new period from its
-      first stamp (and again at each shorter period learnt later).
+    * they are a regular rate (¾ of them within half a period of their minimum), neither its
+      multiples nor spread multiples of any shorter period (exact stamps of a node that takes
+      every 7th to 11th sample look regular, but their steps differ by whole periods): the
+      publisher sped up — the segment closes where the new rate began, counted at the old
+      period, and a new one starts there;
+    * else the period was hidden by losses (its multiples, the spread steps of an overload, e.g.
+      a node stalled at its start, or multiples of a period still hidden): the segment stays,
+      counted at the new period from its first stamp (and again at each shorter period learnt
+      later).
 
-    Exact stamps whose every step spans losses (no single ever, no drain): every ``WINDOW``
-    steps, when the window's steps are spread, the largest step they are all multiples of (the
-    smallest difference between their groups, divided by 1…4) becomes ``P`` if shorter.
+    Stamps whose every step spans losses (no single ever, no drain): every ``WINDOW`` steps, when
+    the window's steps are spread, the largest period they are all multiples of (the smallest
+    difference between their groups, divided by 1…4, refined as the least-squares period of the
+    steps, shortest first: exact for exact stamps, within the jitter's mean for jittered ones)
+    becomes ``P`` if shorter.
 
     A publisher that slows down: ``WINDOW`` steps in a row without a single, ¾ of them within
     half a period of the window's minimum (a regular rate, not the spread of an overload) — the
@@ -195,7 +200,8 @@ class InputLoss:
         overload (losses hid it: the segment stays, counted at it)?"""
         at, steps_before, count_before, window, old_ref = self._pending
         self._pending = None
-        if self._regular(window, old_ref) and not self._multiples(window, self._ref):
+        if (self._regular(window, old_ref) and not self._multiples(window, self._ref)
+                and self._base_period(window) is None):
             self.closed += count_before
             self._seg_start, self._seg_steps = at, self._seg_steps - steps_before
 
@@ -217,25 +223,32 @@ class InputLoss:
     def _hidden_period(self) -> None:
         """Every ``WINDOW`` steps: are the window's steps spread multiples of a period shorter
         than the nominal one (exact stamps, every step spanning losses: no single ever seen)?
-        The steps grouped (within 2 %), the smallest difference between groups divided by 1…4
-        is tried; the largest that every step is a multiple of becomes the period."""
-        srt, ref = self._sorted, self._ref
-        if srt[-1] - srt[0] < 0.3 * srt[0]:
-            return                         # a tight cluster: a regular rate
+        That period (:meth:`_base_period`) becomes the nominal one."""
+        p = self._base_period(self._sorted)
+        if p is not None and p * self.SINGLE < self._ref:
+            self._sum, self._n, self._ref, self._no_single = p, 1, p, 0
+            self._pending = None
+
+    def _base_period(self, srt: list[int]) -> float | None:
+        """The period the sorted steps ``srt`` are spread multiples of, None if they are not
+        (jittered stamps, or a tight cluster: a regular rate). The steps grouped (within 2 %),
+        the smallest difference between groups divided by 1…4 is tried (refined by
+        :func:`_fitted_period`); the largest that every step is a multiple of (the simplest
+        account)."""
+        if not srt or srt[-1] - srt[0] < 0.3 * srt[0]:
+            return None
         groups = [srt[0]]
         for x in srt:
             if x - groups[-1] > 0.02 * srt[0]:
                 groups.append(x)
         if len(groups) < 2:
-            return
+            return None
         d = min(b - a for a, b in zip(groups, groups[1:]))
         for j in (1, 2, 3, 4):
-            p = d / j
-            if self._multiples(srt, p):        # the largest such period (the simplest account)
-                if p * self.SINGLE < ref:
-                    self._sum, self._n, self._ref, self._no_single = p, 1, p, 0
-                    self._pending = None
-                return
+            p = _fitted_period(srt, d / j)
+            if p is not None and self._multiples(srt, p):
+                return p
+        return None
 
     def _slowed_down(self, stamp_ns: int) -> None:
         """``WINDOW`` steps without a single: a regular slower rate starts a new segment there."""
@@ -264,3 +277,21 @@ class InputLoss:
         self._last_rx = None
         self._seg_start, self._seg_steps = None, 0
         self._forget_period()
+
+
+def _fitted_period(srt: list[int], p: float) -> float | None:
+    """The period ``p`` (ns) refined over the sorted steps ``srt``, shortest first: each step's
+    multiple taken at the estimate so far, the estimate the least-squares period of
+    step = multiple × period (Σ steps / Σ multiples). With jittered stamps the smallest
+    difference between groups of steps is off by the jitter, and a long step's multiple taken at
+    it can be off by one (77 periods read as 78 at 0.7 % short); refined on the short steps
+    first it is not. None if a step is shorter than half the period."""
+    ss = sm = 0
+    for s in srt:
+        m = round(s / p)
+        if m < 1:
+            return None
+        ss += s
+        sm += m
+        p = ss / sm
+    return p
