@@ -195,9 +195,9 @@ class InputLoss:
 
     def _decide(self) -> None:
         """The shorter period is confirmed: were the steps before it a regular slower rate that
-        is not its multiples (the publisher sped up: the segment closes where the new rate
-        began, with its count at the old period), or its multiples or the spread steps of an
-        overload (losses hid it: the segment stays, counted at it)?"""
+        is neither its multiples nor spread multiples of a shorter period (the publisher sped
+        up: the segment closes where the new rate began, with its count at the old period), or
+        not (losses hid it: the segment stays, counted at it)?"""
         at, steps_before, count_before, window, old_ref = self._pending
         self._pending = None
         if (self._regular(window, old_ref) and not self._multiples(window, self._ref)
