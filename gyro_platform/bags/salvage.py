@@ -339,19 +339,16 @@ def _decoded_prefix(decompressor: Any, data: bytes) -> bytes:
         return decompressor().decompress(data)
     except Exception:
         pass
-    good, bad = 0, len(data)
+    good, bad, out = 0, len(data), b""          # out: what data[:good] gives
     while bad - good > 1:
         mid = (good + bad) // 2
         try:
-            decompressor().decompress(data[:mid])
+            part = decompressor().decompress(data[:mid])
         except Exception:
             bad = mid
         else:
-            good = mid
-    try:
-        return decompressor().decompress(data[:good])
-    except Exception:
-        return b""
+            good, out = mid, part
+    return out
 
 
 _NO_RECORDS = np.zeros(0, np.uint8)
