@@ -19,6 +19,7 @@ documented exit code; the package's kernels are cached by content under the user
 coldstart``), not a test's."""
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 import signal
@@ -26,6 +27,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from gyro_platform.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
@@ -234,6 +236,29 @@ def test_a_kernel_numba_cannot_cache_is_a_warning_not_a_crash():
                            fndesc=SimpleNamespace(qualname="kinematics"))
     with pytest.warns(NumbaWarning, match='Cannot cache compiled function "kinematics"'):
         assert cache._impl.check_cachable(cres) is False
+
+
+_LOADER = """
+import json, sys
+import numpy as np
+from gyro_platform.physics.rotations import quat_to_matrix
+R = np.empty((3, 3))
+quat_to_matrix(np.array([0.1, -0.2, 0.3, 0.9]), R)
+print(json.dumps({"R": [float(x) for x in np.ravel(R)], "refreshed": "numba.np.linalg" in sys.modules}))
+"""
+
+
+def test_a_cached_kernel_loads_without_numbas_registries_and_gives_the_compiled_result(tmp_path):
+    """A process that only loads cached kernels skips numba's refresh of its implementation
+    registries (``physics.jit._load_without_refresh``: ~0.25 s of every command's start) and
+    its kernels give what the compiling process's gave, bit for bit."""
+    env = _cold_env(tmp_path)
+    runs = [json.loads(subprocess.run([sys.executable, "-c", _LOADER], cwd=ROOT, env=env, capture_output=True,
+                                      text=True, check=True, timeout=300).stdout.splitlines()[-1]) for _ in range(2)]
+    assert runs[0]["refreshed"] and not runs[1]["refreshed"]     # compiled (numba refreshes), then loaded
+    assert runs[1]["R"] == runs[0]["R"]
+    R = np.reshape(runs[1]["R"], (3, 3))
+    assert np.allclose(R @ R.T, np.eye(3), atol=1e-12) and abs(np.linalg.det(R) - 1.0) < 1e-12
 
 
 _SAVER = """

@@ -19,12 +19,17 @@ exponential methods' stage matrices (``scipy.linalg.expm`` on 14 × 14 blocks). 
 threaded call the idle workers spin for ~2^28 cycles (OpenBLAS's thread timeout: ~0.1 s here)
 before they sleep: CPU the replay's reader and writer threads need on a 2-core machine, and
 13 µs per sample of a 10-s carried run's CPU time (etd4 28 → 14 µs, measured in session 7).
-:func:`limit_blas_threads` sets one thread per BLAS library through ``threadpoolctl`` (what
-scikit-learn and joblib use), once per process; the command line and the ROS node call it at
-start. Library users decide for their own process (the same call, or
-``OPENBLAS_NUM_THREADS=1``). Imports nothing of this package.
+:func:`limit_blas_threads` sets one thread in the BLAS libraries already loaded (NumPy's)
+through ``threadpoolctl`` (what scikit-learn and joblib use) and ``OPENBLAS_NUM_THREADS=1``
+for those loaded later (OpenBLAS reads it when it loads; this process's children inherit it): SciPy's, imported only when an exponential or implicit
+method first needs ``scipy.linalg`` (importing it here cost every command 0.36 s of start-up).
+Once per process; the command line and the ROS node call it at start. Library users decide for
+their own process (the same call, or ``OPENBLAS_NUM_THREADS=1``). Imports nothing of this
+package.
 """
 from __future__ import annotations
+
+import os
 
 __all__ = ["limit_blas_threads"]
 
@@ -32,17 +37,17 @@ _done = False
 
 
 def limit_blas_threads() -> bool:
-    """Use one thread in every BLAS library loaded (NumPy's, SciPy's); idempotent. False (and
-    nothing changed: only CPU is lost, no result differs) where ``threadpoolctl`` is missing."""
+    """Use one thread in every BLAS library loaded (NumPy's) and in those loaded later (SciPy's,
+    through ``OPENBLAS_NUM_THREADS``, which OpenBLAS reads when it loads); idempotent. False where ``threadpoolctl`` is missing (only the environment
+    variable is set then: only CPU is lost, no result differs)."""
     global _done
     if _done:
         return True
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return False
-    import scipy.linalg  # noqa: F401  (load SciPy's BLAS first: threadpoolctl limits loaded libraries)
-
     threadpool_limits(limits=1, user_api="blas")
     _done = True
     return True
