@@ -18,6 +18,7 @@ decodes back to the motion it was made from, the consumer rows go through the re
 report a missing bag as "not found", and bad benchmark options are refused."""
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -146,6 +147,16 @@ def test_replay_row_goes_through_the_command_and_counts_every_message(tmp_path):
     assert s["counts"]["in"] == 301 and s["counts"]["accepted"] == 301
     assert s["counts"]["out"] == 31                      # 100 Hz grid over 0.3 s, both ends
     assert s["real_time_factor"] > 0 and s["command_wall_s"] >= s["wall_time_s"]
+
+
+def test_whole_command_row_reports_the_wall_and_the_figure_the_new_process_prints(tmp_path):
+    """The subprocess run of the whole command: its wall time covers the replay the command
+    timed, and the real-time factor is the one that command wrote (its first replay)."""
+    path = bags.cached_imu_bag(0.3, "mcap")
+    wall, printed = consumer.replay_subprocess(path, tmp_path / "sub", ("--output-rate", "100", "--no-plot"))
+    summary = json.loads((tmp_path / "sub.summary.json").read_text())
+    assert summary["counts"]["in"] == 301
+    assert printed == summary["real_time_factor"] > 0 and 0 < summary["wall_time_s"] < wall
 
 
 def test_sqlite_floor_inserts_every_row_the_replay_wrote(tmp_path):
@@ -336,7 +347,7 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
         {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "replay_1khz",
          "us_per_sample": 4.0, "extra": {"replay_over_floor": 1.6, "floor_rtf": 400.0, "whole_command_rtf": 38.0}},
         {"name": "replay_husky", "what": "replay husky", "status": "ok", "rtf": 520.0, "target": "replay_husky",
-         "us_per_sample": 60.0, "extra": {}},
+         "us_per_sample": 60.0, "extra": {"whole_command_rtf": 110.0, "new_process_rtf": 330.0}},
         {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "node_median",
          "us_per_sample": 12.5, "extra": {}}]})
     put("roughness", {"rows": [{"rtol": 1e-6, "integrator": "auto:rk4", "ratio": 1.34, "smooth_error": 7e-11,
@@ -357,5 +368,6 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
     assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s); ×1.1 "
             "| ≤ ×3 | ✗; ✓ |") in text
     assert "| ×250 (whole command ×38); 1.60 (floor ×400) | ≥ ×500; ≤ ×2 | ✗; ✓ |" in text
+    assert "| replay husky: real-time × | ×520 (new process: prints ×330, whole command ×110) | ≥ ×300 | ✓ |" in text
     assert "| node (median) | 12.5 µs | ≤ 10 µs | ✗ |" in text
     assert text in capsys.readouterr().out
