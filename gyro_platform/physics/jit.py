@@ -70,25 +70,28 @@ PACKAGE = Path(__file__).resolve().parents[1]
 _FROM_IMPORT = re.compile(rb"^[ \t]*from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)", re.M)
 
 
-def _package_imports(path: Path, data: bytes) -> set[Path]:
-    """The package's own modules (files) that the module at ``path`` (source ``data``) imports
-    from (``from .x import y``, ``from . import y``, ``from gyro_platform.x import y``)."""
-    found: set[Path] = set()
+def _package_imports(path: str, data: bytes, files: frozenset[str]) -> set[str]:
+    """The package's own modules (of ``files``, absolute paths) that the module at ``path``
+    (source ``data``) imports from (``from .x import y``, ``from . import y``, ``from
+    gyro_platform.x import y``). Strings, not ``Path``: this runs at every process's start."""
+    found: set[str] = set()
     for m in _FROM_IMPORT.finditer(data):
         dots, module = len(m.group(1)), m.group(2).decode()
         if dots:
-            base = path.parents[dots - 1]
+            base = path
+            for _ in range(dots):
+                base = os.path.dirname(base)
         elif module.split(".")[0] == PACKAGE.name:
-            base = PACKAGE.parent
+            base = str(PACKAGE.parent)
         else:
             continue
-        stem = base.joinpath(*module.split(".")) if module else base
+        stem = os.path.join(base, *module.split(".")) if module else base
         names = [n.split()[0] for n in m.group(3).decode().strip("()").replace("\n", " ").split(",")
                  if n.split() and not n.split()[0].startswith("#")]
-        for cand in [stem] + [stem / n for n in names]:     # a module, or modules named in it
-            for f in (cand.with_suffix(".py"), cand / "__init__.py"):
-                if f.is_file():
-                    found.add(f.resolve())
+        for cand in [stem] + [os.path.join(stem, n) for n in names]:     # a module, or modules named in it
+            for f in (cand + ".py", os.path.join(cand, "__init__.py")):
+                if f in files:
+                    found.add(f)
     return found
 
 
@@ -97,17 +100,18 @@ def digest_sources() -> list[Path]:
     here) and every package module they import from, transitively. numba freezes a kernel's
     globals when it compiles, constants imported from other modules (the step controller's
     ``COARSEN``, ``SWITCH_MIN`` …) included, so a change there must give a new folder too."""
-    todo = [p.resolve() for p in PACKAGE.rglob("*.py")
-            if p.name != "jit.py" and b"jit import njit" in p.read_bytes()]
-    seen: set[Path] = set()
+    source = {str(p.resolve()): p.read_bytes() for p in PACKAGE.rglob("*.py")}
+    files = frozenset(source)           # membership, not a stat per candidate
+    todo = [p for p, data in source.items() if os.path.basename(p) != "jit.py" and b"jit import njit" in data]
+    seen: set[str] = set()
     while todo:
         p = todo.pop()
         if p in seen:
             continue
         seen.add(p)
-        todo.extend(_package_imports(p, p.read_bytes()) - seen)
-    seen.discard((PACKAGE / "physics" / "jit.py").resolve())
-    return sorted(seen)
+        todo.extend(_package_imports(p, source[p], files) - seen)
+    seen.discard(str((PACKAGE / "physics" / "jit.py").resolve()))
+    return sorted(map(Path, seen))
 
 
 def source_digest() -> str:
