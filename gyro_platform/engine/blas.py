@@ -21,8 +21,9 @@ before they sleep: CPU the replay's reader and writer threads need on a 2-core m
 13 µs per sample of a 10-s carried run's CPU time (etd4 28 → 14 µs, measured in session 7).
 :func:`limit_blas_threads` sets one thread in the BLAS libraries already loaded (NumPy's)
 through ``threadpoolctl`` (what scikit-learn and joblib use) and ``OPENBLAS_NUM_THREADS=1``
-for those loaded later (OpenBLAS reads it when it loads; this process's children inherit it): SciPy's, imported only when an exponential or implicit
-method first needs ``scipy.linalg`` (importing it here cost every command 0.36 s of start-up).
+for those loaded later (OpenBLAS reads it when it loads; this process's children inherit it):
+SciPy's, imported only when an exponential or implicit method first needs ``scipy.linalg``
+(importing it here cost every command 0.36 s of start-up).
 Once per process; the command line and the ROS node call it at start. Library users decide for
 their own process (the same call, or ``OPENBLAS_NUM_THREADS=1``). Imports nothing of this
 package.
@@ -38,8 +39,9 @@ _done = False
 
 def limit_blas_threads() -> bool:
     """Use one thread in every BLAS library loaded (NumPy's) and in those loaded later (SciPy's,
-    through ``OPENBLAS_NUM_THREADS``, which OpenBLAS reads when it loads); idempotent. False where ``threadpoolctl`` is missing (only the environment
-    variable is set then: only CPU is lost, no result differs)."""
+    through ``OPENBLAS_NUM_THREADS``, which OpenBLAS reads when it loads); idempotent. False
+    where ``threadpoolctl`` is missing (only the environment variable is set then: only CPU is
+    lost, no result differs)."""
     global _done
     if _done:
         return True
