@@ -175,6 +175,36 @@ def test_random_messages_are_byte_identical_to_rosbags_cdr(ros_type):
         assert_byte_identical(random_message(ros_type, rng))
 
 
+#: what the node command's own store (``messages.typedefs.core_typestore``) must carry: the wire
+#: types and those of TF and /robot_description
+NODE_TYPES = WIRE_TYPES + ("tf2_msgs/msg/TFMessage", "std_msgs/msg/String", m.QUATERNION_STAMPED)
+
+
+@pytest.mark.parametrize("ros_type", NODE_TYPES)
+def test_the_node_commands_small_store_sends_what_jazzys_store_sends(ros_type):
+    """``gyro-platform node --transport dds`` builds its IDL classes from the package's small
+    store, not rosbags' whole Jazzy store: the same DDS type names, type hashes and bytes."""
+    from gyro_platform.messages.typedefs import core_typestore
+
+    small = dds_types.IdlTypes(core_typestore())
+    assert small.type_hash(ros_type) == IDL.type_hash(ros_type) is not None
+    assert small.idl_class(ros_type).__idl_typename__ == IDL.idl_class(ros_type).__idl_typename__
+    rng = np.random.default_rng(zlib.crc32(ros_type.encode()) + 1)
+    for k in range(20):
+        msg = random_message(ros_type, rng, empty=k == 0)
+        assert small.serialize(msg, ros_type) == IDL.serialize(msg, ros_type)
+
+
+def test_the_node_command_does_not_build_jazzys_whole_store():
+    code = ("import os, sys\nfrom gyro_platform.cli import main\n"
+            "rc = main(['node', '--transport', 'dds', '--duration', '0.2', '--cyclonedds-config', sys.argv[1]])\n"
+            "print(rc, 'rosbags.typesys.stores.ros2_jazzy' in sys.modules)")
+    env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 80))
+    p = subprocess.run([sys.executable, "-c", code, str(LOOPBACK_XML)], cwd=ROOT, env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert p.stdout.split()[-2:] == ["0", "False"], p.stdout + p.stderr
+
+
 def test_zero_messages_for_the_warm_up_are_valid():
     for ros_type in WIRE_TYPES:
         assert_byte_identical(dds_types.zero_message(STORE, ros_type))

@@ -16,7 +16,8 @@
 rosbags typestore of them (:func:`core_typestore`).
 
 rosbags' full Jazzy store (:func:`gyro_platform.messages.jazzy_typestore`) defines some
-hundred types and costs ~0.1 s to build; a replay needs ~15 of them. ``DEFINITIONS`` holds
+hundred types and costs ~0.14 s to import; a replay needs ~15 of them, the plain-DDS node ~20
+(its TF, robot_description, reset and ROS graph discovery types too). ``DEFINITIONS`` holds
 their ``.msg`` text as rosbags' Jazzy store generates it (one level each, constants included);
 the store parsed from it gives the same message definitions, RIHS01 hashes, classes and CDR
 bytes for these types as the full store (tested type by type against rosbags' Jazzy store).
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 from typing import Any
 
-#: the input types (Imu, Twist, TwistStamped), the output types and what they contain
+#: the input types (Imu, Twist, TwistStamped), the output types, the plain-DDS node's own and what they contain
 DEFINITIONS: dict[str, str] = {
     "sensor_msgs/msg/Imu": (
         "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\nfloat64[9] orientation_covariance\n"
@@ -48,6 +49,19 @@ DEFINITIONS: dict[str, str] = {
         "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
         "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n"),
     "diagnostic_msgs/msg/KeyValue": "string key\nstring value\n",
+    # the plain-DDS node's own topics: TF, robot_description, ~/reset, ROS graph discovery
+    "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
+    "geometry_msgs/msg/TransformStamped": (
+        "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n"),
+    "geometry_msgs/msg/Transform": "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n",
+    "std_msgs/msg/String": "string data\n",
+    "std_msgs/msg/Empty": "",
+    "rmw_dds_common/msg/ParticipantEntitiesInfo": (
+        "rmw_dds_common/Gid gid\nrmw_dds_common/NodeEntitiesInfo[] node_entities_info_seq\n"),
+    "rmw_dds_common/msg/NodeEntitiesInfo": (
+        "string<=256 node_namespace\nstring<=256 node_name\nrmw_dds_common/Gid[] reader_gid_seq\n"
+        "rmw_dds_common/Gid[] writer_gid_seq\n"),
+    "rmw_dds_common/msg/Gid": "char[16] data\n",
 }
 
 _CORE = None
