@@ -196,7 +196,7 @@ def test_the_node_commands_small_store_sends_what_jazzys_store_sends(ros_type):
 
 
 def test_the_node_command_does_not_build_jazzys_whole_store():
-    code = ("import os, sys\nfrom gyro_platform.cli import main\n"
+    code = ("import sys\nfrom gyro_platform.cli import main\n"
             "rc = main(['node', '--transport', 'dds', '--duration', '0.2', '--cyclonedds-config', sys.argv[1]])\n"
             "print(rc, 'rosbags.typesys.stores.ros2_jazzy' in sys.modules)")
     env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 80))

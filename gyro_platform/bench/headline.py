@@ -89,9 +89,10 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
             over = extra.get("replay_over_floor")
             whole = extra.get("whole_command_rtf")      # the command in a new process, start-up included
             printed = extra.get("new_process_rtf")      # what that command reports (kernels loaded in it)
-            rtf = f"×{r['rtf']:.3g}" + ("" if whole is None else
-                                        f" (new process: prints ×{printed:.3g}, whole command ×{whole:.3g})"
-                                        if printed is not None else f" (whole command ×{whole:.3g})")
+            rtf = f"×{r['rtf']:.3g}"
+            if whole is not None:
+                prints = "" if printed is None else f"new process: prints ×{printed:.3g}, "
+                rtf += f" ({prints}whole command ×{whole:.3g})"
             if over is None:
                 add(f"{r['what']}: real-time ×", rtf, r["rtf"], target, met(r["rtf"]))
             else:
