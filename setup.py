@@ -18,8 +18,12 @@ Under ``colcon build`` (colcon sets ``COLCON=1``) the install step ends with
 ``gyro-platform compile``: the kernels of the default scene, the node and the replay compiled
 into the shared kernel cache, so that the first ``ros2 launch`` of the workspace loads them
 instead of compiling them (once per code version and machine; a later build loads them in a
-few seconds). ``GYRO_PLATFORM_COMPILE_ON_BUILD=0`` skips it; a failure is a warning only.
+few seconds). ``GYRO_PLATFORM_COMPILE_ON_BUILD=0`` skips it; a failure is a warning only. It
+also writes the package's bytecode (of the source tree, which a ``--symlink-install`` imports,
+and of a copied install) where ``PYTHONDONTWRITEBYTECODE=1`` would leave every process to
+compile each module from source.
 """
+import compileall
 from glob import glob
 import os
 import subprocess
@@ -51,10 +55,13 @@ def compile_kernels() -> None:
 
 
 class InstallThenCompile(install):
-    """``setup.py install`` (colcon build), then :func:`compile_kernels`."""
+    """``setup.py install`` (colcon build), the installed modules' bytecode (setuptools skips it
+    under ``PYTHONDONTWRITEBYTECODE``, and every process would then compile them from source),
+    then :func:`compile_kernels`."""
 
     def run(self):
         super().run()
+        compileall.compile_dir(os.path.join(self.install_lib, PACKAGE), quiet=2)
         compile_kernels()
 
 

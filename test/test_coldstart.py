@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+import shutil
 import signal
 import subprocess
 import sys
@@ -101,7 +102,7 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
                            capture_output=True, text=True, timeout=1800)
     assert setup.returncode == 0, setup.stdout + setup.stderr
     assert "compiling the simulation kernels" in setup.stderr
-    assert "4 of 4 steps" in setup.stdout, setup.stdout
+    assert "4 of 4 steps" in setup.stdout and "bytecode of" in setup.stdout, setup.stdout
     if (os.cpu_count() or 1) >= 2:              # cold: the node's and replay's kernels in a second process
         assert "1 more process compiling: node" in setup.stdout, setup.stdout
     again = subprocess.run([sys.executable, "-m", "gyro_platform", "compile"], cwd=ROOT, env=env,
@@ -119,6 +120,34 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
     _, out = time_to_line([sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--cyclonedds-config",
                            str(LOOPBACK_XML), "--domain-id", "88"], tmp_path / "numba", "ready:", timeout=300)
     assert "compiling" not in out, out
+
+
+def _code_objects(pkg: Path, env: dict) -> list[str]:
+    """What ``python -v`` says it loaded each module of ``pkg`` from, importing the replay."""
+    p = subprocess.run([sys.executable, "-v", "-c", "import gyro_platform.replay.loop"], cwd=pkg.parent, env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return [ln for ln in p.stderr.splitlines() if ln.startswith("# code object from") and str(pkg) in ln]
+
+
+def test_the_set_up_steps_bytecode_is_what_a_process_loads_where_it_may_not_write_bytecode(tmp_path):
+    """``PYTHONDONTWRITEBYTECODE=1`` (many container images and CI runners) on an editable or
+    symlinked install: every process compiles each module from source until ``gyro-platform
+    compile`` has written the bytecode (``write_bytecode``); then every module comes from it."""
+    from gyro_platform.prefill.command import write_bytecode
+
+    pkg = tmp_path / "gyro_platform"
+    shutil.copytree(ROOT / "gyro_platform", pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPATH": str(tmp_path)}
+    before = _code_objects(pkg, env)
+    assert len(before) > 20 and all(ln.endswith(".py") for ln in before), before[:3]   # from source
+    assert not list(pkg.rglob("*.pyc"))                                                # and nothing written
+    assert write_bytecode(pkg) == len(list(pkg.rglob("*.py")))
+    after = _code_objects(pkg, env)
+    assert len(after) == len(before) and all(ln.endswith(".pyc'") for ln in after), after[:3]
+    (pkg / "replay" / "loop.py").write_text((pkg / "replay" / "loop.py").read_text() + "\n# changed\n")
+    stale = [ln for ln in _code_objects(pkg, env) if "loop" in ln]
+    assert stale == [f"# code object from {pkg / 'replay' / 'loop.py'}"]       # a changed module: its source
 
 
 @pytest.mark.parametrize("args, says", [(["--scene", "no_such_scene"], "no_such_scene"),
