@@ -47,6 +47,7 @@ import os
 from pathlib import Path
 import re
 import sys
+import tempfile
 import threading
 import time
 
@@ -143,11 +144,15 @@ class PackageCacheLocator(caching._CacheLocator):
     """numba cache locator of the package's kernels: :func:`cache_dir`/<module folder>; the
     source stamp is the digest of the package's kernel sources (not the file's path or mtime)."""
 
-    def __init__(self, py_func, py_file):
+    #: (module file, cache folder) → the module's cache folder (str), or None when the file is not
+    #: the package's or its folder cannot be written: decided once per module, not per kernel
+    #: (~100 at a process's start)
+    _folders: dict[tuple[str, Path], str | None] = {}
+
+    def __init__(self, py_func, py_file, cache_path: str):
         self._lineno = py_func.__code__.co_firstlineno
         self._py_file = py_file             # numba's warning about an uncachable function names it
-        rel = Path(py_file).resolve().relative_to(PACKAGE)
-        self._cache_path = str(cache_dir() / rel.parent)
+        self._cache_path = cache_path
 
     def get_cache_path(self):
         return self._cache_path
@@ -158,20 +163,29 @@ class PackageCacheLocator(caching._CacheLocator):
     def get_disambiguator(self):
         return str(self._lineno)
 
+    @staticmethod
+    def _folder(py_file: str, base: Path) -> str | None:
+        try:
+            rel = Path(py_file).resolve().relative_to(PACKAGE)
+        except ValueError:
+            return None                     # not one of ours: numba's own locators
+        path = str(base / rel.parent)
+        try:                                # numba's ensure_cache_path: there, and writable
+            os.makedirs(path, exist_ok=True)
+            tempfile.TemporaryFile(dir=path).close()
+        except OSError:
+            return None                     # not writable: numba's own locators
+        return path
+
     @classmethod
     def from_function(cls, py_func, py_file):
         if os.environ.get("GYRO_PLATFORM_IN_TREE_CACHE") == "1":
             return None
-        try:
-            Path(py_file).resolve().relative_to(PACKAGE)
-        except ValueError:
-            return None                     # not one of ours: numba's own locators
-        self = cls(py_func, py_file)
-        try:
-            self.ensure_cache_path()
-        except OSError:
-            return None                     # not writable: numba's own locators
-        return self
+        key = (py_file, cache_dir())
+        path = cls._folders.get(key, False)
+        if path is False:
+            path = cls._folders[key] = cls._folder(*key)
+        return None if path is None else cls(py_func, py_file, path)
 
 
 if PackageCacheLocator not in caching.CacheImpl._locator_classes:
