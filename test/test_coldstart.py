@@ -138,7 +138,8 @@ def test_the_set_up_steps_bytecode_is_what_a_process_loads_where_it_may_not_writ
 
     pkg = tmp_path / "gyro_platform"
     shutil.copytree(ROOT / "gyro_platform", pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPATH": str(tmp_path)}
+    path = os.pathsep.join(p for p in (str(tmp_path), os.environ.get("PYTHONPATH")) if p)   # the copy first
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPATH": path}
     before = _code_objects(pkg, env)
     assert len(before) > 20 and all(ln.endswith(".py") for ln in before), before[:3]   # from source
     assert not list(pkg.rglob("*.pyc"))                                                # and nothing written
