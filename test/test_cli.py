@@ -466,6 +466,19 @@ def test_replay_progress_bar_on_a_terminal_only_and_not_with_quiet(tmp_path):
     assert code == 0 and "msg/s" not in shown and "%" not in shown, shown
 
 
+def test_a_replay_that_shows_no_bar_does_not_load_tqdm(tmp_path):
+    """Into a pipe (or with ``--quiet``) no bar is drawn, and tqdm (~40 ms with its lock) is not
+    imported inside the replay's clock."""
+    bag = small_bag(tmp_path / "in", seconds=1.0)
+    probe = ("import sys; from gyro_platform.replay import replay, ReplayConfig; "
+             "s = replay(sys.argv[1], sys.argv[2], ReplayConfig(plot=False)); "
+             "print(s['counts']['accepted'], s['error'], 'tqdm' in sys.modules)")
+    p = subprocess.run([PY, "-c", probe, str(bag), str(tmp_path / "o")], capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.split() == ["51", "None", "False"], p.stdout       # 51 samples replayed, tqdm not loaded
+
+
 # ---- a regular (non-editable) install finds its scenes --------------------------------------
 def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     """A real install into a fresh prefix, the way colcon installs an ament_python package
