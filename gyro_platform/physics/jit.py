@@ -47,7 +47,6 @@ import os
 from pathlib import Path
 import re
 import sys
-import tempfile
 import threading
 import time
 
@@ -163,16 +162,15 @@ class PackageCacheLocator(caching._CacheLocator):
     def get_disambiguator(self):
         return str(self._lineno)
 
-    @staticmethod
-    def _folder(py_file: str, base: Path) -> str | None:
+    @classmethod
+    def _folder(cls, py_func, py_file: str, base: Path) -> str | None:
         try:
             rel = Path(py_file).resolve().relative_to(PACKAGE)
         except ValueError:
             return None                     # not one of ours: numba's own locators
         path = str(base / rel.parent)
-        try:                                # numba's ensure_cache_path: there, and writable
-            os.makedirs(path, exist_ok=True)
-            tempfile.TemporaryFile(dir=path).close()
+        try:
+            cls(py_func, py_file, path).ensure_cache_path()     # numba's: made, and writable
         except OSError:
             return None                     # not writable: numba's own locators
         return path
@@ -184,7 +182,7 @@ class PackageCacheLocator(caching._CacheLocator):
         key = (py_file, cache_dir())
         path = cls._folders.get(key, False)
         if path is False:
-            path = cls._folders[key] = cls._folder(*key)
+            path = cls._folders[key] = cls._folder(py_func, *key)
         return None if path is None else cls(py_func, py_file, path)
 
 
