@@ -479,6 +479,26 @@ def test_a_replay_that_shows_no_bar_does_not_load_tqdm(tmp_path):
     assert p.stdout.split() == ["51", "None", "False"], p.stdout       # 51 samples replayed, tqdm not loaded
 
 
+def test_a_command_line_freezes_its_start_up_objects_and_a_library_call_does_not(tmp_path):
+    """The process's own command line moves the objects of its start-up (numpy, numba, the
+    command's modules: ~10⁵) to the collector's permanent generation before the command runs, so
+    that no full collection scans them again (4-7 % of a warm ``run`` or ``replay``, benchmarks
+    in docs/benchmarks.md); ``main(argv)`` called by a program leaves its collector alone."""
+    probe = ("import gc, sys; from gyro_platform.cli import main; import gyro_platform.scenes.command as c; "
+             "seen = []; run = c.run; c.run = lambda a: seen.append(gc.get_freeze_count()) or run(a); "
+             "lib = sys.argv[1] == 'library'; sys.argv[1:] = ['run', 'default', '--duration', '0.2', '--no-files']; "
+             "code = main(sys.argv[1:] if lib else None); print(code, seen[0])")
+    counts = {}
+    for how in ("command", "library"):
+        p = subprocess.run([PY, "-c", probe, how], cwd=tmp_path, capture_output=True, text=True, timeout=600,
+                           env={**os.environ, "PYTHONPATH": str(REPO)})
+        assert p.returncode == 0, p.stderr[-2000:]
+        code, frozen = p.stdout.split()[-2:]
+        assert code in ("0", "1"), p.stdout      # 1: 0.2 s is too short for the scene's expectations
+        counts[how] = int(frozen)
+    assert counts["command"] > 50_000 and counts["library"] == 0, counts
+
+
 # ---- a regular (non-editable) install finds its scenes --------------------------------------
 def test_non_editable_install_finds_scenes_from_any_folder(tmp_path):
     """A real install into a fresh prefix, the way colcon installs an ament_python package
