@@ -318,3 +318,59 @@ def test_processes_adding_signatures_of_one_kernel_at_once_keep_every_entry_and_
     keys = [(who, i) for who in "ab" for i in range(150)]
     assert sorted(cache._load_index()) == sorted(keys)
     assert all(cache.load(k) == k for k in keys)
+
+
+def test_a_cached_array_is_computed_once_and_a_damaged_or_unwritable_copy_is_computed_again(tmp_path, monkeypatch):
+    """``jit.cached_array``: the first call computes and keeps the array in the cache folder,
+    the next reads it (no compute); a damaged file, one of another shape or with a NaN is
+    computed again and rewritten; where the folder cannot be made the value is still returned."""
+    monkeypatch.setattr(jit, "cache_dir", lambda: tmp_path / "cache")
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return np.arange(6.0).reshape(2, 3) / 7.0
+
+    want = np.arange(6.0).reshape(2, 3) / 7.0
+    assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want) and len(calls) == 1
+    (path,) = (tmp_path / "cache" / "constants").glob("t-*.npy")
+    assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want) and len(calls) == 1   # read
+    assert np.array_equal(jit.cached_array("t", "other key", (2, 3), compute), want) and len(calls) == 2
+    for damage in (b"not an npy file", path.read_bytes()[:-8]):
+        path.write_bytes(damage)
+        assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want)
+        assert np.array_equal(np.load(path), want)                   # rewritten whole
+    np.save(path, np.full((2, 3), np.nan))
+    assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want)
+    np.save(path, np.zeros((3, 2)))
+    assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want)
+    assert len(calls) == 6 and not list(path.parent.glob("*.tmp"))
+    (tmp_path / "file").write_text("")
+    monkeypatch.setattr(jit, "cache_dir", lambda: tmp_path / "file" / "cache")   # cannot be made
+    assert np.array_equal(jit.cached_array("t", "k", (2, 3), compute), want) and len(calls) == 7
+
+
+_REST = """
+import json
+from gyro_platform.physics.model import kinematics, rest_matrices, _rest_matrices
+from gyro_platform.physics.params import NAV1
+M0, G0 = rest_matrices(NAV1)
+loaded = bool(kinematics.signatures)
+MG = _rest_matrices(NAV1)
+print(json.dumps({"tree_loaded": loaded, "equal": bool((M0 == MG[0]).all() and (G0 == MG[1]).all())}))
+"""
+
+
+def test_a_later_process_takes_the_rest_matrices_from_the_cache_without_loading_the_tree():
+    """The linear model's M0 and G0 (``model.rest_matrices``): a process after the one that
+    computed them reads them from the kernel cache, bit for bit the tree's, and loads none of
+    the tree kernels (~30-60 ms of a replay's or the node's start); parameters one ulp apart are
+    two keys."""
+    from gyro_platform.physics.model import _exact_key
+    from gyro_platform.physics.params import NAV1
+
+    runs = [json.loads(subprocess.run([sys.executable, "-c", _REST], cwd=ROOT, capture_output=True, text=True,
+                                      check=True, timeout=600).stdout.splitlines()[-1]) for _ in range(2)]
+    assert runs[1] == {"tree_loaded": False, "equal": True}, runs
+    assert runs[0]["equal"], runs
+    assert _exact_key(NAV1) != _exact_key(NAV1.with_(servo_kp=float(np.nextafter(NAV1.servo_kp, 2e3))))

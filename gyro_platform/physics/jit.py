@@ -36,7 +36,8 @@ main thread runs on a helper thread while the main thread waits, so that SIGINT/
 (``errors.StopSignals``) stop the command at once instead of after the compile (LLVM runs for
 seconds without returning to the interpreter); :func:`abandon_compiles_when` does the same for
 a worker thread (the replay's bag reader) whose consumer stops. :func:`cache_dir` is the folder
-in use.
+in use. :func:`cached_array` keeps a constant array the kernels computed (the linear model's rest
+matrices) in that folder beside them, so that a later process loads no kernel to get it.
 """
 from __future__ import annotations
 
@@ -49,16 +50,18 @@ import re
 import sys
 import threading
 import time
+from typing import Callable
 
 import numba
 from numba import njit  # noqa: F401  (re-exported: the kernel modules' decorator)
 from numba.core import caching, config, event
 from numba.core.dispatcher import Dispatcher
 from numba.core.runtime import rtsys
+import numpy as np
 
 from ..signals import StopSignals
 
-__all__ = ["njit", "cache_dir", "compile_notices", "quiet_compile_header", "when_compiling",
+__all__ = ["njit", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
            "not_when_compiling", "abandon_compiles_when", "CompileAbandoned",
            "PackageCacheLocator", "source_digest", "digest_sources"]
 
@@ -137,6 +140,35 @@ def cache_dir() -> Path:
     else:
         base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "gyro_platform" / "numba"
     return base / source_digest()
+
+
+def cached_array(name: str, key: str, shape: tuple[int, ...], compute: Callable[[], np.ndarray]) -> np.ndarray:
+    """``compute()`` (float64, ``shape``), kept in :func:`cache_dir`/constants as
+    ``<name>-<digest of key>.npy``: the folder's name is the digest of the kernels' code, ``key``
+    names the inputs exactly (e.g. the parameters' repr). A process that finds the file reads it
+    (~0.2 ms) instead of loading the kernels that compute it. A missing, damaged or foreign file
+    is computed again and rewritten (whole: written aside, then renamed); a folder that cannot be
+    written keeps nothing."""
+    path = cache_dir() / "constants" / f"{name}-{hashlib.sha256(key.encode()).hexdigest()[:20]}.npy"
+    try:
+        a = np.load(path, allow_pickle=False)
+        if a.shape == shape and a.dtype == np.float64 and np.isfinite(a).all():
+            return a
+    except (OSError, ValueError, EOFError):
+        pass
+    a = np.ascontiguousarray(compute(), dtype=np.float64)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "wb") as f:
+            np.save(f, a, allow_pickle=False)
+        os.replace(tmp, path)
+    except OSError:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+    return a
 
 
 class PackageCacheLocator(caching._CacheLocator):

@@ -36,12 +36,12 @@ servo integrals (3, rad s, stabilised).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
 
 import numpy as np
 
-from .jit import njit
+from .jit import cached_array, njit
 from .options import ModelOptions
 from .params import PlatformParams
 from .tree import BodyTree, generalised, kinematics, mass_matrix, newton_euler, REVOLUTE, ROOT, TreeWork
@@ -294,7 +294,26 @@ def check_precession_valid(p: PlatformParams, options: ModelOptions) -> None:
 
 def rest_matrices(p: PlatformParams) -> tuple[np.ndarray, np.ndarray]:
     """(M0, G0) of spec 6.3: mass matrix A*(0) and gyroscopic matrix (the ẋ-linear part of c
-    at q = 0, ẋ → 0), both 8×8 over (Ω1..3, α̇4, β̇5, β̇7, α̇9, β̇10), from the exact tree."""
+    at q = 0, ẋ → 0), both 8×8 over (Ω1..3, α̇4, β̇5, β̇7, α̇9, β̇10), from the exact tree.
+
+    A process's first call reads them from the kernel cache when an earlier process computed
+    them for the same parameters and code (``jit.cached_array``): the four tree kernels they
+    need (~30-60 ms to load) are then not loaded; once they are, computing (~0.2 ms) is cheaper
+    than a file and nothing more is written (a Monte Carlo sweep leaves one file per process)."""
+    if kinematics.signatures:
+        MG = _rest_matrices(p)
+    else:
+        MG = cached_array("rest_matrices", _exact_key(p), (2, 8, 8), lambda: _rest_matrices(p))
+    return MG[0].copy(), MG[1].copy()
+
+
+def _exact_key(p: PlatformParams) -> str:
+    """Every parameter's name and float64 bytes: equal keys, equal parameters (a repr may round)."""
+    return ";".join(f"{f.name}={np.asarray(getattr(p, f.name), dtype=float).tobytes().hex()}" for f in fields(p))
+
+
+def _rest_matrices(p: PlatformParams) -> np.ndarray:
+    """(M0, G0) stacked (2 × 8 × 8), computed on the tree."""
     tree = platform_tree(p, root_dynamic=True)
     wk = TreeWork(tree)
     q = np.zeros(5)
@@ -314,7 +333,7 @@ def rest_matrices(p: PlatformParams) -> tuple[np.ndarray, np.ndarray]:
                      tree.rotor_axis, L, v, np.zeros(8), np.zeros(3), wk.R, wk.w, False, True,
                      np.zeros((6, 3)), wk.wd, wk.f)
         generalised(tree.jtype, tree.axis, tree.vidx, True, wk.f, G0[:, j])
-    return M0, G0
+    return np.stack((M0, G0))
 
 
 # ---------------------------------------------------------------------------------------------
