@@ -61,7 +61,7 @@ from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, STEP_SLACK, SWI
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import view2
 from ..physics.effects import SUPPORT
-from ..physics.jit import njit
+from ..physics.jit import njit, plain
 from ..physics.rhs_linear import takes_linear_path
 from ..physics.switching import support_switch_passed, support_switch_time
 from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, model_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
@@ -639,7 +639,7 @@ class Engine:
         ih[J_MAX_LEVEL] = max_level
         ih[J_NLEV] = nlev
         #: the kernels' compile-time switches (block_kernel): None rules the code out
-        self.gen = None if takes_linear_path.py_func(system.fid == 1, iviews[I_I]) else 0
+        self.gen = None if plain(takes_linear_path)(system.fid == 1, iviews[I_I]) else 0
         self.expo = None if method == RK4 else 0
         if stepper is not None:
             fh[H_MAX_STEP], fh[H_RTOL], fh[H_ATOL] = stepper.max_step, stepper.rtol, stepper.atol

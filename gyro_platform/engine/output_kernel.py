@@ -40,7 +40,7 @@ from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXA
                       outputs_of_row)
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
-from ..physics.jit import njit
+from ..physics.jit import njit, plain
 from ..physics.options import NEEDS_SPECIFIC_FORCE
 from ..physics.rhs_linear import takes_linear_path
 from ..physics.rotations import (euler_xyz_into, euler_xyz_rates_into, matrix_rotvec_into, quat_to_matrix_at,
@@ -487,7 +487,7 @@ class OutputKernel:
         self.E = np.zeros(1 + system.layout.n)
         self.WK = np.zeros(work_size(system.layout.n, tree.nb, tree.nv, len(tree.rotor_host)))
         #: the kernels' compile-time switches (output_rows)
-        self.gen = None if takes_linear_path.py_func(system.fid == LINEAR, system.I) else 0
+        self.gen = None if plain(takes_linear_path)(system.fid == LINEAR, system.I) else 0
         self.carried = None if system.I[0, LAY_STAB] == 1 else 0
 
     def row(self, t: float, t_rel: float, n_steps: float, y: np.ndarray, seg: np.ndarray) -> Outputs:

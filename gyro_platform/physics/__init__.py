@@ -19,6 +19,7 @@ rigid-body tree (``tree``: kinematics, mass matrix, recursive Newton–Euler), t
 geometry and its three fidelities (``model``), the switchable effects (``effects``), the model
 options (``options``: mode, fidelity, effects, integrator settings), the platform as an ODE
 system over one input interval (``system``), the kinks of its right-hand side (``switching``) and
-the single gimballed gyro (``gyro``). May import
-only ``errors``: it knows nothing of integrators' bookkeeping, files or ROS.
+the single gimballed gyro (``gyro``), and how its kernels are compiled and cached (``jit``: the
+one module that touches files, the kernel cache and the constants kept beside it). May import
+only ``errors`` and ``signals``: it knows nothing of integrators' bookkeeping, bags or ROS.
 """

@@ -61,7 +61,7 @@ import numpy as np
 
 from ..signals import StopSignals
 
-__all__ = ["njit", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
+__all__ = ["njit", "plain", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
            "not_when_compiling", "abandon_compiles_when", "CompileAbandoned",
            "PackageCacheLocator", "source_digest", "digest_sources"]
 
@@ -142,10 +142,16 @@ def cache_dir() -> Path:
     return base / source_digest()
 
 
+def plain(kernel: Callable) -> Callable:
+    """The Python function of a kernel (its ``py_func``: run by the interpreter, nothing to
+    compile, for a few calls at set-up); the kernel itself under ``NUMBA_DISABLE_JIT=1``."""
+    return getattr(kernel, "py_func", kernel)
+
+
 def cached_array(name: str, key: str, shape: tuple[int, ...], compute: Callable[[], np.ndarray]) -> np.ndarray:
     """``compute()`` (float64, ``shape``), kept in :func:`cache_dir`/constants as
     ``<name>-<digest of key>.npy``: the folder's name is the digest of the kernels' code, ``key``
-    names the inputs exactly (e.g. the parameters' repr). A process that finds the file reads it
+    names the inputs exactly (e.g. the parameters' float64 bytes). A process that finds the file reads it
     (~0.2 ms) instead of loading the kernels that compute it. A missing, damaged or foreign file
     is computed again and rewritten (whole: written aside, then renamed); a folder that cannot be
     written keeps nothing."""

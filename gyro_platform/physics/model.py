@@ -300,7 +300,7 @@ def rest_matrices(p: PlatformParams) -> tuple[np.ndarray, np.ndarray]:
     them for the same parameters and code (``jit.cached_array``): the four tree kernels they
     need (~30-60 ms to load) are then not loaded; once they are, computing (~0.2 ms) is cheaper
     than a file and nothing more is written (a Monte Carlo sweep leaves one file per process)."""
-    if kinematics.signatures:
+    if getattr(kinematics, "signatures", True):     # loaded (or NUMBA_DISABLE_JIT: nothing to load)
         MG = _rest_matrices(p)
     else:
         MG = cached_array("rest_matrices", _exact_key(p), (2, 8, 8), lambda: _rest_matrices(p))

@@ -28,7 +28,7 @@ from numba.extending import overload
 import numpy as np
 
 from . import effects as fx
-from .jit import njit
+from .jit import njit, plain
 from .model import (check_precession_valid, LAY_NV, LAY_OM, LAY_QD, LAY_QIB, LAY_QIP, LAY_STAB, LAY_Z,
                     linear_coefficients, linear_gimbal_accel, LOCK_COS, platform_tree, precession_rates, rest_matrices,
                     seg_at, SEG_DT, SEG_F0, SEG_F1, SEG_N, seg_slope, SEG_T0, SEG_W0, SEG_W1, spin_momentum,
@@ -520,7 +520,7 @@ class PlatformSystem:
         """Use ``I`` (same values) as the int table and re-derive the named views of ``I`` and
         ``P`` (after ``P`` was replaced by an equal array elsewhere, e.g. a packed buffer)."""
         self.I = I
-        self.lay, self.on, _, _, _, _, self.k, self.L, self.lc, self.w_IN = unpack_tables.py_func(I, self.P, 0)
+        self.lay, self.on, _, _, _, _, self.k, self.L, self.lc, self.w_IN = plain(unpack_tables)(I, self.P, 0)
 
     # ---- input -------------------------------------------------------------------------
     def set_input(self, t0: float, t1: float, w0, w1, f0=None, f1=None) -> None:

@@ -84,6 +84,7 @@ from .gate_rules import (ACCEPT, ACCEPT_REASONS, Action, ACTION_CODE, Decision, 
                          ROW_NON_FINITE, ROW_OK, ROW_OVER_RATE, ROW_REASONS, row_verdict)
 from ..engine.inputs import RateSample
 from ..messages import Reading, Rejected
+from ..physics.jit import plain
 
 if TYPE_CHECKING:
     from ..messages.blocks import RateBlock
@@ -94,7 +95,7 @@ __all__ = ["TimeGate"]
 _A_ACCEPT, _A_DROP, _A_RESET = Action.ACCEPT, Action.DROP, Action.RESET
 #: the row rule's own source, run by Python: a per-message call of the compiled dispatcher costs more
 #: (~0.3 µs) than the rule; the block pass runs the compiled ``row_verdict`` (one source, two runners)
-_verdict = row_verdict.py_func
+_verdict = plain(row_verdict)
 
 
 @dataclass
