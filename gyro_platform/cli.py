@@ -140,6 +140,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
+    from .engine.blas import limit_blas_threads
+    limit_blas_threads()        # small matrices: one BLAS thread (engine.blas); before NumPy loads, whose
+    #                             OpenBLAS then starts no worker threads (its import 0.10 -> 0.05 s)
     words = sys.argv[1:] if argv is None else argv
     if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
         from .reports import plot_process
@@ -155,8 +158,6 @@ def _main(argv: list[str] | None) -> int:
         print(f"gyro-platform {args.command}: error: unavailable: {err}", file=sys.stderr)
         return EXIT_USAGE
     prog = f"gyro-platform {args.command}"
-    from .engine.blas import limit_blas_threads
-    limit_blas_threads()                            # small matrices: one BLAS thread (engine.blas)
     if argv is None:                                # the process's own command line (not a library call)
         from .physics.jit import compile_notices
         compile_notices(prog)                       # kernels compiling: said on stderr, interruptible
