@@ -549,3 +549,28 @@ def test_chunks_end_at_their_payload_bound(tmp_path, storage, monkeypatch):
     assert len(got) > 5 and max(sizes) <= 100_000
     assert [r for c in got for r in c.raws] == [r for c in plain for r in c.raws]
     np.testing.assert_array_equal(np.concatenate([c.ts for c in got]), np.concatenate([c.ts for c in plain]))
+
+
+def test_chunk_pacer_told_the_total_tapers_to_a_small_last_chunk():
+    """With the bag's row count, no chunk is above half of what is left, so the last one (whose
+    writing nothing overlaps) is small; a count short of the rows stops the tapering."""
+    from gyro_platform.pipeline.pacing import ChunkPacer
+
+    def sizes(pacer: ChunkPacer, rows: int) -> list[int]:
+        out, left = [], rows
+        while left:
+            n = min(pacer(), left)
+            pacer.took(n)
+            pacer.observe(n, n * 1e-6)       # 1 µs a row: grows to max_rows
+            out.append(n)
+            left -= n
+        return out
+
+    got = sizes(ChunkPacer(32768, total=120_001), 120_001)
+    assert sum(got) == 120_001 and max(got) == 32768
+    assert got[-1] <= ChunkPacer.START_ROWS and got[-2] <= 2 * ChunkPacer.START_ROWS
+    tail = got[got.index(max(got)) + 1:]
+    assert all(b <= a for a, b in zip(tail, tail[1:]))           # shrinking to the end
+    assert len(got) <= len(sizes(ChunkPacer(32768), 120_001)) + 12   # a few more chunks only
+    short = sizes(ChunkPacer(32768, total=1000), 120_001)          # the count says 1000
+    assert sum(short) == 120_001 and short[-2] == 32768           # beyond it: full-size chunks again

@@ -74,16 +74,28 @@ class ChunkPacer:
     row costs (signals are taken and outputs committed between chunks; a slow model — full tree,
     micro-steps — must not hold a Ctrl-C or the output for many seconds). Starts at
     ``START_ROWS``, grows at most 4× a chunk, never above ``max_rows`` or below ``START_ROWS``.
-    Call it for the size; ``observe(rows, seconds)`` after each chunk."""
+    Call it for the size; ``observe(rows, seconds)`` after each chunk. Given the ``total`` rows
+    and told each chunk taken (``took(rows)``, where chunks are read), no chunk is above half of
+    what is left: the chunks taper at the end, so that the last one, whose writing nothing
+    overlaps, is small (a 32768-row last chunk held the replay's end ~12-16 ms). A ``total`` that
+    turns out short (a bag's metadata counting fewer rows than it holds) stops the tapering."""
 
     START_ROWS = 64
 
-    def __init__(self, max_rows: int, target: float = 0.25) -> None:
+    def __init__(self, max_rows: int, target: float = 0.25, total: int | None = None) -> None:
         self.max_rows, self.target = int(max_rows), float(target)
         self.min_rows = self.rows = min(self.START_ROWS, self.max_rows)
+        self.total = total
+        self.taken = 0
 
     def __call__(self) -> int:
-        return self.rows
+        if self.total is None or self.taken >= self.total:      # (a count short of the rows: as untold)
+            return self.rows
+        return min(self.rows, max(self.min_rows, (self.total - self.taken + 1) // 2))
+
+    def took(self, rows: int) -> None:
+        """A chunk of ``rows`` rows was taken (the thread that reads the chunks)."""
+        self.taken += rows
 
     def observe(self, rows: int, seconds: float) -> None:
         """The chunk just done had ``rows`` rows and took ``seconds`` s."""

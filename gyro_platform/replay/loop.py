@@ -234,11 +234,20 @@ class _Run:
                         self._message(conn, ts, raw)
                     progress.update()
             else:
-                pace = ChunkPacer(self.cfg.chunk_rows)     # ~0.25 s a chunk, however slow the model
+                # ~0.25 s a chunk however slow the model; into MCAP smaller towards the bag's end
+                # (into SQLite, whose writing the replay waits for anyway, each chunk more is one
+                # transaction more: 2-3 % slower on the 120 s 1 kHz bag, where MCAP gains 4-6 %)
+                taper = self.bag.message_count if self.out.storage == "mcap" else None
+                pace = ChunkPacer(self.cfg.chunk_rows, total=taper)
                 chunks = self.bag.chunks(self.cfg.chunk_rows, pace=pace)
+
+                def decoded(chunk: Any) -> list:
+                    pace.took(len(chunk.ts))
+                    return list(self.pipeline.decode(self.bag, chunk))
+
                 # the next chunk read and decoded on a reader thread while this one is simulated,
                 # the one before written on the writer thread (_handoff)
-                with closing(prefetched(chunks, lambda c: list(self.pipeline.decode(self.bag, c)))) as feed:
+                with closing(prefetched(chunks, decoded)) as feed:
                     for chunk, parts in feed:
                         t0 = time.perf_counter()
                         with deferred_signals():    # a signal stops between chunks: what is
