@@ -236,7 +236,7 @@ class _Run:
             else:
                 # ~0.25 s a chunk however slow the model; into MCAP smaller towards the bag's end
                 # (into SQLite, whose writing the replay waits for anyway, each chunk more is one
-                # transaction more: 2-3 % slower on the 120 s 1 kHz bag, where MCAP gains 4-6 %)
+                # transaction more: 2-3 % slower on the 120 s 1 kHz bag, where MCAP gains 2-6 %)
                 taper = self.bag.message_count if self.out.storage == "mcap" else None
                 pace = ChunkPacer(self.cfg.chunk_rows, total=taper)
                 chunks = self.bag.chunks(self.cfg.chunk_rows, pace=pace)
