@@ -142,7 +142,14 @@ class BatchedSqlite3:
     def commit(self) -> None:
         """Write the pending rows in transactions of at most ``COMMIT_BYTES`` of data each,
         cut between write calls (a call's rows all in or all out), inside a call only when it
-        alone holds more (a failed transaction is rolled back; the ones before it stay)."""
+        alone holds more (a failed transaction is rolled back; the ones before it stay). From
+        the moment the rows leave the pending list until they are committed a Ctrl-C/SIGTERM
+        waits (on the main thread; a writer thread gets no signals): one landing in between
+        lost them (1300 of 20 000 rows, once in a CI run)."""
+        with deferred_signals():
+            self._commit()
+
+    def _commit(self) -> None:
         parts, self.pending, self.n_pending, self.bytes_pending = self.pending, [], 0, 0
         self.last_commit = time.monotonic()
         if not parts:
@@ -167,13 +174,9 @@ class BatchedSqlite3:
             else:
                 acc += size
             row += k
-        bounds = sorted(bounds)
-        # the rows are off the pending list now: a Ctrl-C/SIGTERM landing here would roll the
-        # transaction back and lose them, so it waits until the commit is done (on the main
-        # thread; a writer thread gets no signals)
-        with deferred_signals():
-            for a, b in zip(bounds[:-1], bounds[1:]):
-                self._transaction(cids[a:b], ts[a:b], raws[a:b])
+        cuts = sorted(bounds)
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            self._transaction(cids[a:b], ts[a:b], raws[a:b])
 
     def _transaction(self, cids: np.ndarray, ts: np.ndarray, raws: Sequence[Any]) -> None:
         self.dirty = True        # stays set if anything below is cut short (error, Ctrl-C)
