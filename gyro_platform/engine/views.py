@@ -24,6 +24,8 @@ both are numpy's slice and reshape.
 """
 from __future__ import annotations
 
+import math
+
 from numba import types
 from numba.core import cgutils, config
 from numba.core.imputils import impl_ret_borrowed
@@ -65,10 +67,7 @@ def _make_view(ndim: int):
 
 def _plain_view(buf, off, shape):
     """The same view by numpy (``NUMBA_DISABLE_JIT=1``: the kernels run as Python)."""
-    size = 1
-    for d in shape:
-        size *= d
-    return buf[off:off + size].reshape(shape)
+    return buf[off:off + math.prod(shape)].reshape(shape)
 
 
 if config.DISABLE_JIT:
