@@ -256,7 +256,8 @@ CHILD = textwrap.dedent("""
             raws = imu_raws(batch, n) if mode != "fast" else tpl
             bag.write_many(conn, np.arange(n, n + batch, dtype=np.int64), raws)
             n += batch
-            print(n, flush=True)
+            sys.stdout.write(f"{{n}}\\n")   # one write: print() writes the newline apart, and a
+            sys.stdout.flush()              # Ctrl-C between the two glued "20100interrupted" (CI)
         print("closing", flush=True)
         bag.close()
         print("closed", flush=True)
@@ -337,9 +338,10 @@ def test_second_ctrl_c_keeps_metadata(tmp_path, storage, where):
     proc = child(tmp_path, storage, mode="slowclose", commit_rows=10**9)   # pending rows: close() has work
     wait_for(proc, 20_000)
     proc.send_signal(signal.SIGINT)
-    while (line := proc.stdout.readline()) and line.strip() != where:
-        pass
-    assert line, proc.stderr.read()
+    seen = []
+    while (line := proc.stdout.readline()) and not line.strip().endswith(where):   # "<n>interrupted"
+        seen.append(line.strip())
+    assert line, (seen[-3:], proc.wait(timeout=60), proc.stderr.read())
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode != 0 and "KeyboardInterrupt" in err     # the second Ctrl-C is not lost
