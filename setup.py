@@ -122,7 +122,7 @@ setup(
     entry_points={
         "console_scripts": [
             "gyro-platform = gyro_platform.cli:main",
-            "platform_node = gyro_platform.ros.node:main",
+            "platform_node = gyro_platform.cli:platform_node",
         ],
     },
 )

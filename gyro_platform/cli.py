@@ -44,7 +44,7 @@ from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_
 from .filesystem import write_failure
 from .signals import stop_exit_code, stop_reason, StopSignals
 
-__all__ = ["main", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
+__all__ = ["main", "platform_node", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
 
 EPILOG = "exit status:\n" + "\n".join(f"  {code:<4}{text}" for code, text in EXIT_CODES.items())
@@ -180,6 +180,17 @@ def _main(argv: list[str] | None) -> int:
                 raise
             print(f"{prog}: error: cannot write the output: {why}", file=sys.stderr)
             return EXIT_WRITE
+
+
+def platform_node() -> int:
+    """``ros2 run gyro_platform platform_node`` (setup.py's console script): one BLAS thread set
+    before NumPy loads (rclpy's and the node's imports load it; engine.blas), then the node's
+    ``main``. Through ``gyro_platform.ros.node:main`` directly NumPy's OpenBLAS started a worker
+    per core first (~50 ms of the node's start here, and idle threads on a many-core computer)."""
+    from .engine.blas import limit_blas_threads
+    limit_blas_threads()
+    from .ros.node import main as node_main
+    return node_main()
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ import re
 import shutil
 import subprocess
 import sys
+import textwrap
 
 import pytest
 from test_replay import CABRILLO, HUSKY, imu_msg, need, S, write_bag
@@ -777,3 +778,34 @@ def stopped_then_restored(done: list) -> None:
         os.kill(os.getpid(), sg.SIGINT)     # already stopping: noted, not raised
         sum(range(1000))
     assert sg.getsignal(sg.SIGINT) is sg.default_int_handler
+
+
+def test_the_ros2_run_entry_sets_one_blas_thread_before_numpy_loads(tmp_path):
+    """``platform_node`` (setup.py's console script, what ``ros2 run`` and the launch file start)
+    is ``cli.platform_node``: the one-BLAS-thread limit (engine.blas) is set before the node's
+    imports load NumPy, so its OpenBLAS starts no worker per core. Here the node module is a probe
+    that loads NumPy and reports its BLAS threads (the real node runs through the same console
+    script in the ROS tests); called without the entry, the probe sees a thread per core."""
+    probe = textwrap.dedent("""
+        import sys, types
+        def main():
+            import numpy
+            from threadpoolctl import threadpool_info
+            print(max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
+            return 0
+        node = types.ModuleType("gyro_platform.ros.node")
+        node.main = main
+        sys.modules["gyro_platform.ros.node"] = node
+        from gyro_platform import cli
+        sys.exit(cli.platform_node() if sys.argv[1] == "entry" else main())
+    """)
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    threads = {}
+    for how in ("entry", "direct"):
+        p = subprocess.run([PY, "-c", probe, how], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                           env={**env, "PYTHONPATH": str(REPO)})
+        assert p.returncode == 0, p.stderr[-2000:]
+        threads[how] = int(p.stdout.split()[-1])
+    assert threads["entry"] == 1, threads
+    if (os.cpu_count() or 1) > 1:            # the probe can tell: without the entry a worker per core
+        assert threads["direct"] > 1, threads
