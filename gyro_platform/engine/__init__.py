@@ -17,6 +17,7 @@
 Holds the input sample (``inputs.RateSample``), the output record (``outputs.Outputs``), the
 integrators behind one contract with error control (the ``integrators`` package), the compiled batch
 stepping (``batch``), the ``Simulator`` (state, ``push``/``push_many``, outputs), the
-catalogue of hard cases (``hardcases``) and one BLAS thread per process (``blas``). May import
+catalogue of hard cases (``hardcases``), one BLAS thread per process (``blas``) and a cold start's
+simulator (``remote``: the interpreted kernels in a helper process until the compiled ones are made). May import
 ``physics`` and ``errors``.
 """

@@ -62,7 +62,8 @@ import numpy as np
 from ..signals import StopSignals
 
 __all__ = ["njit", "plain", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
-           "not_when_compiling", "abandon_compiles_when", "CompileAbandoned",
+           "not_when_compiling", "abandon_compiles_when", "CompileAbandoned", "compiles_refused", "CompileRefused",
+           "can_refuse_compiles",
            "PackageCacheLocator", "source_digest", "digest_sources"]
 
 #: the package folder (the kernel sources below it get the locator)
@@ -302,6 +303,10 @@ class _Notices(event.Listener):
             pass
 
     def on_start(self, ev) -> None:
+        if self.depth == 0 and _refusing:
+            disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            name = getattr(getattr(disp, "py_func", None), "__qualname__", "a kernel")
+            raise CompileRefused(f"{name} is not in the kernel cache {cache_dir()}")
         if self.depth == 0:
             self.t0 = time.monotonic()
             if self.started is None:
@@ -381,6 +386,31 @@ def _compile_off_main(self, sig):
 
 
 _first_compile: list = []                  # callables for the next first compile (when_compiling)
+_refusing = 0                               # nesting of compiles_refused blocks
+
+
+class CompileRefused(Exception):
+    """Inside :func:`compiles_refused`: a kernel this call needs is not in the cache (nothing
+    was compiled; kernels loaded before it stay loaded)."""
+
+
+def can_refuse_compiles() -> bool:
+    """:func:`compiles_refused` works in this process (:func:`compile_notices` is installed)."""
+    return _notices is not None
+
+
+@contextmanager
+def compiles_refused():
+    """For the block: a kernel call that would compile raises :class:`CompileRefused` instead
+    (kernels in the cache load and run as usual), so that a caller can tell a cold cache within
+    milliseconds and do something else than wait (``engine.remote``). Needs
+    :func:`compile_notices` (:func:`can_refuse_compiles`); without it the block compiles."""
+    global _refusing
+    _refusing += 1
+    try:
+        yield
+    finally:
+        _refusing -= 1
 
 
 def when_compiling(callback) -> bool:

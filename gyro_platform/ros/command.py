@@ -32,8 +32,9 @@
   ``config/cyclonedds_loopback.xml``), ``--duration`` (s: stop by itself after that long).
   Without either, on a host with no multicast-capable interface the DDS transport uses
   localhost unicast discovery and logs what the ROS side must set (``dds.default_discovery``).
-* Both transports warm up (:func:`gyro_platform.ros.warmup.warm_up`: the numba kernels compiled
-  or loaded) before they subscribe and log ``ready``; the process then freezes its start-up
+* Both transports warm up (:func:`gyro_platform.ros.warmup.start_core`: the numba kernels
+  loaded, or answered by their interpreted form while they compile in the background) before
+  they subscribe and log ``ready``; the process then freezes its start-up
   objects out of the garbage collector (:func:`gyro_platform.ros.warmup.freeze_startup_objects`).
 * SIGINT / SIGTERM stop the node cleanly (final diagnostics, DDS entities deleted); exit 0 (a
   node's normal stop). A signal during the warm-up, before the node is ready, ends it like any
@@ -50,7 +51,7 @@ import sys
 import time
 from typing import Any, Callable
 
-from .warmup import freeze_startup_objects
+from .warmup import freeze_startup_objects, start_core
 from ..errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 
 TRANSPORTS = ("auto", "ros", "dds")
@@ -131,7 +132,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> int:
-    from .core import NodeCore
     from .parameters import ConfigError
     from ..messages import MessageTypes
 
@@ -144,7 +144,7 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
         return EXIT_FAILED
     from .dds_discovery import default_discovery, interface_flags
     from .dds_names import domain_id_from_env, normalize_namespace, validate_node_name
-    from .dds_types import IdlTypes
+    from .dds_types import IdlTypes, zero_message
     from ..messages.typedefs import core_typestore
 
     uri, hint = default_discovery(dict(os.environ), interface_flags())
@@ -163,7 +163,12 @@ def run_dds(args: argparse.Namespace, name: str, log: Callable[[str], None]) -> 
         log(f"error: {e}")
         return EXIT_USAGE
     store = core_typestore()        # the node's types only (~10 ms; rosbags' whole Jazzy store: 0.14 s of its start)
-    core = NodeCore(config, MessageTypes.rosbags(store))
+    try:
+        core = start_core(config, MessageTypes.rosbags(store), lambda: zero_message(store, config.input_type_name),
+                          prog=f"gyro-platform node ({name})", notice=log)
+    except Exception as e:  # noqa: BLE001 - a model that cannot be built: one line
+        log(f"error: cannot start the simulation: {type(e).__name__}: {e}")
+        return EXIT_FAILED
     try:
         node = dds.DdsNode(name, namespace, domain, types=IdlTypes(store))
     except Exception as e:  # noqa: BLE001 - DDSException: bad CYCLONEDDS_URI, no interface …

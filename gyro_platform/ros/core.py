@@ -149,19 +149,22 @@ class NodeCore:
     """Input message → gate → simulator → output messages, with diagnostics and parameters.
 
     ``types``: the binding's message classes (``MessageTypes.rosbags()`` or ``.rclpy()``);
-    ``clock_ns``: the wall clock used to time callbacks (default ``time.perf_counter_ns``).
+    ``clock_ns``: the wall clock used to time callbacks (default ``time.perf_counter_ns``);
+    ``simulator``: makes the simulator from (params, options) (default ``Simulator``; a cold
+    start's: ``engine.remote.ColdStart.simulator``, see ``warmup.start_core``).
     """
 
     def __init__(self, config: NodeConfig, types: MessageTypes, *,
-                 clock_ns: Callable[[], int] = time.perf_counter_ns):
-        from ..engine.simulator import Simulator
-
-        self._Simulator = Simulator
+                 clock_ns: Callable[[], int] = time.perf_counter_ns, simulator: Callable[..., Any] | None = None):
+        if simulator is None:
+            from ..engine.simulator import Simulator
+            simulator = Simulator
+        self.make_simulator = simulator
         self.config = config
         self.types = types
         self._clock_ns = clock_ns
         self.gate = TimeGate(config.gate)
-        self.pipe = Pipeline(Simulator(config.params, config.options), self.gate, config["output_rate"],
+        self.pipe = Pipeline(simulator(config.params, config.options), self.gate, config["output_rate"],
                              config.mounting)
         self.outcomes: Counter[str] = Counter()     # apply_decision results + output_failed
         self.pipe.outcomes = self.outcomes          # one count: the pipeline's
@@ -373,7 +376,7 @@ class NodeCore:
         old = self.config
         if new.params != old.params or new.options != old.options:
             try:
-                sim = self._Simulator(new.params, new.options)
+                sim = self.make_simulator(new.params, new.options)
             except Exception as e:  # e.g. precession model invalid for these values
                 return False, f"cannot rebuild the model: {e}"
             sim.carry_state_from(self.sim)
@@ -430,6 +433,7 @@ class NodeCore:
             "last_reset_reason": self.last_reset_reason,
             "clock_jumps": dict(self.clock_jumps),
             "integrator": stats["integrator"],
+            "kernels": getattr(self.sim, "kernels", "compiled"),   # engine.remote: interpreted while compiling
             "integrator_steps": stats["n_steps"],
             "integrator_error_estimate_max": stats["max_error_estimate"],
             "input_rate_hz": rate,

@@ -24,8 +24,9 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
   ``core.set_parameters``. An empty string array (``sensor_mountings``) is declared by type
   and then set to ``[]`` explicitly, so ``ros2 param dump`` / ``get`` see a value;
 * warm-up: before subscribing, a throwaway core runs a few synthetic samples
-  (``warmup.warm_up``), so numba compiles or loads every kernel and the first real Imu is
-  answered at once; "ready" is logged after that;
+  (``warmup.start_core``), so numba loads every kernel and the first real Imu is answered at
+  once; kernels not in the cache are not waited for (the interpreted ones answer while they
+  compile in the background: ``engine.remote``); "ready" is logged after that;
 * input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
@@ -72,9 +73,9 @@ except ImportError as e:  # pragma: no cover - depends on the machine
         "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
 from .config import NodeConfig, parameter_defaults
-from .core import DIAGNOSTICS_TOPIC, NodeCore
+from .core import DIAGNOSTICS_TOPIC
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
-from .warmup import freeze_startup_objects, warm_up
+from .warmup import freeze_startup_objects, start_core
 from ..messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
 from ..physics.jit import compile_notices
 
@@ -109,10 +110,10 @@ class PlatformNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self._lock = threading.Lock()
         config = NodeConfig.from_ros_params(self._declare_parameters())
-        self.core = NodeCore(config, MessageTypes.rclpy())
-        types = self.core.types
+        types = MessageTypes.rclpy()
         t0 = time.monotonic()
-        warm_up(self.core, types[self.core.input_type])
+        self.core = start_core(config, types, types[config.input_type_name], prog=NODE_NAME,
+                               notice=self.get_logger().info)
         warm_s = time.monotonic() - t0
         self.processed = 0
         self.published = 0

@@ -13,19 +13,26 @@
 # limitations under the License.
 
 
-"""The warm-up of both transports (rclpy ``node`` and plain-DDS ``dds``), beside the core it runs.
+"""The start of both transports (rclpy ``node`` and plain-DDS ``dds``): the core, warmed up.
 
-:func:`warm_up` runs a few synthetic samples through a throwaway :class:`~gyro_platform.ros.core.NodeCore`
-of the node's configuration before it subscribes, so that numba compiles (or loads from its cache)
-every kernel the first real samples need; :func:`freeze_startup_objects` then moves the start-up
-objects out of the garbage collector's reach. Imports nothing of the transports (they and the
-``gyro-platform node`` command import it: no circle in ``ros/``).
+:func:`start_core` makes the node's :class:`~gyro_platform.ros.core.NodeCore` and warms it up
+(:func:`warm_up`: a few synthetic samples through a throwaway core of the same configuration
+before the node subscribes, so that numba loads every kernel the first real samples need from
+its cache). When a kernel is missing from the cache (a first run of this code and configuration
+on this machine: 20–60 s of compiling) it does not wait: the core's simulator answers from the
+interpreted kernels in a helper process while a second one compiles them, then moves to the
+compiled ones in the same state (``engine.remote``), so the node is ready in about a second
+either way. :func:`freeze_startup_objects` then moves the start-up objects out of the garbage
+collector's reach. Imports nothing of the transports (they and the ``gyro-platform node``
+command import it: no circle in ``ros/``).
 """
 from __future__ import annotations
 
 import gc
+import sys
 from typing import Any, Callable
 
+from .core import NodeCore
 from ..engine.blas import limit_blas_threads
 
 WARMUP_SAMPLES = 6
@@ -39,7 +46,7 @@ def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any
     ``make_input()`` returns a zeroed input message of the binding; ``encode(topic, msg)``, if
     given, serialises each output (the DDS encoders). Returns the number of output messages."""
     limit_blas_threads()        # before any matrix is built (engine.blas)
-    scratch = type(core)(core.config, core.types)
+    scratch = type(core)(core.config, core.types, simulator=core.make_simulator)
     n = 0
     t0 = 1_000_000_000
     for k in range(WARMUP_SAMPLES):
@@ -61,6 +68,44 @@ def warm_up(core: Any, make_input: Callable[[], Any], encode: Callable[[str, Any
             encode(topic, out)
     scratch.diagnostics(t0)
     return n
+
+
+def start_core(config: Any, types: Any, make_input: Callable[[], Any], *, prog: str,
+               notice: Callable[[str], None] | None = None) -> NodeCore:
+    """The node's core for ``config`` and the binding's ``types``, warmed up (:func:`warm_up`
+    with ``make_input``). Kernels missing from the cache (seen at once: ``physics.jit.
+    compiles_refused``, which needs ``compile_notices``; without it they compile here) are not
+    waited for: the core takes a cold start's simulator (``engine.remote.ColdStart``), which
+    answers from the interpreted kernels until the compiled ones are made in the background.
+    ``notice(line)`` (default: stderr) says so, and when the node switches."""
+    from ..physics.jit import can_refuse_compiles, CompileRefused, compiles_refused
+
+    if can_refuse_compiles():
+        try:
+            with compiles_refused():
+                core = NodeCore(config, types)
+                warm_up(core, make_input)
+            return core
+        except CompileRefused:
+            pass
+        from ..engine.remote import ColdStart, HelperGone
+
+        say = notice or (lambda line: _stderr(f"{prog}: {line}"))
+        cold = ColdStart(config.params, config.options, prog, say)
+        try:
+            core = NodeCore(config, types, simulator=cold.simulator)
+            warm_up(core, make_input)
+            return core
+        except HelperGone as e:             # the helper could not start: as without it
+            cold.close()
+            say(f"{e}; compiling here")
+    core = NodeCore(config, types)
+    warm_up(core, make_input)
+    return core
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 def freeze_startup_objects() -> None:

@@ -1,0 +1,404 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""A cold start's simulator: the interpreted kernels in a helper process while the compiled
+ones are made in another, then the compiled ones, in the same state bit for bit.
+
+numba compiles a configuration's kernels in 20–60 s the first time (a fresh machine, a new code
+version, an image run on another CPU). Where ``physics.jit.compiles_refused`` finds a kernel
+missing from the cache, a :class:`ColdStart` starts two processes of this module:
+
+* ``interpret``: the same :class:`~gyro_platform.engine.simulator.Simulator` with
+  ``NUMBA_DISABLE_JIT=1``, i.e. the kernels' Python source, which gives the compiled kernels'
+  results bit for bit (numba compiles without fast-math; ``test_plain_python.py``), at ~1–3 ms
+  a sample on the linear model (a helper process: a second copy of the package in this one
+  would patch numba twice, ``physics.jit``);
+* ``compile``: a few samples through a compiled Simulator of the configuration, which fills
+  the shared kernel cache (its compile notices on stderr: one line, then one per kernel).
+
+:meth:`ColdStart.simulator` makes :class:`WarmingSimulator` objects, the Simulator interface
+the node's pipeline uses (``push_plain``, ``push``, ``reset``, ``output_row``, ``stats``,
+``system.stabilised``), answered by the helper and recorded. At its first call after the
+compile process has ended, a WarmingSimulator builds the compiled Simulator (its kernels now
+load from the cache), replays the record into it (the same calls must give the same errors),
+checks that both give the same outputs and statistics, and from then on is the compiled one
+(its methods bound on the instance: nothing added per call). If the compile process failed,
+the rest compiles in this process (said on stderr, as any first run); if the replay differs,
+the helper keeps answering (said once). Imports ``physics`` (``jit``) and ``errors``.
+"""
+from __future__ import annotations
+
+import atexit
+import itertools
+from multiprocessing.connection import Connection
+import os
+from pathlib import Path
+import subprocess
+import sys
+import time
+from types import SimpleNamespace
+from typing import Any, Callable
+
+from .. import errors
+from ..errors import SimulationError
+from ..physics.jit import CompileRefused, compiles_refused
+
+__all__ = ["ColdStart", "WarmingSimulator", "HelperGone"]
+
+#: the package's parent folder: the helper processes import the package from where this one did
+_ROOT = str(Path(__file__).resolve().parents[2])
+#: calls answered by the helper whose record replays the run (the rest only read)
+RECORDED = ("push_plain", "push", "reset")
+
+
+class HelperGone(RuntimeError):
+    """The interpreting helper process ended (killed, out of memory): its answer is lost."""
+
+
+def _spawn(mode: str, prog: str, env: dict[str, str]) -> tuple[subprocess.Popen, Connection, Connection]:
+    """``python -m gyro_platform.engine.remote MODE`` with a pipe each way (pickled messages);
+    its own session (a terminal's Ctrl-C is this process's to handle), stdout discarded,
+    stderr shared (compile notices)."""
+    to_r, to_w = os.pipe()
+    from_r, from_w = os.pipe()
+    path = os.environ.get("PYTHONPATH")
+    env = {**os.environ, **env, "PYTHONPATH": _ROOT + (os.pathsep + path if path else "")}
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "gyro_platform.engine.remote", mode, str(to_r), str(from_w),
+                                 prog], pass_fds=(to_r, from_w), env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, start_new_session=True)
+    finally:
+        os.close(to_r)
+        os.close(from_w)
+    return proc, Connection(to_w, readable=False), Connection(from_r, writable=False)
+
+
+def _error(name: str, text: str) -> Exception:
+    """The helper's exception, as the same class of ``errors`` when it is one of them."""
+    cls = getattr(errors, name, None)
+    if isinstance(cls, type) and issubclass(cls, Exception):
+        return cls(text)
+    return RuntimeError(f"{name}: {text}")
+
+
+class ColdStart:
+    """The two helper processes of one configuration (``params``, ``options``) and the
+    factory of its simulators (:meth:`simulator`, what ``NodeCore`` takes). ``prog`` names the
+    compile process's notices; ``notice(line)`` says what happens (the start, the switch).
+    Ended by :meth:`close` (registered at exit)."""
+
+    def __init__(self, params: Any, options: Any, prog: str, notice: Callable[[str], None]):
+        self.params, self.options, self.prog, self.notice = params, options, prog, notice
+        self.t0 = time.monotonic()
+        self.compiler, to, back = _spawn("compile", f"{prog} (background compile)", {})
+        try:
+            to.send((params, options))
+        except OSError:                      # it ended at once: its status says so (compile_ended)
+            pass
+        to.close()
+        back.close()
+        self.helper, self._to, self._from = _spawn("interpret", prog, {"NUMBA_DISABLE_JIT": "1"})
+        self._ids = itertools.count(1)
+        self.rc: int | None = None           # the compile process's exit status, once it ended
+        self.switched = 0                    # simulators now on the compiled kernels
+        atexit.register(self.close)
+        notice(f"the simulation kernels of this configuration are not compiled yet: answering from "
+               f"their interpreted form (the same outputs, ~1-3 ms a sample) while they compile in the "
+               f"background (pid {self.compiler.pid}); the node switches to them when they are ready")
+
+    def simulator(self, params: Any, options: Any) -> Any:
+        """A simulator of ``params``/``options``: a :class:`WarmingSimulator` of this
+        configuration until its compile has ended, then a compiled ``Simulator``. Another
+        configuration before that raises ``SimulationError`` (a live model change waits for
+        the compiled kernels)."""
+        if self.compile_ended():
+            from .simulator import Simulator
+            return Simulator(params, options)
+        if params != self.params or options != self.options:
+            raise SimulationError(f"the model cannot change while its kernels compile "
+                                  f"({time.monotonic() - self.t0:.0f} s so far); try again once the node says "
+                                  f"it switched to the compiled kernels")
+        return WarmingSimulator(self, params, options)
+
+    def compile_ended(self) -> bool:
+        """The compile process has ended (its status in ``rc``)."""
+        if self.rc is None:
+            rc = self.compiler.poll()
+            if rc is None:
+                return False
+            self.rc = rc
+        return True
+
+    def call(self, sid: int, op: str, args: tuple = ()) -> Any:
+        """One call on the helper's simulator ``sid``; its exception raised here."""
+        try:
+            self._to.send((sid, op, args))
+            reply = self._from.recv()
+        except (OSError, EOFError) as e:
+            raise HelperGone(f"the interpreting helper process ended ({type(e).__name__}: {e})") from None
+        if reply[0] == "ok":
+            return reply[1]
+        raise _error(reply[1], reply[2])
+
+    def close(self) -> None:
+        """Stop the compile process (if running) and the helper; idempotent."""
+        atexit.unregister(self.close)
+        for c in (self._to, self._from):
+            c.close()                        # the helper sees the end of its input and exits
+        for p in (self.compiler, self.helper):
+            if p.poll() is None:
+                if p is self.compiler:
+                    p.terminate()
+                try:
+                    p.wait(1.0)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+
+
+class WarmingSimulator:
+    """The Simulator interface over a helper's interpreted simulator, recorded; the compiled
+    Simulator, in the same state, from its first call after the compile has ended (module doc).
+    ``params``, ``options`` as ``Simulator``'s."""
+
+    def __init__(self, cold: ColdStart, params: Any, options: Any):
+        self.cold, self.params, self.options = cold, params, options
+        self.sid = next(cold._ids)
+        info = cold.call(self.sid, "new", (params, options))
+        self.system = SimpleNamespace(stabilised=info["stabilised"])
+        self.record: list[tuple[str, tuple, str | None]] | None = []
+        self.local: Any = None              # the compiled Simulator, once switched
+        self.kept = False                   # the replay differed: the helper answers for good
+
+    # ---- the Simulator interface (until the switch) ---------------------------------------
+    def push_plain(self, t: float, omega: tuple, specific_force: tuple | None) -> None:
+        self._recorded("push_plain", (t, omega, specific_force))
+
+    def push(self, sample: Any) -> None:
+        self._recorded("push", (sample,))
+
+    def reset(self) -> None:
+        self._recorded("reset", ())
+
+    def output_row(self) -> Any:
+        if self._switch_now():
+            return self.local.output_row()
+        return self._ask("output_row")
+
+    def __getattr__(self, name: str) -> Any:
+        # stats, and after the switch whatever else of the compiled Simulator is asked for
+        # (carry_state_from reads its engine): instance attributes and methods come first
+        local = self.__dict__.get("local")
+        if local is not None:
+            return getattr(local, name)
+        if name == "stats":
+            return self._ask("stats")
+        raise AttributeError(f"{name!r}: not available before the compiled kernels are loaded")
+
+    @property
+    def kernels(self) -> str:
+        """Which kernels answer (the node's diagnostics show it)."""
+        if self.local is not None:
+            return "compiled"
+        if self.kept:
+            return "interpreted (the compiled kernels did not replay the run alike)"
+        return "interpreted, compiling in the background"
+
+    # ---- calls --------------------------------------------------------------------------
+    def _ask(self, op: str, args: tuple = ()) -> Any:
+        try:
+            return self.cold.call(self.sid, op, args)
+        except HelperGone:
+            self._switch(compile_here=True)
+            return getattr(self.local, op)(*args) if op != "stats" else self.local.stats
+
+    def _recorded(self, op: str, args: tuple) -> None:
+        if self._switch_now():
+            getattr(self.local, op)(*args)
+            return
+        err = None
+        try:
+            self.cold.call(self.sid, op, args)
+        except HelperGone:
+            self._switch(compile_here=True)
+            getattr(self.local, op)(*args)
+            return
+        except Exception as e:
+            err = type(e).__name__
+            raise
+        finally:
+            if self.record is not None and self.local is None:
+                self.record.append((op, args, err))
+
+    def _switch_now(self) -> bool:
+        """Switched (now, or before) to the compiled Simulator: the compile has ended."""
+        if self.local is not None:
+            return True
+        if self.kept or not self.cold.compile_ended():
+            return False
+        self._switch(compile_here=self.cold.rc != 0)
+        return self.local is not None
+
+    def _switch(self, compile_here: bool) -> None:
+        """The compiled Simulator, the record replayed into it, checked against the helper;
+        then bound. ``compile_here``: kernels missing from the cache compile in this process
+        (the compile process failed, or the helper is gone)."""
+        from .simulator import Simulator
+
+        cold, t0 = self.cold, time.monotonic()
+        if compile_here:
+            why_here = f"the background compile ended with status {cold.rc}" if cold.rc else "the helper ended"
+            cold.notice(f"{why_here}; compiling here")
+        try:
+            local, why = self._replayed(Simulator, refuse=not compile_here)
+        except CompileRefused as e:
+            cold.notice(f"{e} after the background compile; compiling the rest here")
+            local, why = self._replayed(Simulator, refuse=False)
+        if not compile_here:
+            why = why or self._differs(local)
+            if why:
+                self.kept, self.record = True, None
+                cold.notice(f"NOT switching to the compiled kernels: {why}; the interpreted kernels "
+                            f"keep answering (slow, correct); please report this")
+                return
+        elif why:
+            cold.notice(f"the compiled kernels did not replay the interpreted run alike ({why}); "
+                        f"going on with them")
+        n = len(self.record or ())
+        self.local, self.record = local, None
+        for name in ("push_plain", "push", "reset", "output_row"):
+            setattr(self, name, getattr(local, name))        # bound: nothing added per call
+        self.system = local.system
+        cold.switched += 1
+        cold.notice(f"switched to the compiled kernels {time.monotonic() - cold.t0:.1f} s after the "
+                    f"start ({n} calls replayed in {time.monotonic() - t0:.2f} s"
+                    + (")" if compile_here else "; outputs and statistics identical to the interpreted run)"))
+
+    def _replayed(self, simulator: Callable, refuse: bool) -> tuple[Any, str | None]:
+        """A compiled Simulator fed the record, and how it differed (None: every call raised
+        what it raised in the helper, or nothing)."""
+        if refuse:
+            with compiles_refused():
+                return self._replayed(simulator, refuse=False)
+        local = simulator(self.params, self.options)
+        why = None
+        for op, args, err in self.record or ():
+            got = None
+            try:
+                getattr(local, op)(*args)
+            except CompileRefused:
+                raise
+            except Exception as e:  # noqa: BLE001 - compared with what the helper raised
+                got = type(e).__name__
+            if got != err and why is None:
+                why = f"{op}{args!r} raised {got} compiled and {err} interpreted"
+        return local, why
+
+    def _differs(self, local: Any) -> str | None:
+        """Why the compiled Simulator does not continue the interpreted one (None: it does)."""
+        outs = []
+        for ask in (lambda: self._ask("output_row"), local.output_row):
+            try:
+                outs.append(ask().tobytes())
+            except SimulationError as e:
+                outs.append(type(e).__name__)
+        if outs[0] != outs[1]:
+            return "the outputs differ after the replay"
+        stats_remote, stats_local = self._ask("stats"), local.stats
+        if stats_remote != stats_local:
+            return f"the statistics differ after the replay ({stats_remote} / {stats_local})"
+        return None
+
+
+# ---- the helper processes ---------------------------------------------------------------
+def _serve(inbox: Connection, outbox: Connection) -> int:
+    """``interpret``: Simulators by id, one call per message, until the input ends."""
+    from .simulator import Simulator
+
+    sims: dict[int, Any] = {}
+    while True:
+        try:
+            sid, op, args = inbox.recv()
+        except (EOFError, OSError):
+            return 0
+        try:
+            if op == "new":
+                sim = sims[sid] = Simulator(*args)
+                value: Any = {"stabilised": bool(sim.system.stabilised)}
+            elif op == "stats":
+                value = sims[sid].stats
+            elif op in RECORDED or op == "output_row":
+                value = getattr(sims[sid], op)(*args)
+            else:
+                raise ValueError(f"unknown call {op!r}")
+            reply: tuple = ("ok", value)
+        except Exception as e:  # noqa: BLE001 - handed to the caller, raised there
+            reply = ("error", type(e).__name__, str(e))
+        try:
+            outbox.send(reply)
+        except OSError:
+            return 0
+
+
+def _compile(inbox: Connection, prog: str) -> int:
+    """``compile``: a few samples through a compiled Simulator of the configuration received,
+    with the paths the node's pipeline takes (``push``, ``push_plain`` with and without a
+    specific force, ``output_row``, ``reset``): their kernels into the cache. Exit 0 or 1."""
+    from .inputs import RateSample
+    from .simulator import Simulator
+    from ..physics.jit import compile_notices
+
+    import numpy as np
+
+    params, options = inbox.recv()
+    inbox.close()
+    compile_notices(prog)
+    sim = Simulator(params, options)
+    g = (0.0, 0.0, 9.80665)                 # m/s², gravity's reaction: at rest
+    sim.push(RateSample(1.0, np.zeros(3), np.array(g)))
+    for k in range(1, 6):
+        sim.push_plain(1.0 + 0.01 * k, (0.0, 0.0, 0.0), g)
+        sim.output_row()
+    try:
+        sim.push_plain(1.1, (0.0, 0.0, 0.0), None)
+    except SimulationError:                 # the model needs the specific force
+        pass
+    sim.reset()
+    sim.push(RateSample(2.0, np.zeros(3), np.array(g)))
+    sim.output_row()
+    return 0
+
+
+def main(argv: list[str]) -> int:
+    """``python -m gyro_platform.engine.remote MODE IN_FD OUT_FD PROG`` (``ColdStart``'s)."""
+    import signal
+
+    mode, fd_in, fd_out, prog = argv[0], int(argv[1]), int(argv[2]), argv[3]
+    inbox = Connection(fd_in, writable=False)
+    outbox = Connection(fd_out, readable=False)
+    if mode == "interpret":
+        signal.signal(signal.SIGINT, signal.SIG_IGN)        # the node stops it: the end of its input
+        return _serve(inbox, outbox)
+    outbox.close()
+    try:
+        return _compile(inbox, prog)
+    except (KeyboardInterrupt, EOFError):
+        return 130
+    except Exception as e:  # noqa: BLE001 - one line, the node compiles the rest itself
+        print(f"{prog}: failed: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
