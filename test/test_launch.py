@@ -50,7 +50,7 @@ def test_launch_file_parses_and_declares_every_argument_of_the_plan():
               for k in n.keywords if k.arg == "package" and isinstance(k.value, ast.Constant)}
     assert starts == {"gyro_platform", "robot_state_publisher"}
     # executables exist: the console script of setup.py
-    assert "platform_node = gyro_platform.ros.node:main" in (ROOT / "setup.py").read_text()
+    assert "platform_node = gyro_platform.cli:platform_node" in (ROOT / "setup.py").read_text()
 
 
 def test_default_plan_starts_the_node_and_robot_state_publisher_with_the_same_model():
