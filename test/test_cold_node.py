@@ -221,6 +221,11 @@ def test_a_record_that_replays_differently_keeps_the_interpreted_answers(cold):
     got += outputs(core, w, k, k + 500)
     assert core.sim.local is None
     assert got == outputs(NodeCore(cold.config, TYPES), w, 0, k + 500)
+    # and if that helper then dies, its state cannot be rebuilt: a counted restart, not a silent one
+    os.kill(cold.helper.pid, signal.SIGKILL)
+    cold.helper.wait()
+    assert outputs(core, w, k + 500, k + 1000) and core.sim.local is not None
+    assert core.outcomes["restarted"] == 1 and core.snapshot()["kernels"] == "compiled", dict(core.outcomes)
 
 
 def test_close_ends_both_processes_at_once(cold):

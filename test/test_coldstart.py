@@ -119,7 +119,7 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
         assert "compiling" not in p.stderr, (args, p.stderr)
     _, out = time_to_line([sys.executable, "-m", "gyro_platform", "node", "--transport", "dds", "--cyclonedds-config",
                            str(LOOPBACK_XML), "--domain-id", "88"], tmp_path / "numba", "ready:", timeout=300)
-    assert "compiling" not in out, out
+    assert "compiling" not in out and "not compiled yet" not in out, out    # warm: no cold start's helper
 
 
 def _code_objects(pkg: Path, env: dict) -> list[str]:

@@ -220,8 +220,17 @@ class WarmingSimulator:
         try:
             return self.cold.call(self.sid, op, args)
         except HelperGone:
-            self._switch(compile_here=True)
+            self._helper_gone()
             return getattr(self.local, op)(*args) if op != "stats" else self.local.stats
+
+    def _helper_gone(self) -> None:
+        """The helper ended: the record replayed into a Simulator compiled here. Without a record
+        (it was dropped when a replay differed) the state is lost: SimulationError (the pipeline
+        restarts the simulation at the sample and counts it)."""
+        lost = self.record is None
+        self._switch(compile_here=True)
+        if lost:
+            raise SimulationError("the interpreting helper ended and its state with it: the simulation restarts")
 
     def _recorded(self, op: str, args: tuple) -> None:
         if self._switch_now():
@@ -231,7 +240,7 @@ class WarmingSimulator:
         try:
             self.cold.call(self.sid, op, args)
         except HelperGone:
-            self._switch(compile_here=True)
+            self._helper_gone()
             getattr(self.local, op)(*args)
             return
         except Exception as e:
