@@ -143,10 +143,14 @@ def test_a_cold_node_is_ready_at_once_and_switches_to_the_compiled_kernels_in_th
 
 
 def test_a_forced_cold_start_matches_a_compiled_core_and_binds_the_compiled_methods(cold):
+    os.kill(cold.compiler.pid, signal.SIGSTOP)          # both cores on the helper before the switch
     core = NodeCore(cold.config, TYPES, simulator=cold.simulator)
+    other = NodeCore(cold.config, TYPES, simulator=cold.simulator)      # e.g. the warm-up's scratch core
     assert isinstance(core.sim, WarmingSimulator) and core.sim.system.stabilised
     assert core.snapshot()["kernels"] == "interpreted, compiling in the background"      # in /diagnostics
     w = rates(6000)
+    other_got = outputs(other, w, 0, 300)
+    os.kill(cold.compiler.pid, signal.SIGCONT)
     got, k = until_switched(core, w, 0)
     assert core.snapshot()["kernels"] == "compiled"
     got += outputs(core, w, k)
@@ -155,6 +159,11 @@ def test_a_forced_cold_start_matches_a_compiled_core_and_binds_the_compiled_meth
     assert core.sim.push_plain.__self__ is core.sim.local            # nothing in between any more
     assert cold.rc == 0 and cold.switched == 1
     assert "identical to the interpreted run" in cold.notes[-1], cold.notes
+    assert cold.helper.poll() is not None                           # the helper is retired after the switch
+    # the other core, still on the retired helper: its own record replayed at its next call
+    other_got += outputs(other, w, 300, 1000)
+    assert other.sim.local is not None and cold.switched == 2
+    assert other_got == outputs(NodeCore(cold.config, TYPES), w, 0, 1000)
     assert type(core.make_simulator(cold.params, cold.options)).__name__ == "Simulator"   # compiled from now on
 
 

@@ -21,6 +21,7 @@ sources; its kernels come from the content-keyed cache when the same code compil
 starting: the time from ``ros2 run`` to its ``ready:`` line is printed (speed is the bench's,
 not asserted here).
 """
+import os
 import re
 import signal
 import subprocess
@@ -74,6 +75,29 @@ def test_the_node_of_a_plain_install_starts_and_publishes(plain_ws, domain, caps
         print(f"\n  plain colcon install: ros2 run -> ready: {ready_s:.1f} s")
     assert report["topics"]["/drift/angle"]
     assert code == 0 and "Traceback" not in proc.output
+
+
+def test_the_node_on_an_empty_kernel_cache_is_ready_while_its_kernels_compile(plain_ws, domain, tmp_path):
+    """``ros2 run`` where the kernel cache has nothing (an image run on another CPU): the node
+    logs that its kernels are not compiled yet, is ready while a background process compiles them,
+    publishes from the interpreted kernels, and a Ctrl-C stops it (exit 0) and that process."""
+    params = plain_ws.share / "config" / "platform.yaml"
+    proc = plain_ws.start(f"ros2 run gyro_platform platform_node --ros-args --params-file {params}", domain=domain,
+                          env={"NUMBA_CACHE_DIR": str(tmp_path / "numba")})
+    try:
+        assert proc.wait_for("ready:", rosenv.READY_TIMEOUT), proc.output[-3000:]
+        assert "not compiled yet" in proc.output, proc.output[-3000:]
+        pid = int(proc.output.split("(pid ")[1].split(")")[0])
+        os.kill(pid, 0)                                 # still compiling when the node is ready
+        report = plain_ws.ros.probe({"wait_subscriber": "/imu", "publish": {"topic": "/imu", "count": 50},
+                                     "collect": {"/drift/angle": "geometry_msgs/msg/Vector3Stamped"}},
+                                    domain=domain)
+    finally:
+        code = proc.stop(signal.SIGINT)
+    assert report["topics"]["/drift/angle"]
+    assert code == 0 and "Traceback" not in proc.output
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)                                 # stopped with the node
 
 
 def test_gyro_platform_node_on_the_ros_transport_takes_its_options(ros_ws, domain):

@@ -151,6 +151,17 @@ class ColdStart:
             return reply[1]
         raise _error(reply[1], reply[2])
 
+    def retire_helper(self) -> None:
+        """End the helper (a simulator has switched: ~100 MB less); another simulator of this
+        start still on it replays its own record at its next call (``HelperGone``)."""
+        for c in (self._to, self._from):
+            c.close()                        # the helper sees the end of its input and exits
+        try:
+            self.helper.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self.helper.kill()
+            self.helper.wait()
+
     def close(self) -> None:
         """Stop the compile process (if running) and the helper; idempotent."""
         atexit.unregister(self.close)
@@ -274,8 +285,13 @@ class WarmingSimulator:
         except CompileRefused as e:
             cold.notice(f"{e} after the background compile; compiling the rest here")
             local, why = self._replayed(Simulator, refuse=False)
+        checked = False
         if not compile_here:
-            why = why or self._differs(local)
+            if not why:
+                try:
+                    why, checked = self._differs(local), True
+                except HelperGone:          # retired by another simulator's switch: the replay's check only
+                    pass
             if why:
                 self.kept, self.record = True, None
                 cold.notice(f"NOT switching to the compiled kernels: {why}; the interpreted kernels "
@@ -290,9 +306,11 @@ class WarmingSimulator:
             setattr(self, name, getattr(local, name))        # bound: nothing added per call
         self.system = local.system
         cold.switched += 1
+        if checked:
+            cold.retire_helper()
         cold.notice(f"switched to the compiled kernels {time.monotonic() - cold.t0:.1f} s after the "
                     f"start ({n} calls replayed in {time.monotonic() - t0:.2f} s"
-                    + (")" if compile_here else "; outputs and statistics identical to the interpreted run)"))
+                    + ("; outputs and statistics identical to the interpreted run)" if checked else ")"))
 
     def _replayed(self, simulator: Callable, refuse: bool) -> tuple[Any, str | None]:
         """A compiled Simulator fed the record, and how it differed (None: every call raised
@@ -317,14 +335,14 @@ class WarmingSimulator:
     def _differs(self, local: Any) -> str | None:
         """Why the compiled Simulator does not continue the interpreted one (None: it does)."""
         outs = []
-        for ask in (lambda: self._ask("output_row"), local.output_row):
+        for ask in (lambda: self.cold.call(self.sid, "output_row"), local.output_row):
             try:
                 outs.append(ask().tobytes())
             except SimulationError as e:
                 outs.append(type(e).__name__)
         if outs[0] != outs[1]:
             return "the outputs differ after the replay"
-        stats_remote, stats_local = self._ask("stats"), local.stats
+        stats_remote, stats_local = self.cold.call(self.sid, "stats"), local.stats
         if stats_remote != stats_local:
             return f"the statistics differ after the replay ({stats_remote} / {stats_local})"
         return None
