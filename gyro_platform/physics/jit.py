@@ -35,7 +35,9 @@ compile, one line on stderr, then one line per compiled kernel; and a compile as
 main thread runs on a helper thread while the main thread waits, so that SIGINT/SIGTERM
 (``errors.StopSignals``) stop the command at once instead of after the compile (LLVM runs for
 seconds without returning to the interpreter); :func:`abandon_compiles_when` does the same for
-a worker thread (the replay's bag reader) whose consumer stops. :func:`cache_dir` is the folder
+a worker thread (the replay's bag reader) whose consumer stops, and inside
+:func:`compiles_refused` a kernel that would compile raises :class:`CompileRefused` from its
+compile event, before any typing (the node tells a cold cache so: ``engine.remote``). :func:`cache_dir` is the folder
 in use. :func:`cached_array` keeps a constant array the kernels computed (the linear model's rest
 matrices) in that folder beside them, so that a later process loads no kernel to get it.
 """
