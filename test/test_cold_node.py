@@ -312,3 +312,33 @@ def test_a_helper_that_cannot_start_leaves_the_start_to_this_process(monkeypatch
     assert "not compiled yet" in notes[0] and notes[-1].endswith("; compiling here"), notes
     w = rates(300)
     assert outputs(core, w) == outputs(NodeCore(cfg, TYPES), w)
+
+
+def test_bad_input_while_interpreted_gives_the_compiled_cores_outcomes(cold):
+    """NaN rates, a repeated and a backward stamp and a 0.5 s gap fed during the interpreted phase
+    and across the switch: the same outputs, outcomes and gate counters as a compiled core's
+    (errors raised in the helper come back as the same classes; the record replays them)."""
+    os.kill(cold.compiler.pid, signal.SIGSTOP)
+    core = NodeCore(cold.config, TYPES, simulator=cold.simulator)
+    ref = NodeCore(cold.config, TYPES)
+    w = rates(4000)
+    w[100] = np.nan
+    w[101, 1] = np.inf
+    order = list(range(0, 300)) + [299, 250] + list(range(300, 1500)) + list(range(2000, 4000))   # repeat, back, gap
+
+    def run(c: NodeCore, ks) -> list:
+        return [(k, topic, repr(m)) for k in ks for topic, m in c.on_message(*imu(k, w[k]))]
+
+    got = run(core, order[:1000])
+    os.kill(cold.compiler.pid, signal.SIGCONT)
+    deadline = time.monotonic() + 120
+    i = 1000
+    while core.sim.local is None:
+        assert time.monotonic() < deadline and i < len(order), cold.notes
+        got += run(core, order[i:i + 1])
+        i += 1
+    got += run(core, order[i:])
+    assert got == run(ref, order)
+    assert dict(core.outcomes) == dict(ref.outcomes) and core.gate.snapshot() == ref.gate.snapshot()
+    assert "identical to the interpreted run" in cold.notes[-1], cold.notes
+    assert core.outcomes["rejected"] + core.gate.snapshot()["dropped"] >= 3, dict(core.outcomes)
