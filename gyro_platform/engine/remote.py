@@ -151,31 +151,29 @@ class ColdStart:
             return reply[1]
         raise _error(reply[1], reply[2])
 
-    def retire_helper(self) -> None:
+    def retire_helper(self, timeout: float = 5.0) -> None:
         """End the helper (a simulator has switched: ~100 MB less); another simulator of this
         start still on it replays its own record at its next call (``HelperGone``)."""
         for c in (self._to, self._from):
             c.close()                        # the helper sees the end of its input and exits
-        try:
-            self.helper.wait(5.0)
-        except subprocess.TimeoutExpired:
-            self.helper.kill()
-            self.helper.wait()
+        _reap(self.helper, timeout)
 
     def close(self) -> None:
         """Stop the compile process (if running) and the helper; idempotent."""
         atexit.unregister(self.close)
-        for c in (self._to, self._from):
-            c.close()                        # the helper sees the end of its input and exits
-        for p in (self.compiler, self.helper):
-            if p.poll() is None:
-                if p is self.compiler:
-                    p.terminate()
-                try:
-                    p.wait(1.0)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+        if self.compiler.poll() is None:
+            self.compiler.terminate()
+        _reap(self.compiler, 1.0)
+        self.retire_helper(1.0)
+
+
+def _reap(proc: subprocess.Popen, timeout: float) -> None:
+    """Wait ``timeout`` s for ``proc`` to end, then kill it."""
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 class WarmingSimulator:

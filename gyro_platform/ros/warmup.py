@@ -80,12 +80,15 @@ def start_core(config: Any, types: Any, make_input: Callable[[], Any], *, prog: 
     ``notice(line)`` (default: stderr) says so, and when the node switches."""
     from ..physics.jit import can_refuse_compiles, CompileRefused, compiles_refused
 
+    def warmed(simulator: Callable[..., Any] | None = None) -> NodeCore:
+        core = NodeCore(config, types, simulator=simulator)
+        warm_up(core, make_input)
+        return core
+
     if can_refuse_compiles():
         try:
             with compiles_refused():
-                core = NodeCore(config, types)
-                warm_up(core, make_input)
-            return core
+                return warmed()
         except CompileRefused:
             pass
         from ..engine.remote import ColdStart, HelperGone
@@ -93,15 +96,11 @@ def start_core(config: Any, types: Any, make_input: Callable[[], Any], *, prog: 
         say = notice or (lambda line: _stderr(f"{prog}: {line}"))
         cold = ColdStart(config.params, config.options, prog, say)
         try:
-            core = NodeCore(config, types, simulator=cold.simulator)
-            warm_up(core, make_input)
-            return core
+            return warmed(cold.simulator)
         except HelperGone as e:             # the helper could not start: as without it
             cold.close()
             say(f"{e}; compiling here")
-    core = NodeCore(config, types)
-    warm_up(core, make_input)
-    return core
+    return warmed()
 
 
 def _stderr(line: str) -> None:
