@@ -396,9 +396,9 @@ def _outputs(n: int) -> list:
 def test_signal_stops_at_a_chunk_boundary_with_consistent_counts(tmp_path, sig):
     rows = faulty_stream(30.0)
     bag = write_bag(tmp_path / "in", rows, "sqlite3")
-    # an expensive model (rk4, 100 substeps per 1 ms sample) keeps the replay running for a while
+    # an expensive model (rk4, 500 substeps per 1 ms sample) keeps the replay running for a while
     scene = tmp_path / "slow.yaml"
-    scene.write_text("name: slow\nmode: stabilised\nintegrator: rk4\nmax_step: 1.0e-5\nduration: 30.0\n"
+    scene.write_text("name: slow\nmode: stabilised\nintegrator: rk4\nmax_step: 2.0e-6\nduration: 30.0\n"
                      "sample_rate: 100.0\noutput_rate: 100.0\nmotion: {type: constant, omega: [0.0, 0.0, 0.1]}\n")
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

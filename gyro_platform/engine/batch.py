@@ -59,7 +59,7 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
 from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
                           TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
-from .views import view2
+from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
 from ..physics.jit import njit, plain
 from ..physics.rhs_linear import takes_linear_path
@@ -133,6 +133,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     what its model and method run. Everything is in this one function: the views of the buffers are made
     once per call, and no array is handed to a function per sample (numba's reference
     counting of array arguments would cost more than the step)."""
+    mi, md = borrow(mi), borrow(md)         # (engine.views: the stage matrices' calls count no references)
     fh = fview1(fb, ib, F_HDR)
     ih = iview1(ib, I_HDR)
     I = iview2(ib, I_I)
@@ -175,8 +176,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     yc = fview1(fb, ib, F_YC)
     yk = fview1(fb, ib, F_YK)
     TW = fview2(fb, ib, F_TW)
-    Ta = TW[0]
-    Tb = TW[1]
+    Ta, Tb = TW[0], TW[1]
     table = iview1(ib, I_TABLE)
     method = ih[J_METHOD]
     fid = ih[J_FID]
@@ -188,7 +188,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
     atol = fh[H_ATOL]
     n = y.shape[0]
     s = c.shape[0]
-    Kf = fb[ib[SLOT_W * F_K]:ib[SLOT_W * F_K] + s * n]     # K flat (no reshape)
+    Kf = view1(fb, ib[SLOT_W * F_K], (s * n,))     # K flat (no reshape)
     qa = I[0, LAY_QIB]
     qp = I[0, LAY_QIP]
     nout = out_idx.shape[0]

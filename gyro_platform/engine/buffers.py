@@ -21,13 +21,14 @@ work arrays, the 2-row input of the current interval …), ``ib`` the offset tab
 ints per slot: offset and up to three dimensions, float slots then int slots) and the int slots
 ``I_*``. The float header slot ``F_HDR`` holds the scalars ``H_*``, the int header ``I_HDR`` the
 counters and switches ``J_*``. :func:`pack` lays the arrays out (Python, once per engine);
-``fview1/2/3`` and ``iview1/2`` (compiled, inlined) give a slot back as a 1-, 2- or 3-D view.
+``fview1/2/3`` and ``iview1/2`` (compiled, inlined) give a slot back as a 1-, 2- or 3-D view,
+borrowed (:mod:`.views`: no reference counted; valid for the kernel call that made it).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .views import view2, view3
+from .views import view1, view2, view3
 from ..physics.jit import njit
 
 # ---- float buffer slots (system kernel arrays first, in ``kernel_args`` order after I) -----
@@ -58,8 +59,7 @@ SYSTEM_F = ((F_P, "", "P"), (F_SEG, "", "seg"), (F_MATS, "", "mats"), (F_R, "wor
 # ---- views of the slots (compiled, inlined into the kernels) -------------------------------
 @njit(cache=True, inline="always")
 def fview1(fb, ib, k):
-    o = ib[SLOT_W * k]
-    return fb[o:o + ib[SLOT_W * k + 1]]
+    return view1(fb, ib[SLOT_W * k], (ib[SLOT_W * k + 1],))
 
 
 @njit(cache=True, inline="always")
@@ -81,8 +81,7 @@ def fview3(fb, ib, k):
 
 @njit(cache=True, inline="always")
 def iview1(ib, k):
-    o = ib[SLOT_W * (N_FSLOT + k)]
-    return ib[o:o + ib[SLOT_W * (N_FSLOT + k) + 1]]
+    return view1(ib, ib[SLOT_W * (N_FSLOT + k)], (ib[SLOT_W * (N_FSLOT + k) + 1],))
 
 
 @njit(cache=True, inline="always")

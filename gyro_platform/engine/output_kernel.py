@@ -38,6 +38,7 @@ import numpy as np
 from .outputs import (C_ANG, C_AXIAL, C_BEAR, C_DRATE, C_DRIFT, C_MARGIN, C_MAXANG, C_MOTOR, C_MOUNT, C_MRATE, C_NSTEPS,
                       C_OM, C_QUAT, C_RATE, C_ROTOR, C_SERVO, C_T, COLUMN_NAMES, N_COL, OutputBlock, Outputs,
                       outputs_of_row)
+from .views import borrow
 from ..errors import NonFiniteOutputError, SimulationError
 from ..physics import effects as fx
 from ..physics.jit import njit, plain
@@ -408,6 +409,9 @@ def output_rows(T, TR, NS, Y, SEG, OUT, I, P, mats, CF, OI, E, WK, gen, carried)
     takes that model's right-hand side only); ``carried``: None for a stabilised platform, else
     0 — numba prunes the code a None rules out before typing it (a kernel per combination: a
     command compiles what its model needs)."""
+    # borrowed (engine.views): the views made per instant below count no references
+    T, TR, NS, Y, SEG, OUT = borrow(T), borrow(TR), borrow(NS), borrow(Y), borrow(SEG), borrow(OUT)
+    I, P, mats, CF, OI, E, WK = borrow(I), borrow(P), borrow(mats), borrow(CF), borrow(OI), borrow(E), borrow(WK)
     n = Y.shape[1]
     nb = OI[I_NB]
     nr = OI[I_NR]

@@ -12,15 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Views of a flat buffer as small C-contiguous 2-D/3-D arrays, for the compiled kernels.
+"""Borrowed views of a flat buffer as small C-contiguous 1-D/2-D/3-D arrays, for the compiled
+kernels.
 
-``view2(buf, offset, (d0, d1))`` and ``view3(buf, offset, (d0, d1, d2))`` return the array of
-that shape whose element [0, 0(, 0)] is ``buf[offset]`` (``buf``: 1-D C-contiguous; the view
-shares its memory and keeps it alive). They do what ``buf[o:o+size].reshape(shape)`` does
-without reshape's general stride search: ~1 ns instead of ~18 ns per view, which matters
-because the kernels rebuild some forty views per call. No bounds check: the callers' offset
-tables are built from the same shapes (``engine.batch.Engine``). Under ``NUMBA_DISABLE_JIT=1``
-both are numpy's slice and reshape.
+``view1(buf, offset, (d0,))``, ``view2(buf, offset, (d0, d1))`` and ``view3(buf, offset, (d0, d1,
+d2))`` return the array of that shape whose first element is ``buf[offset]`` (``buf``: 1-D
+C-contiguous; the view shares its memory). They do what ``buf[o:o+size].reshape(shape)`` does
+without reshape's general stride search (~1 ns instead of ~18 ns per view; the kernels rebuild
+some forty views per call) and **hold no reference**: the view has no meminfo, so numba's
+reference counting of it, and of every view or argument made from it, is a null test instead of
+a locked increment and decrement of the buffer's shared count (those atomic operations were two
+thirds of the stepping kernel's time, ~20 per right-hand side called). A borrowed view is valid
+while the caller holds ``buf``: a kernel passes it to the functions it calls, never returns it
+or keeps it beyond the call. No bounds check: the callers' offset tables are built from the
+same shapes (``engine.batch.Engine``). ``borrow(a)`` is ``a`` itself as a borrowed array (a
+kernel's array arguments, before it makes views of them in its loops). Under
+``NUMBA_DISABLE_JIT=1`` they are numpy's slice and reshape, and ``a``.
 """
 from __future__ import annotations
 
@@ -32,7 +39,7 @@ from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
-__all__ = ["view2", "view3"]
+__all__ = ["borrow", "view1", "view2", "view3"]
 
 
 def _make_view(ndim: int):
@@ -57,12 +64,28 @@ def _make_view(ndim: int):
                 strides[i] = builder.mul(strides[i + 1], dims[i + 1])
             populate_array(out, data=builder.gep(src.data, [o]), shape=cgutils.pack_array(builder, dims),
                            strides=cgutils.pack_array(builder, strides), itemsize=src.itemsize,
-                           meminfo=src.meminfo, parent=src.parent)
+                           meminfo=None, parent=None)        # borrowed: no reference held
             return impl_ret_borrowed(context, builder, sig.return_type, out._getvalue())
 
         return sig, codegen
 
     return view
+
+
+@intrinsic
+def _borrow(typingctx, ary):
+    if not isinstance(ary, types.Array):
+        return None
+    sig = ary(ary)
+
+    def codegen(context, builder, sig, args):
+        src = make_array(sig.args[0])(context, builder, args[0])
+        out = make_array(sig.return_type)(context, builder)
+        populate_array(out, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize,
+                       meminfo=None, parent=None)       # borrowed: no reference held
+        return impl_ret_borrowed(context, builder, sig.return_type, out._getvalue())
+
+    return sig, codegen
 
 
 def _plain_view(buf, off, shape):
@@ -71,7 +94,10 @@ def _plain_view(buf, off, shape):
 
 
 if config.DISABLE_JIT:
-    view2 = view3 = _plain_view
+    view1 = view2 = view3 = _plain_view
+    borrow = (lambda ary: ary)
 else:
+    borrow = _borrow
+    view1 = _make_view(1)
     view2 = _make_view(2)
     view3 = _make_view(3)
