@@ -19,8 +19,8 @@ two flat buffers (``fb`` float64, ``ib`` int64: the system's kernel tables and w
 state, the controller's scalars, the 2-row input of the current interval, the stage work
 arrays) plus the exponential methods' stage matrices (``mi`` int64 CSR pointers/indices,
 ``md`` float64 values; slots, headers and views: :mod:`.buffers`). A call passes these four
-arrays and the sample; the kernel rebuilds its views from the offset table at the start of ``ib``
-(numba's dispatch costs ~0.1 µs per array argument: four buffers instead of ~45 arrays). The
+arrays and the sample; the kernel rebuilds its views from the offset table at the start of ``ib``, borrowed
+(:mod:`.views`; numba's dispatch costs ~0.1 µs per array argument: four buffers, not ~45). The
 system's named arrays (``system.seg``, ``system.P`` …) are rebound to views into ``fb``/``ib``,
 so the Python code sees the same memory.
 
@@ -39,9 +39,8 @@ interval; the check ``_k1_carried`` makes any change of state or input row recom
 RK4 with the mount friction on also ends a piece of a chunk at the friction's next kink (predicted
 from K[0], ``physics.switching``) and goes on with the rest of the chunk; once per piece, a kink
 found looking back from the piece's end shortens it to end there (redone, one rejection): the plan
-of ``Controlled._advance``/``_chunk`` with ``locates_switches``.
-A sample is committed (state, time, input, counters)
-only when its interval succeeded; otherwise everything — ``seg`` included — is as before.
+of ``Controlled._advance``/``_chunk`` with ``locates_switches``. A sample is committed (state, time,
+input, counters) only when its interval succeeded; otherwise everything, ``seg`` too, is as before.
 """
 from __future__ import annotations
 
@@ -576,6 +575,7 @@ def push_kernel(fb, ib, mi, md, t, w, f, has_f, gen, expo):
 def push_values_kernel(fb, ib, mi, md, t, wx, wy, wz, fx, fy, fz, has_f, gen, expo):
     """``push_kernel`` of a sample given as scalars (no input arrays to make or unbox: the
     node's per-message path; ``fx, fy, fz`` ignored unless ``has_f``)."""
+    fb, ib = borrow(fb), borrow(ib)         # (engine.views: the chunk's views count no references)
     o = ib[SLOT_W * F_PUSH]
     fb[o] = t
     fb[o + 1], fb[o + 2], fb[o + 3] = wx, wy, wz
