@@ -101,25 +101,17 @@ def joint_rotation(jt, n, q, qi, out):
                 out[a, b] = 1.0 if a == b else 0.0
 
 
-@njit(cache=True)
-def _cross(a, b, out):
-    """out = a × b (out must not alias a or b)."""
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
+@njit(cache=True, inline="always")
+def _cross3(a0, a1, a2, b0, b1, b2):
+    """a × b of two 3-vectors given as scalars (the kernels allocate no work arrays)."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
-@njit(cache=True)
-def _matT_vec(R, v, out):
-    """out = Rᵀ v"""
-    for i in range(3):
-        out[i] = R[0, i] * v[0] + R[1, i] * v[1] + R[2, i] * v[2]
-
-
-@njit(cache=True)
-def _mat_vec(R, v, out):
-    for i in range(3):
-        out[i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+@njit(cache=True, inline="always")
+def _matT_vec3(R, v):
+    """Rᵀ v as three scalars."""
+    return (R[0, 0] * v[0] + R[1, 0] * v[1] + R[2, 0] * v[2], R[0, 1] * v[0] + R[1, 1] * v[1] + R[2, 1] * v[2],
+            R[0, 2] * v[0] + R[1, 2] * v[1] + R[2, 2] * v[2])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -131,7 +123,6 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
     Jacobians ``J[i]`` (3 × nv, ω_i = J_i v + affine root part) for all bodies."""
     nb = parent.shape[0]
     nv = J.shape[2]
-    tmp = np.empty(3)
     for k in range(3):
         R[0, k, 0] = 0.0
         R[0, k, 1] = 0.0
@@ -149,10 +140,13 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
     for i in range(1, nb):
         p = parent[i]
         joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
-        _matT_vec(R[i], w[p], tmp)
         rate = v[vidx[i]]
-        for k in range(3):
-            w[i, k] = tmp[k] + rate * axis[i, k]
+        t0 = R[i, 0, 0] * w[p, 0] + R[i, 1, 0] * w[p, 1] + R[i, 2, 0] * w[p, 2]     # R_iᵀ w_p, no array
+        t1 = R[i, 0, 1] * w[p, 0] + R[i, 1, 1] * w[p, 1] + R[i, 2, 1] * w[p, 2]
+        t2 = R[i, 0, 2] * w[p, 0] + R[i, 1, 2] * w[p, 1] + R[i, 2, 2] * w[p, 2]
+        w[i, 0] = t0 + rate * axis[i, 0]
+        w[i, 1] = t1 + rate * axis[i, 1]
+        w[i, 2] = t2 + rate * axis[i, 2]
         for j in range(nv):
             for k in range(3):
                 J[i, k, j] = R[i, 0, k] * J[p, 0, j] + R[i, 1, k] * J[p, 1, j] + R[i, 2, k] * J[p, 2, j]
@@ -185,22 +179,21 @@ def kinematics_rw(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w)
 
 @njit(cache=True)
 def mass_matrix(J, inertia, M):
-    """M = Σ_i J_iᵀ I_i J_i (the frozen-rotor mass matrix A*, kg m²)."""
+    """M = Σ_i J_iᵀ I_i J_i (the frozen-rotor mass matrix A*, kg m²); column b of I_i J_i as three
+    scalars (no work array: the right-hand side allocates nothing)."""
     nb = J.shape[0]
     nv = J.shape[2]
-    IJ = np.empty((3, nv))
     for a in range(nv):
         for b in range(nv):
             M[a, b] = 0.0
     for i in range(nb):
         I = inertia[i]
-        for k in range(3):
-            for j in range(nv):
-                IJ[k, j] = I[k, 0] * J[i, 0, j] + I[k, 1] * J[i, 1, j] + I[k, 2] * J[i, 2, j]
-        for a in range(nv):
-            for b in range(a, nv):
-                s = J[i, 0, a] * IJ[0, b] + J[i, 1, a] * IJ[1, b] + J[i, 2, a] * IJ[2, b]
-                M[a, b] += s
+        for b in range(nv):
+            ij0 = I[0, 0] * J[i, 0, b] + I[0, 1] * J[i, 1, b] + I[0, 2] * J[i, 2, b]
+            ij1 = I[1, 0] * J[i, 0, b] + I[1, 1] * J[i, 1, b] + I[1, 2] * J[i, 2, b]
+            ij2 = I[2, 0] * J[i, 0, b] + I[2, 1] * J[i, 1, b] + I[2, 2] * J[i, 2, b]
+            for a in range(b + 1):
+                M[a, b] += J[i, 0, a] * ij0 + J[i, 1, a] * ij1 + J[i, 2, a] * ij2
     for a in range(nv):
         for b in range(a):
             M[a, b] = M[b, a]
@@ -218,9 +211,6 @@ def newton_euler(parent, jtype, axis, vidx, inertia, root_dynamic, rotor_host, r
     the velocity-product terms of the frozen system and the rotor-momentum terms; ``tau_ext``
     (nb, 3) are applied body torques (body axes)."""
     nb = parent.shape[0]
-    tmp = np.empty(3)
-    tmp2 = np.empty(3)
-    tmp3 = np.empty(3)
     if root_dynamic:
         for k in range(3):
             wd[0, k] = a[k]
@@ -229,43 +219,49 @@ def newton_euler(parent, jtype, axis, vidx, inertia, root_dynamic, rotor_host, r
             wd[0, k] = wd0[k]
     for i in range(1, nb):
         p = parent[i]
-        _matT_vec(R[i], wd[p], tmp)
+        t0, t1, t2 = _matT_vec3(R[i], wd[p])
         acc = a[vidx[i]]
-        for k in range(3):
-            wd[i, k] = tmp[k] + acc * axis[i, k]
+        wd[i, 0] = t0 + acc * axis[i, 0]
+        wd[i, 1] = t1 + acc * axis[i, 1]
+        wd[i, 2] = t2 + acc * axis[i, 2]
         if coriolis:
-            _matT_vec(R[i], w[p], tmp)
+            u0, u1, u2 = _matT_vec3(R[i], w[p])
             rate = v[vidx[i]]
-            for k in range(3):
-                tmp2[k] = rate * axis[i, k]
-            _cross(tmp, tmp2, tmp3)
-            for k in range(3):
-                wd[i, k] += tmp3[k]
+            c0, c1, c2 = _cross3(u0, u1, u2, rate * axis[i, 0], rate * axis[i, 1], rate * axis[i, 2])
+            wd[i, 0] += c0
+            wd[i, 1] += c1
+            wd[i, 2] += c2
     # body torques
     for i in range(nb):
         I = inertia[i]
         for k in range(3):
             f[i, k] = I[k, 0] * wd[i, 0] + I[k, 1] * wd[i, 1] + I[k, 2] * wd[i, 2] - tau_ext[i, k]
         if coriolis:
-            for k in range(3):
-                tmp2[k] = I[k, 0] * w[i, 0] + I[k, 1] * w[i, 1] + I[k, 2] * w[i, 2]
-            _cross(w[i], tmp2, tmp)
-            for k in range(3):
-                f[i, k] += tmp[k]
+            h0 = I[0, 0] * w[i, 0] + I[0, 1] * w[i, 1] + I[0, 2] * w[i, 2]
+            h1 = I[1, 0] * w[i, 0] + I[1, 1] * w[i, 1] + I[1, 2] * w[i, 2]
+            h2 = I[2, 0] * w[i, 0] + I[2, 1] * w[i, 1] + I[2, 2] * w[i, 2]
+            c0, c1, c2 = _cross3(w[i, 0], w[i, 1], w[i, 2], h0, h1, h2)
+            f[i, 0] += c0
+            f[i, 1] += c1
+            f[i, 2] += c2
     if gyroscopic:
         for r in range(rotor_host.shape[0]):
             h = rotor_host[r]
-            for k in range(3):
-                tmp2[k] = rotor_L[r] * rotor_axis[r, k]
-            _cross(w[h], tmp2, tmp)
-            for k in range(3):
-                f[h, k] += tmp[k]
+            c0, c1, c2 = _cross3(w[h, 0], w[h, 1], w[h, 2], rotor_L[r] * rotor_axis[r, 0],
+                                 rotor_L[r] * rotor_axis[r, 1], rotor_L[r] * rotor_axis[r, 2])
+            f[h, 0] += c0
+            f[h, 1] += c1
+            f[h, 2] += c2
     # backward pass: children pass their joint torque to the parent
     for i in range(nb - 1, 0, -1):
         p = parent[i]
-        _mat_vec(R[i], f[i], tmp)
-        for k in range(3):
-            f[p, k] += tmp[k]
+        Ri = R[i]
+        t0 = Ri[0, 0] * f[i, 0] + Ri[0, 1] * f[i, 1] + Ri[0, 2] * f[i, 2]
+        t1 = Ri[1, 0] * f[i, 0] + Ri[1, 1] * f[i, 1] + Ri[1, 2] * f[i, 2]
+        t2 = Ri[2, 0] * f[i, 0] + Ri[2, 1] * f[i, 1] + Ri[2, 2] * f[i, 2]
+        f[p, 0] += t0
+        f[p, 1] += t1
+        f[p, 2] += t2
 
 
 @njit(cache=True)
@@ -282,8 +278,6 @@ def generalised(jtype, axis, vidx, root_dynamic, f, out):
 def rotor_torques(rotor_host, rotor_axis, rotor_C, rotor_A, rotor_L, w, wd, tau):
     """Torque each ideal rotor's housing exerts on it (N m, housing axes), spec 8 step 2
     (φ̈ = 0): τ = C(s·ω̇)s + A(ω̇ − (s·ω̇)s) + ω × H, H = C(s·ω)s + A(ω − (s·ω)s) + L s."""
-    H = np.empty(3)
-    tmp = np.empty(3)
     for r in range(rotor_host.shape[0]):
         h = rotor_host[r]
         s = rotor_axis[r]
@@ -291,11 +285,13 @@ def rotor_torques(rotor_host, rotor_axis, rotor_C, rotor_A, rotor_L, w, wd, tau)
         A = rotor_A[r]
         sw = s[0] * w[h, 0] + s[1] * w[h, 1] + s[2] * w[h, 2]
         swd = s[0] * wd[h, 0] + s[1] * wd[h, 1] + s[2] * wd[h, 2]
-        for k in range(3):
-            H[k] = C * sw * s[k] + A * (w[h, k] - sw * s[k]) + rotor_L[r] * s[k]
-        _cross(w[h], H, tmp)
-        for k in range(3):
-            tau[r, k] = C * swd * s[k] + A * (wd[h, k] - swd * s[k]) + tmp[k]
+        H0 = C * sw * s[0] + A * (w[h, 0] - sw * s[0]) + rotor_L[r] * s[0]
+        H1 = C * sw * s[1] + A * (w[h, 1] - sw * s[1]) + rotor_L[r] * s[1]
+        H2 = C * sw * s[2] + A * (w[h, 2] - sw * s[2]) + rotor_L[r] * s[2]
+        c0, c1, c2 = _cross3(w[h, 0], w[h, 1], w[h, 2], H0, H1, H2)
+        tau[r, 0] = C * swd * s[0] + A * (wd[h, 0] - swd * s[0]) + c0
+        tau[r, 1] = C * swd * s[1] + A * (wd[h, 1] - swd * s[1]) + c1
+        tau[r, 2] = C * swd * s[2] + A * (wd[h, 2] - swd * s[2]) + c2
 
 
 class TreeWork:
