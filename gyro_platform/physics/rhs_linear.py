@@ -20,9 +20,10 @@ linear, the platform stabilised, and no effect needs body rotations or the Earth
 (``mass_unbalance``, ``anisoelastic``, ``earth_rate`` off). The physics is the general
 kernel's for that case (spec 6.3: constant M0, G0; support friction, servo, gimbal springs,
 dampers, friction and bias), evaluated on scalars and the argument arrays only: the general
-kernel creates some fifteen array views per call, and each costs numba a reference-count
-round trip, about two thirds of its time. Frames: platform axes for Ω, M_P; vehicle axes
-for ω_B. May import the physics room's kernels only.
+kernel creates some fifteen array views per call (each was a locked reference-count round trip,
+about two thirds of its time, until the kernels' views were borrowed: ``engine.views``).
+Frames: platform axes for Ω, M_P; vehicle axes for ω_B. May import the physics room's kernels
+only.
 """
 from __future__ import annotations
 
