@@ -268,6 +268,53 @@ def test_a_kernel_numba_cannot_cache_is_a_warning_not_a_crash():
         assert cache._impl.check_cachable(cres) is False
 
 
+def test_kernels_compile_with_sparse_collections_and_the_thresholds_come_back():
+    """While a kernel compiles (its callees' compiles inside it too) the collector runs at
+    ``COMPILE_GC_THRESHOLD``; the process's own thresholds are back after it, also after a compile
+    that fails in typing."""
+    import gc
+
+    from numba import njit
+    from numba.core import event
+    from numba.core.errors import TypingError
+
+    seen = []
+
+    class Probe(event.Listener):
+        def on_start(self, ev):
+            seen.append(gc.get_threshold())
+
+        def on_end(self, ev):
+            pass
+
+    @njit
+    def callee(x):
+        return x * 2.0
+
+    @njit
+    def caller(x):
+        return callee(x) + 1.0
+
+    @njit
+    def broken(x):
+        return x.no_such_attribute
+
+    before = gc.get_threshold()
+    gc.set_threshold(555, 7, 3)
+    probe = Probe()
+    event.register("numba:compile", probe)
+    try:
+        assert caller(1.0) == 3.0
+        assert seen and all(t == jit.COMPILE_GC_THRESHOLD for t in seen) and len(seen) >= 2   # caller, callee
+        assert gc.get_threshold() == (555, 7, 3)
+        with pytest.raises(TypingError):
+            broken(1.0)
+        assert gc.get_threshold() == (555, 7, 3)
+    finally:
+        event.unregister("numba:compile", probe)
+        gc.set_threshold(*before)
+
+
 _LOADER = """
 import json, sys
 import numpy as np
