@@ -31,7 +31,7 @@ the other's machine code. A cached kernel loads without numba's refresh of its
 implementation registries (:func:`_load_without_refresh`: ~0.25 s of every process's start).
 While a kernel compiles, the garbage collector runs less often (:func:`_sparse_gc_compile`,
 ``COMPILE_GC_THRESHOLD``: numba makes millions of short-lived objects, and the default
-thresholds spent ~10 % of a compile walking them).
+thresholds spent ~7 % of a compile walking them).
 
 :func:`compile_notices` (command-line processes, Dask workers, the rclpy node): while kernels
 compile, one line on stderr, then one line per compiled kernel; and a compile asked for on the

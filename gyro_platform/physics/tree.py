@@ -141,9 +141,7 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
         p = parent[i]
         joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
         rate = v[vidx[i]]
-        t0 = R[i, 0, 0] * w[p, 0] + R[i, 1, 0] * w[p, 1] + R[i, 2, 0] * w[p, 2]     # R_iᵀ w_p, no array
-        t1 = R[i, 0, 1] * w[p, 0] + R[i, 1, 1] * w[p, 1] + R[i, 2, 1] * w[p, 2]
-        t2 = R[i, 0, 2] * w[p, 0] + R[i, 1, 2] * w[p, 1] + R[i, 2, 2] * w[p, 2]
+        t0, t1, t2 = _matT_vec3(R[i], w[p])
         w[i, 0] = t0 + rate * axis[i, 0]
         w[i, 1] = t1 + rate * axis[i, 1]
         w[i, 2] = t2 + rate * axis[i, 2]
@@ -169,9 +167,7 @@ def kinematics_rw(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w)
         p = parent[i]
         joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
         rate = v[vidx[i]]
-        t0 = R[i, 0, 0] * w[p, 0] + R[i, 1, 0] * w[p, 1] + R[i, 2, 0] * w[p, 2]
-        t1 = R[i, 0, 1] * w[p, 0] + R[i, 1, 1] * w[p, 1] + R[i, 2, 1] * w[p, 2]
-        t2 = R[i, 0, 2] * w[p, 0] + R[i, 1, 2] * w[p, 1] + R[i, 2, 2] * w[p, 2]
+        t0, t1, t2 = _matT_vec3(R[i], w[p])
         w[i, 0] = t0 + rate * axis[i, 0]
         w[i, 1] = t1 + rate * axis[i, 1]
         w[i, 2] = t2 + rate * axis[i, 2]
