@@ -81,6 +81,7 @@ def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig
     assert p.returncode == code, "".join(lines) + rest
     assert ("terminated" if sig == signal.SIGTERM else "interrupted") in rest
     assert time.monotonic() - t0 < 30          # not after the compile (a generous bound, not a timing test)
+    assert _helpers_of(tmp_path) == [], "a helper process of the command outlived it"
     if what == "compile":                       # its second process (--jobs 2) stopped too
         try:
             os.killpg(p.pid, 0)
@@ -89,6 +90,75 @@ def test_cold_command_says_it_compiles_and_stops_on_a_signal(tmp_path, what, sig
         else:
             os.killpg(p.pid, signal.SIGKILL)
             pytest.fail("a process of the compile outlived it")
+
+
+def _helpers_of(tmp_path: Path) -> list[int]:
+    """Live ``engine.remote`` helper processes whose kernel cache is under ``tmp_path``."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            cmd = (proc / "cmdline").read_bytes()
+            env = (proc / "environ").read_bytes() if b"gyro_platform.engine.remote" in cmd else b""
+        except OSError:
+            continue
+        if f"NUMBA_CACHE_DIR={tmp_path}".encode() in env:
+            found.append(int(proc.name))
+    return found
+
+
+def test_a_cold_command_compiles_its_output_kernel_in_a_second_process(tmp_path):
+    """On an empty cache (two CPUs) ``run`` compiles the output kernel in a helper process while
+    it compiles the stepping kernels, then loads it from the cache: the helper says so on each
+    of its lines, the command itself does not compile it, the outputs are those of a run on a
+    warm cache, and no helper outlives the command."""
+    from gyro_platform.engine.remote import COMPILE_JOBS_ENV
+
+    args = ["run", "default", "--duration", "1"]
+    env = dict(_cold_env(tmp_path), **{COMPILE_JOBS_ENV: "2"})
+    cold = subprocess.run([sys.executable, "-m", "gyro_platform", *args, "--out", str(tmp_path / "cold")], cwd=ROOT,
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert cold.returncode == 1 and "NOT EVALUABLE" in cold.stdout, cold.stderr  # 1 s: expectations not judged
+    kernel_lines = [x for x in cold.stderr.splitlines() if "compiled output_rows " in x]
+    assert len(kernel_lines) == 1 and "in the second process" in kernel_lines[0], cold.stderr
+    assert "compiled block_kernel " in cold.stderr and "second process)" not in cold.stderr.split(
+        "compiled block_kernel ")[1].splitlines()[0], cold.stderr
+    assert _helpers_of(tmp_path) == []
+    warm = subprocess.run([sys.executable, "-m", "gyro_platform", *args, "--out", str(tmp_path / "warm")], cwd=ROOT,
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert warm.returncode == 1 and "compiling" not in warm.stderr, warm.stderr
+    assert (tmp_path / "cold" / "outputs.csv").read_bytes() == (tmp_path / "warm" / "outputs.csv").read_bytes()
+
+
+@pytest.mark.parametrize("value, cpus, jobs", [("1", 8, 1), ("2", 1, 2), ("7", 8, 2), ("", 1, 1), ("", 2, 2),
+                                               ("x", 4, 2), ("0", 1, 1)])
+def test_compile_jobs_follow_the_cpus_unless_the_environment_says(monkeypatch, value, cpus, jobs):
+    from gyro_platform.engine import remote
+
+    monkeypatch.setenv(remote.COMPILE_JOBS_ENV, value)
+    monkeypatch.setattr(remote.os, "sched_getaffinity", lambda pid: set(range(cpus)), raising=False)
+    assert remote.compile_jobs() == jobs
+
+
+def test_a_kernel_compiled_elsewhere_waits_for_that_process_once_then_loads_or_compiles(tmp_path):
+    """``jit.compiled_elsewhere``: the next compile of the kernel calls the wait first (once),
+    then compiles here when the cache does not have it; taken back, no wait."""
+    from numba import njit
+
+    calls = []
+
+    @njit
+    def twice(x):
+        return 2.0 * x
+
+    @njit
+    def thrice(x):
+        return 3.0 * x
+
+    jit.compiled_elsewhere(twice, lambda: calls.append("twice"))
+    jit.compiled_elsewhere(thrice, lambda: calls.append("thrice"))
+    jit.compiled_elsewhere(thrice, None)
+    assert twice(2.0) == 4.0 and twice(3) == 6 and thrice(1.0) == 3.0
+    assert calls == ["twice"]
 
 
 def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):

@@ -52,9 +52,10 @@ from typing import Any, Callable
 
 from .. import errors
 from ..errors import SimulationError
-from ..physics.jit import CompileRefused, compiles_refused
+from ..physics.jit import (compiled_elsewhere, CompileRefused, compiles_refused, not_when_compiling, notices_prog,
+                           when_compiling)
 
-__all__ = ["ColdStart", "WarmingSimulator", "HelperGone"]
+__all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "COMPILE_JOBS_ENV"]
 
 #: the package's parent folder: the helper processes import the package from where this one did
 _ROOT = str(Path(__file__).resolve().parents[2])
@@ -82,6 +83,77 @@ def _spawn(mode: str, prog: str, env: dict[str, str]) -> tuple[subprocess.Popen,
         os.close(to_r)
         os.close(from_w)
     return proc, Connection(to_w, readable=False), Connection(from_r, writable=False)
+
+
+#: ``GYRO_PLATFORM_COMPILE_JOBS=1``: a cold command compiles all its kernels itself (no
+#: :class:`OutputsAside` helper)
+COMPILE_JOBS_ENV = "GYRO_PLATFORM_COMPILE_JOBS"
+
+
+def compile_jobs() -> int:
+    """Processes a cold command may compile its kernels in: 2 where this process may run on two
+    or more CPUs, else 1; ``$GYRO_PLATFORM_COMPILE_JOBS`` (1 or 2) overrides."""
+    env = os.environ.get(COMPILE_JOBS_ENV, "").strip()
+    if env.isdigit() and int(env) >= 1:
+        return min(int(env), 2)
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return 2 if cpus >= 2 else 1
+
+
+class OutputsAside:
+    """On a cold kernel cache, the output kernel of one configuration (``params``, ``options``)
+    compiled by a helper process (``outputs``) while this process compiles the stepping kernels:
+    the two are independent and each takes ~40 % of a cold command's compile (numba compiles
+    one kernel at a time in a process). Armed by the constructor: nothing happens unless this
+    process starts compiling a kernel (``physics.jit.when_compiling``: a warm cache costs
+    nothing) and :func:`compile_jobs` is 2. Then the helper starts, and this process's own
+    compile of the output kernel, when it comes to it, waits for the helper and loads the
+    kernel from the cache (``physics.jit.compiled_elsewhere``; if the helper failed, it
+    compiles it here). Its notices (stderr): one line per kernel it compiled. :meth:`close`
+    (also at exit) stops a helper still running."""
+
+    def __init__(self, params: Any, options: Any):
+        self.params, self.options = params, options
+        self.proc: subprocess.Popen | None = None
+        self._kernel: Any = None
+        self.armed = compile_jobs() > 1 and when_compiling(self._start)
+
+    def _start(self) -> None:
+        from .output_kernel import output_rows
+
+        self.proc, to, back = _spawn("outputs", notices_prog() or "gyro-platform", {})
+        try:
+            to.send((self.params, self.options))
+        except OSError:                      # it ended at once: the compile here loads or compiles
+            pass
+        to.close()
+        back.close()
+        self._kernel = output_rows
+        compiled_elsewhere(output_rows, self._wait)
+        atexit.register(self.close)
+
+    def _wait(self) -> None:
+        """Until the helper has ended (called on a compile thread: a signal still stops the
+        command at once, ``physics.jit``)."""
+        while self.proc is not None and self.proc.poll() is None:
+            time.sleep(0.02)
+
+    def close(self) -> None:
+        """Disarm; stop the helper if it still runs. Idempotent."""
+        atexit.unregister(self.close)
+        not_when_compiling(self._start)
+        if self._kernel is not None:
+            compiled_elsewhere(self._kernel, None)
+        if self.proc is not None:
+            if self.proc.poll() is None:
+                self.proc.terminate()
+            _reap(self.proc, 1.0)
+
+    def __enter__(self) -> "OutputsAside":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _error(name: str, text: str) -> Exception:
@@ -405,6 +477,29 @@ def _compile(inbox: Connection, prog: str) -> int:
     return 0
 
 
+def _compile_outputs(inbox: Connection, prog: str) -> int:
+    """``outputs``: the output kernel of the configuration received (:class:`OutputsAside`),
+    called once on the initial state: compiled into the cache (or loaded from it). Exit 0."""
+    from .simulator import Simulator
+    from .snapshots import SEG_N, Snapshots
+    from ..physics.jit import compile_notices, quiet_compile_header
+
+    import numpy as np
+
+    params, options = inbox.recv()
+    inbox.close()
+    compile_notices(prog, where="in the second process")
+    quiet_compile_header()                  # the command said that kernels compile
+    sim = Simulator(params, options)
+    snaps = Snapshots(np.zeros(1), np.zeros(1), np.array(sim.y, dtype=float)[None, :], np.zeros((1, SEG_N)),
+                      np.zeros(1, np.int64))
+    try:
+        sim.outputs_at(snaps)
+    except SimulationError:                 # an instant made up for the compile: its values do not matter
+        pass
+    return 0
+
+
 def main(argv: list[str]) -> int:
     """``python -m gyro_platform.engine.remote MODE IN_FD OUT_FD PROG`` (``ColdStart``'s)."""
     import signal
@@ -417,7 +512,7 @@ def main(argv: list[str]) -> int:
         return _serve(inbox, outbox)
     outbox.close()
     try:
-        return _compile(inbox, prog)
+        return (_compile_outputs if mode == "outputs" else _compile)(inbox, prog)
     except (KeyboardInterrupt, EOFError):
         return 130
     except Exception as e:  # noqa: BLE001 - one line, the node compiles the rest itself

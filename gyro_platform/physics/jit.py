@@ -68,8 +68,8 @@ import numpy as np
 from ..signals import StopSignals
 
 __all__ = ["njit", "plain", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
-           "not_when_compiling", "abandon_compiles_when", "CompileAbandoned", "compiles_refused", "CompileRefused",
-           "can_refuse_compiles",
+           "not_when_compiling", "compiled_elsewhere", "notices_prog", "abandon_compiles_when", "CompileAbandoned",
+           "compiles_refused", "CompileRefused", "can_refuse_compiles",
            "PackageCacheLocator", "source_digest", "digest_sources"]
 
 #: the package folder (the kernel sources below it get the locator)
@@ -294,9 +294,10 @@ caching.Cache.load_overload = _load_without_refresh
 class _Notices(event.Listener):
     """stderr lines while kernels compile: one line first, then one per compiled kernel."""
 
-    def __init__(self, prog: str, stream=None):
+    def __init__(self, prog: str, stream=None, where: str = ""):
         self.prog = prog
         self.stream = stream
+        self.where = f", {where}" if where else ""
         self.depth = 0
         self.started: float | None = None
         self.t0 = 0.0
@@ -333,7 +334,7 @@ class _Notices(event.Listener):
             disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
             name = getattr(getattr(disp, "py_func", None), "__qualname__", "kernel")
             now = time.monotonic()
-            self._print(f"  compiled {name} in {now - self.t0:.1f} s ({now - self.started:.0f} s so far)")
+            self._print(f"  compiled {name} in {now - self.t0:.1f} s ({now - self.started:.0f} s so far{self.where})")
 
 
 _numba_compile = Dispatcher.compile
@@ -351,8 +352,12 @@ _gc_saved = gc.get_threshold()
 
 def _sparse_gc_compile(self, sig):
     """numba's ``Dispatcher.compile`` with ``COMPILE_GC_THRESHOLD`` in force (nested compiles of
-    callees inside it included)."""
+    callees inside it included); first, for a kernel of :func:`compiled_elsewhere`, the wait
+    for the process that compiles it (numba's compile then loads it from the cache)."""
     global _gc_depth, _gc_saved
+    wait = _elsewhere.pop(self, None) if _elsewhere else None
+    if wait is not None:
+        wait()
     with _gc_lock:
         if _gc_depth == 0:
             _gc_saved = gc.get_threshold()
@@ -421,6 +426,7 @@ def _compile_off_main(self, sig):
 
 
 _first_compile: list = []                  # callables for the next first compile (when_compiling)
+_elsewhere: dict = {}                       # dispatcher -> wait() (compiled_elsewhere)
 _refusing = 0                               # nesting of compiles_refused blocks
 
 
@@ -467,6 +473,22 @@ def not_when_compiling(callback) -> None:
         _first_compile.remove(callback)
 
 
+def compiled_elsewhere(dispatcher, wait: Callable[[], None] | None) -> None:
+    """Another process compiles kernel ``dispatcher`` into the cache for this one: the next time
+    this process would compile it, it first calls ``wait()`` (which returns once that process
+    has ended), then loads the kernel from the cache, or compiles it after all when it is not
+    there. ``wait=None`` takes it back."""
+    if wait is None:
+        _elsewhere.pop(dispatcher, None)
+    else:
+        _elsewhere[dispatcher] = wait
+
+
+def notices_prog() -> str | None:
+    """The command name :func:`compile_notices` was installed with (None: not installed)."""
+    return None if _notices is None else _notices.prog
+
+
 def quiet_compile_header() -> None:
     """No first line from :func:`compile_notices` in this process (another process of the same
     command said it): the per-kernel lines only."""
@@ -474,11 +496,12 @@ def quiet_compile_header() -> None:
         _notices.started = time.monotonic()
 
 
-def compile_notices(prog: str, stream=None) -> None:
-    """From now on in this process: compile notices on stderr (``prog``: the command's name)
-    and interruptible compiles (see module doc). Idempotent (the first ``prog`` stays)."""
+def compile_notices(prog: str, stream=None, where: str = "") -> None:
+    """From now on in this process: compile notices on stderr (``prog``: the command's name;
+    ``where``: said on each kernel's line, e.g. which helper process) and interruptible compiles
+    (see module doc). Idempotent (the first ``prog`` stays)."""
     global _notices
     if _notices is None:
-        _notices = _Notices(prog, stream)
+        _notices = _Notices(prog, stream, where)
         event.register("numba:compile", _notices)
         Dispatcher.compile = _compile_off_main

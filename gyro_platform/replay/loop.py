@@ -97,6 +97,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     A read error after the start ends the replay; the output bag is closed (readable) and the
     summary's ``error`` names it.
     """
+    from ..engine.remote import OutputsAside
     from ..engine.simulator import Simulator
 
     cfg = config or ReplayConfig()
@@ -107,6 +108,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     wall0 = time.perf_counter()
     bag = InputBag(in_bag, cfg.topic)
     bag.open()
+    aside = None
     try:
         if bag.salvaged:
             print(f"gyro-platform replay: warning: {in_bag}: {bag.damage}; salvaging the readable messages",
@@ -130,6 +132,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
         if cfg.options is not None:
             kwargs["options"] = cfg.options
         sim = Simulator(**kwargs)
+        aside = OutputsAside(sim.params, sim.options)   # a cold cache: the output kernel compiles beside
         run = _Run(bag, None, sim, cfg)     # before any file exists: a signal until here leaves none
         out = None
         # a Ctrl-C/SIGTERM from here on stops the run in order: the bag is closed, the summary
@@ -153,6 +156,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
             run.stopped(e)
     finally:
         bag.close()
+        if aside is not None:
+            aside.close()
     wall = time.perf_counter() - wall0
     try:
         with deferred_signals():            # held until the summary and the plot are written

@@ -163,11 +163,17 @@ def run_scene(scene: Scene, out_dir=None):
     ``summary.json`` and ``plot.png`` there. A bag goes through :class:`Pipeline` (gate
     decisions, drops, resets: counts in ``summary['bag']``).
     """
+    from ..engine.remote import OutputsAside
     from ..engine.simulator import Simulator
 
     wall0 = time.perf_counter()
     samples = None if scene.motion.is_bag else synthetic_samples(scene)    # MotionError: nothing written
-    sim = Simulator(params=scene.params, options=scene.options)
+    with OutputsAside(scene.params, scene.options):     # a cold cache: the output kernel compiles beside
+        return _run(scene, out_dir, Simulator(params=scene.params, options=scene.options), samples, wall0)
+
+
+def _run(scene: Scene, out_dir, sim, samples, wall0: float):
+    """:func:`run_scene` with its simulator made."""
     rec = Recorder()
     feed = _Feed()
     out = None if out_dir is None else Path(out_dir)
