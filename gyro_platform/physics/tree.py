@@ -114,6 +114,18 @@ def _matT_vec3(R, v):
             R[0, 2] * v[0] + R[1, 2] * v[1] + R[2, 2] * v[2])
 
 
+@njit(cache=True, inline="always")
+def _body_rotation_rate(jtype, axis, qidx, vidx, q, v, i, p, R, w):
+    """Body ``i`` with parent ``p``: ``R[i] = R_p,i`` and its rate ``w[i] = R[i]ᵀ w[p] + q̇_i n_i``
+    (rad/s, body axes)."""
+    joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
+    rate = v[vidx[i]]
+    t0, t1, t2 = _matT_vec3(R[i], w[p])
+    w[i, 0] = t0 + rate * axis[i, 0]
+    w[i, 1] = t1 + rate * axis[i, 1]
+    w[i, 2] = t2 + rate * axis[i, 2]
+
+
 # ---------------------------------------------------------------------------------------------
 # kernels
 
@@ -139,12 +151,7 @@ def kinematics(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w, J)
             w[0, k] = w0[k]
     for i in range(1, nb):
         p = parent[i]
-        joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
-        rate = v[vidx[i]]
-        t0, t1, t2 = _matT_vec3(R[i], w[p])
-        w[i, 0] = t0 + rate * axis[i, 0]
-        w[i, 1] = t1 + rate * axis[i, 1]
-        w[i, 2] = t2 + rate * axis[i, 2]
+        _body_rotation_rate(jtype, axis, qidx, vidx, q, v, i, p, R, w)
         for j in range(nv):
             for k in range(3):
                 J[i, k, j] = R[i, 0, k] * J[p, 0, j] + R[i, 1, k] * J[p, 1, j] + R[i, 2, k] * J[p, 2, j]
@@ -165,12 +172,7 @@ def kinematics_rw(parent, jtype, axis, qidx, vidx, root_dynamic, q, v, w0, R, w)
         w[0, k] = v[k] if root_dynamic else w0[k]
     for i in range(1, nb):
         p = parent[i]
-        joint_rotation(jtype[i], axis[i], q, qidx[i], R[i])
-        rate = v[vidx[i]]
-        t0, t1, t2 = _matT_vec3(R[i], w[p])
-        w[i, 0] = t0 + rate * axis[i, 0]
-        w[i, 1] = t1 + rate * axis[i, 1]
-        w[i, 2] = t2 + rate * axis[i, 2]
+        _body_rotation_rate(jtype, axis, qidx, vidx, q, v, i, p, R, w)
 
 
 @njit(cache=True)
