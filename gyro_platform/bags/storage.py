@@ -111,15 +111,16 @@ class BatchedSqlite3:
         # OutputBag.batched (one user at a time: a write is waited for before the next call)
         self.conn = apsw.Connection(str(self.path))
         self.conn.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")     # before the first table
+        # rollback journal (a failed or killed transaction is undone; the .db3 alone holds
+        # every committed row); no cache spill: nothing of an open transaction reaches the
+        # .db3 before its commit; no fsync, from the schema on (SQLite's default syncs each
+        # CREATE TABLE: 5-100 ms of a replay's start, waiting for the disk's pending writes)
+        self.conn.execute("PRAGMA cache_spill=OFF")
+        self.conn.execute("PRAGMA synchronous=OFF")
         # rosbags' schema; its timestamp index made at close, over all rows at once (an
         # index kept up to date row by row costs a quarter of the replay's sqlite3 time)
         self.index_sql = _INDEX_RE.search(self.SQLITE_SCHEMA).group(0)
         self.conn.execute(self.SQLITE_SCHEMA.replace(self.index_sql, ""))
-        # rollback journal (a failed or killed transaction is undone; the .db3 alone holds
-        # every committed row); no cache spill: nothing of an open transaction reaches the
-        # .db3 before its commit
-        self.conn.execute("PRAGMA cache_spill=OFF")
-        self.conn.execute("PRAGMA synchronous=OFF")
         self.cursor = self.conn.cursor()
         self.pending: list[tuple[np.ndarray, np.ndarray, Sequence[Any]]] = []
         self.n_pending = 0
