@@ -283,3 +283,24 @@ def test_unreachable_scheduler_is_refused_before_anything_is_written(tmp_path, m
     assert err.startswith(f"gyro-platform sweep: error: --scheduler {address}: no Dask scheduler reachable: ")
     assert says in err and err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cpus, expect", [(1, "1"), (8, None)])
+def test_a_local_cluster_as_large_as_the_cpus_compiles_in_one_process_per_worker(monkeypatch, cpus, expect):
+    """Workers as many as the CPUs (or more) start with ``GYRO_PLATFORM_COMPILE_JOBS=1``: a cold
+    worker's second compile process would take another worker's CPU; fewer workers than CPUs
+    leave it unset (each worker may compile its output kernel beside it). The client's own
+    environment is as it was."""
+    from gyro_platform.engine import remote
+    from gyro_platform.sweep import command
+
+    monkeypatch.delenv(remote.COMPILE_JOBS_ENV, raising=False)
+    monkeypatch.setattr(command, "compile_cpus", lambda: cpus)
+    client = command.make_client(workers=1)
+    try:
+        seen = client.run(lambda: os.environ.get("GYRO_PLATFORM_COMPILE_JOBS"))
+    finally:
+        client.close()
+        client.cluster.close()
+    assert list(seen.values()) == [expect]
+    assert remote.COMPILE_JOBS_ENV not in os.environ

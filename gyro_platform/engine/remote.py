@@ -55,7 +55,8 @@ from ..errors import SimulationError
 from ..physics.jit import (compiled_elsewhere, CompileRefused, compiles_refused, not_when_compiling, notices_prog,
                            when_compiling)
 
-__all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "COMPILE_JOBS_ENV"]
+__all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "compile_cpus",
+           "COMPILE_JOBS_ENV"]
 
 #: the package's parent folder: the helper processes import the package from where this one did
 _ROOT = str(Path(__file__).resolve().parents[2])
@@ -90,14 +91,18 @@ def _spawn(mode: str, prog: str, env: dict[str, str]) -> tuple[subprocess.Popen,
 COMPILE_JOBS_ENV = "GYRO_PLATFORM_COMPILE_JOBS"
 
 
+def compile_cpus() -> int:
+    """CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def compile_jobs() -> int:
     """Processes a cold command may compile its kernels in: 2 where this process may run on two
     or more CPUs, else 1; ``$GYRO_PLATFORM_COMPILE_JOBS`` (1 or 2) overrides."""
     env = os.environ.get(COMPILE_JOBS_ENV, "").strip()
     if env.isdigit() and int(env) >= 1:
         return min(int(env), 2)
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return 2 if cpus >= 2 else 1
+    return 2 if compile_cpus() >= 2 else 1
 
 
 class OutputsAside:
