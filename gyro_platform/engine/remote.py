@@ -126,7 +126,7 @@ class OutputsAside:
     def _start(self) -> None:
         from .output_kernel import output_rows
 
-        self.proc, to, back = _spawn("outputs", notices_prog() or "gyro-platform", {})
+        self.proc, to, back = _spawn("outputs", f"{notices_prog() or 'gyro-platform'} (second compile process)", {})
         try:
             to.send((self.params, self.options))
         except OSError:                      # it ended at once: the compile here loads or compiles
@@ -520,7 +520,7 @@ def main(argv: list[str]) -> int:
         return (_compile_outputs if mode == "outputs" else _compile)(inbox, prog)
     except (KeyboardInterrupt, EOFError):
         return 130
-    except Exception as e:  # noqa: BLE001 - one line, the node compiles the rest itself
+    except Exception as e:  # noqa: BLE001 - one line, the node (the command) compiles the rest itself
         print(f"{prog}: failed: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
 

@@ -210,6 +210,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return EXIT_USAGE
     work = Path(args.part_dir) if own else Path(tempfile.mkdtemp(prefix="gyro_platform_compile_"))
+    jobs_env = os.environ.get(COMPILE_JOBS_ENV)
     try:
         try:
             todo = steps(args.scene, args.params_file, work)
@@ -273,4 +274,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if not own:
             shutil.rmtree(work, ignore_errors=True)
+        if jobs_env is None:                    # the process's own again
+            os.environ.pop(COMPILE_JOBS_ENV, None)
+        else:
+            os.environ[COMPILE_JOBS_ENV] = jobs_env
     return EXIT_FAILED if failed else EXIT_OK
