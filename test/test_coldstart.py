@@ -139,9 +139,10 @@ def test_compile_jobs_follow_the_cpus_unless_the_environment_says(monkeypatch, v
     assert remote.compile_jobs() == jobs
 
 
-def test_a_kernel_compiled_elsewhere_waits_for_that_process_once_then_loads_or_compiles(tmp_path):
+def test_a_kernel_compiled_elsewhere_waits_for_that_process_once_then_compiles_here():
     """``jit.compiled_elsewhere``: the next compile of the kernel calls the wait first (once),
-    then compiles here when the cache does not have it; taken back, no wait."""
+    then compiles here (these kernels have no cache to load from); taken back, no wait. The load
+    from the cache after the wait: test_a_cold_command_compiles_its_output_kernel_in_a_second_process."""
     from numba import njit
 
     calls = []
