@@ -176,6 +176,7 @@ def test_after_the_set_up_step_the_commands_compile_nothing(tmp_path):
     assert "4 of 4 steps" in setup.stdout and "bytecode of" in setup.stdout, setup.stdout
     if (os.cpu_count() or 1) >= 2:              # cold: the node's and replay's kernels in a second process
         assert "1 more process compiling: node" in setup.stdout, setup.stdout
+        assert "in the second process" not in setup.stderr, setup.stderr   # and no output-kernel helpers
     again = subprocess.run([sys.executable, "-m", "gyro_platform", "compile"], cwd=ROOT, env=env,
                            capture_output=True, text=True, timeout=600)
     assert again.returncode == 0 and "4 of 4 steps" in again.stdout, again.stdout + again.stderr

@@ -40,6 +40,7 @@ the helper keeps answering (said once). Imports ``physics`` (``jit``) and ``erro
 from __future__ import annotations
 
 import atexit
+from contextlib import contextmanager
 import itertools
 from multiprocessing.connection import Connection
 import os
@@ -56,7 +57,7 @@ from ..physics.jit import (compiled_elsewhere, CompileRefused, compiles_refused,
                            when_compiling)
 
 __all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "compile_cpus",
-           "COMPILE_JOBS_ENV"]
+           "one_compile_process", "COMPILE_JOBS_ENV"]
 
 #: the package's parent folder: the helper processes import the package from where this one did
 _ROOT = str(Path(__file__).resolve().parents[2])
@@ -105,6 +106,23 @@ def compile_jobs() -> int:
     return 2 if compile_cpus() >= 2 else 1
 
 
+@contextmanager
+def one_compile_process(on: bool = True):
+    """For the block, if ``on``: ``GYRO_PLATFORM_COMPILE_JOBS=1`` in this process's environment
+    (and so in the processes started in it: no :class:`OutputsAside` helpers where other
+    processes already keep the CPUs busy); the variable as it was after."""
+    old = os.environ.get(COMPILE_JOBS_ENV)
+    if on:
+        os.environ[COMPILE_JOBS_ENV] = "1"
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(COMPILE_JOBS_ENV, None)
+        else:
+            os.environ[COMPILE_JOBS_ENV] = old
+
+
 class OutputsAside:
     """On a cold kernel cache, the output kernel of one configuration (``params``, ``options``)
     compiled by a helper process (``outputs``) while this process compiles the stepping kernels:
@@ -121,7 +139,8 @@ class OutputsAside:
         self.params, self.options = params, options
         self.proc: subprocess.Popen | None = None
         self._kernel: Any = None
-        self.armed = compile_jobs() > 1 and when_compiling(self._start)
+        if compile_jobs() > 1:
+            when_compiling(self._start)
 
     def _start(self) -> None:
         from .output_kernel import output_rows

@@ -42,6 +42,14 @@ from numba.np.arrayobj import make_array, populate_array
 __all__ = ["borrow", "view1", "view2", "view3"]
 
 
+def _borrowed(context, builder, rtype, data, shape, strides, itemsize):
+    """The array value of type ``rtype`` over ``data`` with no meminfo and no parent: it holds
+    no reference (the codegen of :func:`_make_view`'s views and of :func:`borrow`)."""
+    out = make_array(rtype)(context, builder)
+    populate_array(out, data=data, shape=shape, strides=strides, itemsize=itemsize, meminfo=None, parent=None)
+    return impl_ret_borrowed(context, builder, rtype, out._getvalue())
+
+
 def _make_view(ndim: int):
     @intrinsic
     def view(typingctx, buf, off, shape):
@@ -54,7 +62,6 @@ def _make_view(ndim: int):
         def codegen(context, builder, sig, args):
             aryty, offty, shty = sig.args
             src = make_array(aryty)(context, builder, args[0])
-            out = make_array(sig.return_type)(context, builder)
             itemsize = context.get_constant(types.intp, context.get_abi_sizeof(context.get_data_type(aryty.dtype)))
             o = context.cast(builder, args[1], offty, types.intp)
             dims = [context.cast(builder, builder.extract_value(args[2], i), shty.dtype, types.intp)
@@ -62,10 +69,8 @@ def _make_view(ndim: int):
             strides = [itemsize] * ndim
             for i in range(ndim - 2, -1, -1):
                 strides[i] = builder.mul(strides[i + 1], dims[i + 1])
-            populate_array(out, data=builder.gep(src.data, [o]), shape=cgutils.pack_array(builder, dims),
-                           strides=cgutils.pack_array(builder, strides), itemsize=src.itemsize,
-                           meminfo=None, parent=None)        # borrowed: no reference held
-            return impl_ret_borrowed(context, builder, sig.return_type, out._getvalue())
+            return _borrowed(context, builder, sig.return_type, builder.gep(src.data, [o]),
+                             cgutils.pack_array(builder, dims), cgutils.pack_array(builder, strides), src.itemsize)
 
         return sig, codegen
 
@@ -80,10 +85,7 @@ def _borrow(typingctx, ary):
 
     def codegen(context, builder, sig, args):
         src = make_array(sig.args[0])(context, builder, args[0])
-        out = make_array(sig.return_type)(context, builder)
-        populate_array(out, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize,
-                       meminfo=None, parent=None)       # borrowed: no reference held
-        return impl_ret_borrowed(context, builder, sig.return_type, out._getvalue())
+        return _borrowed(context, builder, sig.return_type, src.data, src.shape, src.strides, src.itemsize)
 
     return sig, codegen
 

@@ -58,7 +58,7 @@ import tempfile
 import time
 from typing import Callable
 
-from ..engine.remote import COMPILE_JOBS_ENV
+from ..engine.remote import one_compile_process
 from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE
 from ..filesystem import child_env
 from ..physics.jit import cache_dir, not_when_compiling, quiet_compile_header, when_compiling
@@ -198,9 +198,16 @@ def _stop_parts(children: list[subprocess.Popen], exc: BaseException | None) -> 
 
 
 def run(args: argparse.Namespace) -> int:
-    prog = "gyro-platform compile"
     if args.jobs is None:
         args.jobs = 2 if (os.cpu_count() or 1) >= 2 else 1
+    # the parts keep both CPUs busy: no output-kernel helper beside each (the second part inherits it)
+    with one_compile_process(len(parts([None, None], args.jobs)) > 1):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """:func:`run` with ``--jobs`` set."""
+    prog = "gyro-platform compile"
     if args.jobs < 1:
         print(f"{prog}: error: --jobs must be 1 or more", file=sys.stderr)
         return EXIT_USAGE
@@ -210,7 +217,6 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return EXIT_USAGE
     work = Path(args.part_dir) if own else Path(tempfile.mkdtemp(prefix="gyro_platform_compile_"))
-    jobs_env = os.environ.get(COMPILE_JOBS_ENV)
     try:
         try:
             todo = steps(args.scene, args.params_file, work)
@@ -219,8 +225,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"{prog}: error: {e}", file=sys.stderr)
             return EXIT_USAGE
         shares = parts(todo, args.jobs)
-        if len(shares) > 1:         # the parts keep both CPUs busy: no output-kernel helper beside each
-            os.environ[COMPILE_JOBS_ENV] = "1"      # (engine.remote.OutputsAside; the second part inherits it)
         if own:
             quiet_compile_header()              # the first process said it
             failed = _run_steps(prog, shares[args.part])
@@ -274,8 +278,4 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if not own:
             shutil.rmtree(work, ignore_errors=True)
-        if jobs_env is None:                    # the process's own again
-            os.environ.pop(COMPILE_JOBS_ENV, None)
-        else:
-            os.environ[COMPILE_JOBS_ENV] = jobs_env
     return EXIT_FAILED if failed else EXIT_OK

@@ -48,7 +48,7 @@ from .plots import budget_stats, plot_budget
 from .runs import execute_run, FINISHED, lost_record
 from .spec import load_sweep, SweepSpec, SweepSpecError
 from .store import atomic_write, json_bytes, ResultStore, StoreError, SweepLock
-from ..engine.remote import compile_cpus, COMPILE_JOBS_ENV
+from ..engine.remote import compile_cpus, one_compile_process
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE, OutputError
 from ..filesystem import check_output_path, write_failure
 from ..signals import stop_reason, StopSignals
@@ -106,19 +106,13 @@ def make_client(workers: int | None = None, scheduler: str | None = None):
     # process (engine.remote.OutputsAside) would only take another worker's CPU
     main = threading.current_thread() is threading.main_thread()
     old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-    env_old = os.environ.get(COMPILE_JOBS_ENV)
-    if n >= compile_cpus():
-        os.environ[COMPILE_JOBS_ENV] = "1"
     try:
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=40)
+        with one_compile_process(n >= compile_cpus()):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address=None, silence_logs=40)
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
-        if env_old is None:
-            os.environ.pop(COMPILE_JOBS_ENV, None)
-        else:
-            os.environ[COMPILE_JOBS_ENV] = env_old
     return Client(cluster)
 
 
