@@ -147,6 +147,20 @@ def test_replay_row_goes_through_the_command_and_counts_every_message(tmp_path):
     assert s["counts"]["in"] == 301 and s["counts"]["accepted"] == 301
     assert s["counts"]["out"] == 31                      # 100 Hz grid over 0.3 s, both ends
     assert s["real_time_factor"] > 0 and s["command_wall_s"] >= s["wall_time_s"]
+    # the replay's CPU: this process's threads over the same span, at most every usable CPU busy
+    from gyro_platform.engine.remote import compile_cpus
+    assert 0 < s["cpu_time_s"] <= s["wall_time_s"] * compile_cpus() + 0.02
+
+
+def test_cpu_ceiling_is_the_real_time_factor_the_cpus_allow(monkeypatch):
+    """0.6 CPU s (median) for 120 s of data on 2 CPUs: no replay of it faster than ×400 here."""
+    from gyro_platform.engine import remote
+
+    monkeypatch.setattr(remote, "compile_cpus", lambda: 2)
+    c = consumer.cpu_ceiling([0.7, 0.5, 0.6], 120.0)
+    assert c == {"cpu_s": 0.6, "cpus": 2, "cpu_ceiling_rtf": pytest.approx(400.0)}
+    row = consumer.Row("replay_1khz", "replay 1 kHz", "bag", rtf=250.0, us_per_sample=4.0, extra=c)
+    assert "| CPU 0.60 s: ≤ ×400 on 2 CPUs |" in consumer.table([row])
 
 
 def test_whole_command_row_reports_the_wall_and_the_figure_the_new_process_prints(tmp_path):
@@ -188,10 +202,11 @@ def test_io_floor_writes_what_the_replay_writes(tmp_path, storage):
     f = io_floor(path, tmp_path / "floor", None, 100.0)
     assert counts(tmp_path / "floor") == counts(tmp_path / "replay") == f["counts"]
     assert f["outputs"] == s["counts"]["out"] and f["inputs"] == s["counts"]["in"] == 501
-    assert f["wall_s"] > 0 and f["duration_s"] == pytest.approx(s["duration_s"])
+    assert f["wall_s"] > 0 and f["duration_s"] == pytest.approx(s["duration_s"]) and f["cpu_s"] > 0
     row = consumer.Row("replay_1khz_x", "replay x", str(path), rtf=s["real_time_factor"], us_per_sample=1.0)
     consumer.add_floor(row, path, tmp_path, repeats=1)
     assert row.extra["replay_over_floor"] > 0 and "| replay ÷ floor" in consumer.table([row])
+    assert row.extra["floor_cpu_ceiling_rtf"] > row.extra["floor_rtf"] * 0.9    # what its CPU allows, ≥ what it ran
 
 
 def test_node_figure_publishes_on_the_default_grid():
@@ -341,11 +356,12 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
     put("coldstart", {"rows": [
         {"name": "compile", "what": "compile", "status": "ok", "cold_s": 60.0, "warm_s": 1.5, "extra": {}},
         {"name": "run_default", "what": "run default", "status": "ok", "cold_s": 60.0, "warm_s": 4.0,
-         "extra": {"after_setup_s": 4.4}},
+         "extra": {"after_setup_s": 4.4, "cold_cpu_s": 100.0, "cpus": 2}},
         {"name": "node", "what": "node", "status": "ok", "cold_s": 5.0, "warm_s": 2.0, "extra": {}}]})
     put("consumer", {"rows": [
         {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "replay_1khz",
-         "us_per_sample": 4.0, "extra": {"replay_over_floor": 1.6, "floor_rtf": 400.0, "whole_command_rtf": 38.0}},
+         "us_per_sample": 4.0, "extra": {"replay_over_floor": 1.6, "floor_rtf": 400.0, "whole_command_rtf": 38.0,
+                                         "cpu_s": 0.6, "cpus": 2, "cpu_ceiling_rtf": 400.0}},
         {"name": "replay_husky", "what": "replay husky", "status": "ok", "rtf": 520.0, "target": "replay_husky",
          "us_per_sample": 60.0, "extra": {"whole_command_rtf": 110.0, "new_process_rtf": 330.0}},
         {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "node_median",
@@ -365,9 +381,10 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
         "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol 1e-06 (auto:rk4)": True}
     assert not any("MuJoCo" in f for f in got)                            # the peer report is older than the run
     text = (tmp_path / "headline.md").read_text()
-    assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s); ×1.1 "
-            "| ≤ ×3 | ✗; ✓ |") in text
-    assert "| ×250 (whole command ×38); 1.60 (floor ×400) | ≥ ×500; ≤ ×2 | ✗; ✓ |" in text
+    assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s, its CPU 100 s "
+            "allows ≥ ×12.5 on 2 CPUs); ×1.1 | ≤ ×3 | ✗; ✓ |") in text
+    assert ("| ×250 (whole command ×38) (CPU 0.60 s: ≤ ×400 on 2 CPUs); 1.60 (floor ×400) | ≥ ×500; ≤ ×2 "
+            "| ✗; ✓ |") in text
     assert "| replay husky: real-time × | ×520 (new process: prints ×330, whole command ×110) | ≥ ×300 | ✓ |" in text
     assert "| node (median) | 12.5 µs | ≤ 10 µs | ✗ |" in text
     assert text in capsys.readouterr().out

@@ -300,7 +300,8 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
         seen[str(cache)] = n + 1
         return (10.0, cs.NOTICE) if n == 0 else (2.0 + 0.1 * n, "")
 
-    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: (*fake(cache), 16.0))      # 16 CPU s
+    monkeypatch.setattr(cs, "usable_cpus", lambda: 2)
     monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
     monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
     monkeypatch.setattr(cs, "husky_bag", lambda: (None, "not found"))
@@ -315,7 +316,10 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     assert r.notice and r.extra["warm_notice"] is False
     assert r.extra["after_setup_s"] == 10.0 and r.extra["after_setup_notice"] is True   # its copy compiled
     text = (tmp_path / "out" / "coldstart.md").read_text()
-    assert "| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes | 10.00 (×4.5 ✗) |" in text
+    # 16 CPU s on 2 CPUs: no cold run shorter than 8 s, cold ÷ warm ≥ 8 / 2.2 on this machine
+    assert r.extra["cold_cpu_s"] == 16.0 and r.cpu_bound == 8.0
+    assert ("| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes | 10.00 (×4.5 ✗) "
+            "| 16.0 (≥ 8.0 s on 2 CPUs, ×3.6) |") in text
     doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())
     assert [x["name"] for x in doc["rows"]] == [r.name for r in rows] and doc["meta"]["repeats"] == 3
     assert (tmp_path / "out" / "coldstart.png").stat().st_size > 0

@@ -31,7 +31,10 @@ Rows (``--quick``: 5 s of the scene, the husky recording's first 30 s):
 "Cold" is a fresh ``NUMBA_CACHE_DIR`` (nothing compiled: what a fresh install, CI runner,
 container or new worker host pays); "warm" the same folder afterwards (median of ``repeats``).
 Each command's stderr on the cold run has to say that kernels compile (``compile notice``
-column). "First run after the set-up step": the command once on a copy of the cache
+column). Beside the cold wall time, the CPU the cold command used (user + system time of it and
+of the processes it waited for: its compile helpers): with ``N`` usable CPUs no run of that much
+work ends sooner than CPU ÷ ``N``, which bounds cold ÷ warm from below on this machine
+(``cold_cpu_s``; the ``best ÷ warm`` column). "First run after the set-up step": the command once on a copy of the cache
 ``gyro-platform compile`` filled (a fresh install that ran the README's set-up command or a
 ``colcon build``), against warm. Wall clock, interpreter start-up included; the machine may be shared (load average
 in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
@@ -41,6 +44,7 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass, field
 from pathlib import Path
+import resource
 import shutil
 import signal
 import subprocess
@@ -54,6 +58,7 @@ import numpy as np
 from .bags import husky_bag, short_copy
 from .bars import BARS
 from .report import write_report
+from ..engine.remote import compile_cpus as usable_cpus
 from ..filesystem import child_env
 
 __all__ = ["ColdRow", "coldstart", "table"]
@@ -91,6 +96,18 @@ class ColdRow:
             return None
         return self.cold_s / self.warm_s
 
+    @property
+    def cpu_bound(self) -> float | None:
+        """The shortest cold wall time this much CPU allows on this machine's CPUs (s)."""
+        cpu = self.extra.get("cold_cpu_s")
+        return None if cpu is None else cpu / self.extra.get("cpus", usable_cpus())
+
+
+def _children_cpu() -> float:
+    """User + system seconds of the waited-for child processes so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
 
 def _env(cache: Path) -> dict[str, str]:
     env = child_env(NUMBA_CACHE_DIR=str(cache), PYTHONUNBUFFERED="1")
@@ -102,15 +119,18 @@ def _cli() -> list[str]:
     return [sys.executable, "-m", "gyro_platform"]
 
 
-def timed(cmd: list[str], cache: Path, timeout: float = 1800.0) -> tuple[float, str]:
-    """(wall s, stderr) of a command run to its end; RuntimeError on a non-zero exit."""
+def timed(cmd: list[str], cache: Path, timeout: float = 1800.0) -> tuple[float, str, float]:
+    """(wall s, stderr, CPU s: user + system of the command and the processes it waited for) of
+    a command run to its end; RuntimeError on a non-zero exit."""
+    c0 = _children_cpu()
     t0 = time.perf_counter()
     r = subprocess.run(cmd, cwd=str(ROOT), env=_env(cache), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                        text=True, timeout=timeout)
     wall = time.perf_counter() - t0
+    cpu = _children_cpu() - c0
     if r.returncode != 0:
         raise RuntimeError(f"exit {r.returncode}: {r.stderr.strip().splitlines()[-1:] or ''}")
-    return wall, r.stderr
+    return wall, r.stderr, cpu
 
 
 def time_to_line(cmd: list[str], cache: Path, line: str, timeout: float = READY_TIMEOUT_S) -> tuple[float, str]:
@@ -162,7 +182,7 @@ def _measure(row: ColdRow, run, repeats: int, work: Path, prefilled: Path | None
             row.extra["after_setup_notice"] = NOTICE in err_a      # it compiled something the set-up did not
         cold, err, extra = run(cache, 0)
         row.cold_s, row.notice = cold, NOTICE in err
-        row.extra.update({f"cold_{k}": v for k, v in extra.items()})
+        row.extra.update({f"cold_{k}": v for k, v in extra.items()}, cpus=usable_cpus())
         warm, warm_extra = [], []
         for i in range(repeats):
             w, err_w, ex = run(cache, i + 1)
@@ -187,7 +207,7 @@ def _sweep_first_run(duration: float, work: Path):
 
     def run(cache: Path, i: int):
         out = work / f"sweep_{cache.name}_{i}"
-        wall, err = timed([*_cli(), "sweep", str(spec), "--workers", "1", "--out", str(out), "--no-plots"], cache)
+        wall, err, _ = timed([*_cli(), "sweep", str(spec), "--workers", "1", "--out", str(out), "--no-plots"], cache)
         with open(out / "results.csv", newline="") as f:
             rec = next(csv.DictReader(f))
         shutil.rmtree(out, ignore_errors=True)
@@ -210,7 +230,8 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
         setup = ColdRow("compile", "gyro-platform compile (the set-up step; then each command below runs warm)")
         cache = Path(tempfile.mkdtemp(prefix="numba_prefill_", dir=work))
         try:
-            setup.cold_s, err = timed([*_cli(), "compile"], cache)
+            setup.cold_s, err, setup.extra["cold_cpu_s"] = timed([*_cli(), "compile"], cache)
+            setup.extra["cpus"] = usable_cpus()
             setup.notice = NOTICE in err
             setup.warm_s = timed([*_cli(), "compile"], cache)[0]
             prefilled = cache
@@ -221,9 +242,9 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
 
         def run_default(cache: Path, i: int):
             out = work / f"run_{cache.name}_{i}"
-            wall, err = timed([*_cli(), "run", "default", "--out", str(out), *extra_d], cache)
+            wall, err, cpu = timed([*_cli(), "run", "default", "--out", str(out), *extra_d], cache)
             shutil.rmtree(out, ignore_errors=True)
-            return wall, err, {}
+            return wall, err, {"cpu_s": cpu}
         rows.append(_measure(ColdRow("run_default", "run default" + (" --duration 5" if quick else "")),
                              run_default, repeats, work, prefilled))
         print(_line(rows[-1]), flush=True)
@@ -237,11 +258,11 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
 
             def replay(cache: Path, i: int):
                 out = work / f"husky_{cache.name}_{i}"
-                wall, err = timed([*_cli(), "replay", str(bag), "--out", str(out)], cache)
+                wall, err, cpu = timed([*_cli(), "replay", str(bag), "--out", str(out)], cache)
                 shutil.rmtree(out, ignore_errors=True)
                 for f in out.parent.glob(out.name + ".*"):      # OUT.summary.json, OUT.png
                     f.unlink()
-                return wall, err, {}
+                return wall, err, {"cpu_s": cpu}
             rows.append(_measure(ColdRow("replay_husky", what), replay, repeats, work, prefilled))
         print(_line(rows[-1]), flush=True)
 
@@ -275,32 +296,45 @@ def _after(r: ColdRow) -> str:
     return f"{a:.2f} (×{a / r.warm_s:.1f} {ok})"
 
 
+def _bound(r: ColdRow) -> str:
+    """'cold CPU' cell: CPU s of the cold run, and the wall time and cold ÷ warm it allows at best."""
+    b = r.cpu_bound
+    if b is None:
+        return ""
+    best = f", ×{b / r.warm_s:.1f}" if r.warm_s and r.name != "compile" else ""
+    return f"{r.extra['cold_cpu_s']:.1f} (≥ {b:.1f} s on {r.extra['cpus']} CPUs{best})"
+
+
 def _line(r: ColdRow) -> str:
     if r.status != "ok":
         return f"  {r.what}: {r.status}"
     after = f"; first run after the set-up step {_after(r)}" if _after(r) else ""
-    return (f"  {r.what}: cold {r.cold_s:.2f} s, warm {r.warm_s:.2f} s, ×{r.ratio:.1f}{after}"
+    cpu = f" (CPU {_bound(r)})" if _bound(r) else ""
+    if r.name == "compile":
+        return f"  {r.what}: cold {r.cold_s:.2f} s{cpu}, warm {r.warm_s:.2f} s"
+    return (f"  {r.what}: cold {r.cold_s:.2f} s{cpu}, warm {r.warm_s:.2f} s, ×{r.ratio:.1f}{after}"
             f"{'' if r.notice else ' (no compile notice on the cold run!)'}")
 
 
 def table(rows: list[ColdRow]) -> str:
     """The Markdown table: one line per command."""
     lines = ["| command | cold s (empty kernel cache) | warm s | cold ÷ warm | target | compile notice "
-             "| first run after the set-up step, s (÷ warm) |",
-             "|---|---|---|---|---|---|---|"]
+             "| first run after the set-up step, s (÷ warm) | cold CPU s (its wall at best, ÷ warm) |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r.status != "ok":
-            lines.append(f"| {r.what} | {r.status} | | | {TARGET} | | |")
+            lines.append(f"| {r.what} | {r.status} | | | {TARGET} | | | |")
             continue
         if r.name == "compile":
-            lines.append(f"| {r.what} | {r.cold_s:.2f} | {r.warm_s:.2f} | | | {'yes' if r.notice else 'no'} | |")
+            lines.append(f"| {r.what} | {r.cold_s:.2f} | {r.warm_s:.2f} | | | {'yes' if r.notice else 'no'} | "
+                         f"| {_bound(r)} |")
             continue
         ok = "✓" if TARGET.met(r.ratio) else "✗"
         cmd = ""
         if "cold_command_s" in r.extra:
             cmd = f" (whole command {r.extra['cold_command_s']:.1f} / {r.extra['warm_command_s']:.1f} s)"
         lines.append(f"| {r.what}{cmd} | {r.cold_s:.2f} | {r.warm_s:.2f} | ×{r.ratio:.1f} | {TARGET} {ok} "
-                     f"| {'yes' if r.notice else 'no'} | {_after(r)} |")
+                     f"| {'yes' if r.notice else 'no'} | {_after(r)} | {_bound(r)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -181,7 +181,7 @@ def replay_subprocess(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> tupl
 
 def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra: tuple[str, ...],
                 kernel: float, target: str, whole: bool) -> Row:
-    rtf, us, walls = [], [], []
+    rtf, us, walls, cpus = [], [], [], []
     # one untimed run first: the compiled code of the replay path loaded (numba caches), as in
     # any run after the first of a process; the first run's own figure is kept beside
     first = replay_once(bag, work / f"{name}_first", extra)
@@ -194,11 +194,12 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
         rtf.append(summary["real_time_factor"])
         us.append(summary["wall_time_s"] / max(summary["counts"]["in"], 1) * 1e6)
         walls.append(summary["command_wall_s"])
+        cpus.append(summary["cpu_time_s"])
     row = Row(name, what, str(bag), rtf=float(np.median(rtf)), us_per_sample=float(np.median(us)),
               kernel_us=kernel, target=target,
               extra={"duration_s": summary["duration_s"], "messages": summary["counts"]["in"],
                      "outputs": summary["counts"]["out"], "in_process_command_wall_s": float(np.median(walls)),
-                     "first_run_rtf": first["real_time_factor"],
+                     "first_run_rtf": first["real_time_factor"], **cpu_ceiling(cpus, summary["duration_s"]),
                      "integrator": summary["simulator"]["stats"]["integrator"],
                      "max_error_norm": summary["simulator"]["stats"].get("max_error_norm")})
     if whole:
@@ -212,6 +213,16 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
         row.extra["whole_command_rtf"] = summary["duration_s"] / float(np.median(w))
         row.extra["new_process_rtf"] = float(np.median(printed))
     return row
+
+
+def cpu_ceiling(cpus: list[float], duration: float) -> dict[str, float]:
+    """``cpu_s``: the median CPU seconds (this process, all threads) of runs of ``duration`` s of
+    data; ``cpu_ceiling_rtf``: the real-time factor that much work allows at best on this
+    machine's usable CPUs (each busy all the time); ``cpus``: their number."""
+    from ..engine.remote import compile_cpus
+
+    cpu, n = float(np.median(cpus)), compile_cpus()
+    return {"cpu_s": cpu, "cpus": n, "cpu_ceiling_rtf": duration * n / cpu if cpu > 0 else float("inf")}
 
 
 def _discard(out: Path) -> None:
@@ -364,7 +375,8 @@ def add_floor(row: Row, bag: Path, work: Path, repeats: int) -> None:
         row.extra["floor_error"] = f"{type(e).__name__}: {str(e)[:120]}"
         return
     row.extra.update(floor_rtf=f["rtf"], floor_wall_s=f["wall_s"], floor_us=f["wall_s"] / max(f["inputs"], 1) * 1e6,
-                     floor_walls_s=f["walls"], floor_counts=f["counts"])
+                     floor_walls_s=f["walls"], floor_counts=f["counts"],
+                     floor_cpu_ceiling_rtf=cpu_ceiling(f["cpus"], f["duration_s"])["cpu_ceiling_rtf"])
     if f["rtf"] and row.rtf:
         row.extra["replay_over_floor"] = f["rtf"] / row.rtf
 
@@ -477,18 +489,28 @@ def _line(r: Row) -> str:
         floor = f"; I/O floor ×{r.extra['floor_rtf']:.3g} real time, replay ÷ floor {r.extra['replay_over_floor']:.2f}"
     elif r.extra.get("floor_error"):
         floor = f"; I/O floor failed: {r.extra['floor_error']}"
-    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg{kernel}{floor}"
+    return f"  {r.what}: {rtf}{r.us_per_sample:.2f} µs/msg{kernel}{floor}{_ceiling(r, '; ')}"
+
+
+def _ceiling(r: Row, lead: str = "") -> str:
+    """What the replay's CPU allows: 'CPU 0.60 s: ≤ ×400 on 2 CPUs' (and its floor's), or ''."""
+    e = r.extra
+    if "cpu_ceiling_rtf" not in e:
+        return ""
+    fl = f" (floor ≤ ×{e['floor_cpu_ceiling_rtf']:.3g})" if "floor_cpu_ceiling_rtf" in e else ""
+    return f"{lead}CPU {e['cpu_s']:.2f} s: ≤ ×{e['cpu_ceiling_rtf']:.3g} on {e['cpus']} CPUs{fl}"
 
 
 def table(rows: list[Row]) -> str:
     """The Markdown table: one line per figure."""
     lines = ["| figure | real-time × (summary) | as printed by a new process | whole command: wall s (×) "
              "| µs per input msg | kernel µs/sample "
-             f"| consumer / kernel | I/O floor × | replay ÷ floor ({BARS['replay_over_floor']}) | target |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             f"| consumer / kernel | I/O floor × | replay ÷ floor ({BARS['replay_over_floor']}) | target "
+             "| CPU: at best × on this machine |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r.status != "ok":
-            lines.append(f"| {r.what} | {r.status} | | | | | | | | {_bar_text(r.target)} |")
+            lines.append(f"| {r.what} | {r.status} | | | | | | | | {_bar_text(r.target)} | |")
             continue
         wc = r.extra.get("whole_command_wall_s")
         whole = "" if wc is None else f"{wc:.2f} (×{r.extra['whole_command_rtf']:.3g})"
@@ -496,7 +518,7 @@ def table(rows: list[Row]) -> str:
         floor = "failed" if r.extra.get("floor_error") else _fmt(r.extra.get("floor_rtf"), ".3g")
         lines.append(f"| {r.what} | {_fmt(r.rtf, '.3g')} | {printed} | {whole} | {r.us_per_sample:.2f} "
                      f"| {_fmt(r.kernel_us, '.2f')} | {_fmt(r.ratio, '.1f')} | {floor} "
-                     f"| {_fmt(r.extra.get('replay_over_floor'), '.2f')} | {_bar_text(r.target)} |")
+                     f"| {_fmt(r.extra.get('replay_over_floor'), '.2f')} | {_bar_text(r.target)} | {_ceiling(r)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -162,11 +162,11 @@ def io_floor(bag: str | Path, out: str | Path, storage: str | None = None, outpu
     ``--output-rate output_rate`` (Hz) reads and writes, without simulating (see the module).
     ``storage``: of the output bag (None: the input's, as the replay). ``template``: the outputs'
     values (:func:`output_template`, made when None, untimed). Returns ``wall_s`` (s, opening the
-    input to closing the output), ``duration_s`` (s of record time), ``rtf`` (duration / wall),
-    ``messages`` (rows read), ``inputs``, ``outputs``, ``diagnostics`` and ``counts`` (messages
-    written per topic)."""
+    input to closing the output), ``cpu_s`` (this process's CPU seconds over the same span),
+    ``duration_s`` (s of record time), ``rtf`` (duration / wall), ``messages`` (rows read),
+    ``inputs``, ``outputs``, ``diagnostics`` and ``counts`` (messages written per topic)."""
     template = output_template() if template is None else template
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     src = InputBag(bag)
     src.open()
     lo = hi = None
@@ -199,9 +199,9 @@ def io_floor(bag: str | Path, out: str | Path, storage: str | None = None, outpu
             dst.close()
     finally:
         src.close()
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     duration = 0.0 if lo is None else (hi - lo) * 1e-9
-    return {"wall_s": wall, "duration_s": duration, "rtf": duration / wall if wall > 0 else None,
+    return {"wall_s": wall, "cpu_s": cpu, "duration_s": duration, "rtf": duration / wall if wall > 0 else None,
             "messages": n_msgs, "inputs": run.n_in, "outputs": run.n_out, "diagnostics": run.n_diag,
             "counts": dict(dst.counts)}
 
@@ -210,12 +210,13 @@ def floor_seconds(bag: str | Path, work: str | Path, repeats: int, output_rate: 
                   storage: str | None = None) -> dict[str, Any]:
     """:func:`io_floor` of ``bag`` ``repeats`` times after one untimed pass (output bags under
     ``work``, deleted after each): the last pass's figures with ``wall_s`` the median (s),
-    ``rtf`` the duration over it, ``walls`` every pass's (s)."""
+    ``rtf`` the duration over it, ``walls`` and ``cpus`` every pass's wall and CPU (s)."""
     import shutil
 
     template = output_template()
     work = Path(work)
     walls: list[float] = []
+    cpus: list[float] = []
     res: dict[str, Any] = {}
     for i in range(repeats + 1):
         path = work / f"io_floor_{Path(bag).name}_{i}"
@@ -223,5 +224,7 @@ def floor_seconds(bag: str | Path, work: str | Path, repeats: int, output_rate: 
         shutil.rmtree(path, ignore_errors=True)       # unwritten pages dropped, not flushed during the next
         if i:
             walls.append(res["wall_s"])
+            cpus.append(res["cpu_s"])
     wall = float(np.median(walls))
-    return {**res, "wall_s": wall, "rtf": res["duration_s"] / wall if wall > 0 else None, "walls": walls}
+    return {**res, "wall_s": wall, "rtf": res["duration_s"] / wall if wall > 0 else None, "walls": walls,
+            "cpus": cpus}

@@ -69,8 +69,13 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
             add("set-up step `gyro-platform compile`, empty kernel cache", f"{r['cold_s']:.1f} s", r["cold_s"])
             continue
         ratio = r["cold_s"] / r["warm_s"]
-        after = (r.get("extra") or {}).get("after_setup_s")
-        text = f"×{ratio:.1f} ({r['cold_s']:.1f} s / {r['warm_s']:.2f} s)"
+        extra = r.get("extra") or {}
+        after = extra.get("after_setup_s")
+        bound = ""
+        if extra.get("cold_cpu_s") is not None and extra.get("cpus"):     # the cold run's CPU on this machine's CPUs
+            best = extra["cold_cpu_s"] / extra["cpus"] / r["warm_s"]
+            bound = f", its CPU {extra['cold_cpu_s']:.0f} s allows ≥ ×{best:.1f} on {extra['cpus']} CPUs"
+        text = f"×{ratio:.1f} ({r['cold_s']:.1f} s / {r['warm_s']:.2f} s{bound})"
         if after is None:
             add(f"{r['what']}: cold ÷ warm", text, ratio, str(cold_bar), cold_bar.met(ratio))
         else:
@@ -93,6 +98,8 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
             if whole is not None:
                 prints = "" if printed is None else f"new process: prints ×{printed:.3g}, "
                 rtf += f" ({prints}whole command ×{whole:.3g})"
+            if extra.get("cpu_ceiling_rtf") is not None:       # what its CPU allows on this machine's CPUs
+                rtf += f" (CPU {extra['cpu_s']:.2f} s: ≤ ×{extra['cpu_ceiling_rtf']:.3g} on {extra['cpus']} CPUs)"
             if over is None:
                 add(f"{r['what']}: real-time ×", rtf, r["rtf"], target, met(r["rtf"]))
             else:

@@ -105,7 +105,7 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     if out_bag.exists():
         raise ReplayError(f"{out_bag}: exists already; choose another --out (nothing is overwritten)")
     summary_path = sidecar_paths(out_bag)[0]
-    wall0 = time.perf_counter()
+    wall0, cpu0 = time.perf_counter(), time.process_time()
     bag = InputBag(in_bag, cfg.topic)
     bag.open()
     aside = None
@@ -158,10 +158,10 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
         bag.close()
         if aside is not None:
             aside.close()
-    wall = time.perf_counter() - wall0
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     try:
         with deferred_signals():            # held until the summary and the plot are written
-            summary = _results(run, in_bag, out_bag, wall, cfg.plot)
+            summary = _results(run, in_bag, out_bag, wall, cpu, cfg.plot)
     except KeyboardInterrupt as e:          # it arrived while they were written: they are; say so
         run.stopped(e)
         summary["interrupted_by"], summary["error"] = run.interrupted, run.error
@@ -169,10 +169,11 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     return summary
 
 
-def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, plot: bool) -> dict[str, Any]:
-    """The run's summary, its plot when asked, both written next to ``out_bag``."""
+def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, cpu: float, plot: bool) -> dict[str, Any]:
+    """The run's summary, its plot when asked, both written next to ``out_bag`` (``wall``, ``cpu``:
+    seconds of the replay, wall clock and this process's CPU)."""
     summary_path, plot_path = sidecar_paths(out_bag)
-    summary = run.summary(in_bag, out_bag, wall)
+    summary = run.summary(in_bag, out_bag, wall, cpu)
     if run.out.skipped:
         summary["output"]["skipped_topics"] = run.out.skipped
     summary["files"] = {"bag": str(out_bag), "summary": str(summary_path), "plot": None}
@@ -476,7 +477,7 @@ class _Run:
         """Input samples the simulator integrated (pushed, after a reset, after a restart)."""
         return sum(self.outcomes.get(k, 0) for k in ADVANCED)
 
-    def summary(self, in_bag: Path, out_bag: Path, wall: float) -> dict[str, Any]:
+    def summary(self, in_bag: Path, out_bag: Path, wall: float, cpu: float) -> dict[str, Any]:
         snap = self.gate.snapshot()
         duration = 0.0 if self.first_ts is None else (self.last_ts - self.first_ts) / NS
         opts = self.sim.options
@@ -498,6 +499,7 @@ class _Run:
             "gate": snap,
             "duration_s": duration,
             "wall_time_s": wall,
+            "cpu_time_s": cpu,
             "real_time_factor": duration / wall if wall > 0 else None,
             "messages_per_s": self.n_msgs / wall if wall > 0 else None,
             "simulated": self.simulated,
