@@ -31,13 +31,14 @@ Rows (``--quick``: 5 s of the scene, the husky recording's first 30 s):
 "Cold" is a fresh ``NUMBA_CACHE_DIR`` (nothing compiled: what a fresh install, CI runner,
 container or new worker host pays); "warm" the same folder afterwards (median of ``repeats``).
 Each command's stderr on the cold run has to say that kernels compile (``compile notice``
-column). Beside the cold wall time, the CPU the cold command used (user + system time of it and
-of the processes it waited for: its compile helpers): with ``N`` usable CPUs no run of that much
-work ends sooner than CPU ÷ ``N``, which bounds cold ÷ warm from below on this machine
-(``cold_cpu_s``; the ``best ÷ warm`` column). "First run after the set-up step": the command once on a copy of the cache
-``gyro-platform compile`` filled (a fresh install that ran the README's set-up command or a
-``colcon build``), against warm. Wall clock, interpreter start-up included; the machine may be shared (load average
-in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
+column). Beside the cold wall time of the set-up step, ``run default`` and the husky replay, the
+CPU the cold command used (``cold_cpu_s``: user + system time of it and of the processes it waited
+for, its compile helpers): with ``N`` usable CPUs no run of that much work ends sooner than CPU ÷
+``N``, which bounds cold ÷ warm from below on this machine (last column; not for the node, stopped
+once ready, nor the Dask worker, whose figure is its run inside the worker). "First run after the
+set-up step": the command once on a copy of the cache ``gyro-platform compile`` filled (a fresh
+install that ran the README's set-up command or a ``colcon build``), against warm. Wall clock,
+interpreter start-up included; the machine may be shared (load average in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
 """
 from __future__ import annotations
 
