@@ -38,7 +38,8 @@ for, its compile helpers): with ``N`` usable CPUs no run of that much work ends 
 once ready, nor the Dask worker, whose figure is its run inside the worker). "First run after the
 set-up step": the command once on a copy of the cache ``gyro-platform compile`` filled (a fresh
 install that ran the README's set-up command or a ``colcon build``), against warm. Wall clock,
-interpreter start-up included; the machine may be shared (load average in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
+interpreter start-up included; the machine may be shared (load average in the JSON). Writes
+``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
 """
 from __future__ import annotations
 
