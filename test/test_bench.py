@@ -356,7 +356,7 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
     put("coldstart", {"rows": [
         {"name": "compile", "what": "compile", "status": "ok", "cold_s": 60.0, "warm_s": 1.5, "extra": {}},
         {"name": "run_default", "what": "run default", "status": "ok", "cold_s": 60.0, "warm_s": 4.0,
-         "extra": {"after_setup_s": 4.4, "cold_cpu_s": 100.0, "cpus": 2}},
+         "extra": {"after_setup_s": 4.4, "cold_cpu_s": 100.0, "cpus": 2, "cold_cpu_bound_s": 50.0}},
         {"name": "node", "what": "node", "status": "ok", "cold_s": 5.0, "warm_s": 2.0, "extra": {}}]})
     put("consumer", {"rows": [
         {"name": "replay_1khz", "what": "replay 1 kHz", "status": "ok", "rtf": 250.0, "target": "replay_1khz",

@@ -317,7 +317,7 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     assert r.extra["after_setup_s"] == 10.0 and r.extra["after_setup_notice"] is True   # its copy compiled
     text = (tmp_path / "out" / "coldstart.md").read_text()
     # 16 CPU s on 2 CPUs: no cold run shorter than 8 s, cold ÷ warm ≥ 8 / 2.2 on this machine
-    assert r.extra["cold_cpu_s"] == 16.0 and r.cpu_bound == 8.0
+    assert r.extra["cold_cpu_s"] == 16.0 and r.extra["cold_cpu_bound_s"] == 8.0 and r.extra["cpus"] == 2
     assert ("| run default | 10.00 | 2.20 | ×4.5 | ≤ ×3 ✗ | yes | 10.00 (×4.5 ✗) "
             "| 16.0 (≥ 8.0 s on 2 CPUs, ×3.6) |") in text
     doc = json.loads((tmp_path / "out" / "coldstart.json").read_text())

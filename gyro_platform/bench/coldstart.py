@@ -98,11 +98,12 @@ class ColdRow:
             return None
         return self.cold_s / self.warm_s
 
-    @property
-    def cpu_bound(self) -> float | None:
-        """The shortest cold wall time this much CPU allows on this machine's CPUs (s)."""
-        cpu = self.extra.get("cold_cpu_s")
-        return None if cpu is None else cpu / self.extra.get("cpus", usable_cpus())
+
+def _cpu_bound(row: ColdRow) -> None:
+    """From the cold run's CPU (``extra['cold_cpu_s']``): ``cpus`` (this machine's usable CPUs)
+    and ``cold_cpu_bound_s``, the shortest cold wall time that much CPU allows on them (s)."""
+    n = usable_cpus()
+    row.extra.update(cpus=n, cold_cpu_bound_s=row.extra["cold_cpu_s"] / n)
 
 
 def _children_cpu() -> float:
@@ -184,7 +185,9 @@ def _measure(row: ColdRow, run, repeats: int, work: Path, prefilled: Path | None
             row.extra["after_setup_notice"] = NOTICE in err_a      # it compiled something the set-up did not
         cold, err, extra = run(cache, 0)
         row.cold_s, row.notice = cold, NOTICE in err
-        row.extra.update({f"cold_{k}": v for k, v in extra.items()}, cpus=usable_cpus())
+        row.extra.update({f"cold_{k}": v for k, v in extra.items()})
+        if "cold_cpu_s" in row.extra:
+            _cpu_bound(row)
         warm, warm_extra = [], []
         for i in range(repeats):
             w, err_w, ex = run(cache, i + 1)
@@ -233,7 +236,7 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
         cache = Path(tempfile.mkdtemp(prefix="numba_prefill_", dir=work))
         try:
             setup.cold_s, err, setup.extra["cold_cpu_s"] = timed([*_cli(), "compile"], cache)
-            setup.extra["cpus"] = usable_cpus()
+            _cpu_bound(setup)
             setup.notice = NOTICE in err
             setup.warm_s = timed([*_cli(), "compile"], cache)[0]
             prefilled = cache
@@ -300,7 +303,7 @@ def _after(r: ColdRow) -> str:
 
 def _bound(r: ColdRow) -> str:
     """'cold CPU' cell: CPU s of the cold run, and the wall time and cold ÷ warm it allows at best."""
-    b = r.cpu_bound
+    b = r.extra.get("cold_cpu_bound_s")
     if b is None:
         return ""
     best = f", ×{b / r.warm_s:.1f}" if r.warm_s and r.name != "compile" else ""

@@ -181,7 +181,7 @@ def replay_subprocess(bag: Path, out: Path, extra: tuple[str, ...] = ()) -> tupl
 
 def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra: tuple[str, ...],
                 kernel: float, target: str, whole: bool) -> Row:
-    rtf, us, walls, cpus = [], [], [], []
+    rtf, us, walls, cpu_times = [], [], [], []
     # one untimed run first: the compiled code of the replay path loaded (numba caches), as in
     # any run after the first of a process; the first run's own figure is kept beside
     first = replay_once(bag, work / f"{name}_first", extra)
@@ -194,12 +194,12 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
         rtf.append(summary["real_time_factor"])
         us.append(summary["wall_time_s"] / max(summary["counts"]["in"], 1) * 1e6)
         walls.append(summary["command_wall_s"])
-        cpus.append(summary["cpu_time_s"])
+        cpu_times.append(summary["cpu_time_s"])
     row = Row(name, what, str(bag), rtf=float(np.median(rtf)), us_per_sample=float(np.median(us)),
               kernel_us=kernel, target=target,
               extra={"duration_s": summary["duration_s"], "messages": summary["counts"]["in"],
                      "outputs": summary["counts"]["out"], "in_process_command_wall_s": float(np.median(walls)),
-                     "first_run_rtf": first["real_time_factor"], **cpu_ceiling(cpus, summary["duration_s"]),
+                     "first_run_rtf": first["real_time_factor"], **cpu_ceiling(cpu_times, summary["duration_s"]),
                      "integrator": summary["simulator"]["stats"]["integrator"],
                      "max_error_norm": summary["simulator"]["stats"].get("max_error_norm")})
     if whole:
@@ -215,13 +215,13 @@ def _replay_row(name: str, what: str, bag: Path, work: Path, repeats: int, extra
     return row
 
 
-def cpu_ceiling(cpus: list[float], duration: float) -> dict[str, float]:
-    """``cpu_s``: the median CPU seconds (this process, all threads) of runs of ``duration`` s of
-    data; ``cpu_ceiling_rtf``: the real-time factor that much work allows at best on this
-    machine's usable CPUs (each busy all the time); ``cpus``: their number."""
+def cpu_ceiling(cpu_times: list[float], duration: float) -> dict[str, float]:
+    """``cpu_s``: the median of ``cpu_times``, CPU seconds (this process, all threads) of runs of
+    ``duration`` s of data; ``cpu_ceiling_rtf``: the real-time factor that much work allows at
+    best on this machine's usable CPUs (each busy all the time); ``cpus``: their number."""
     from ..engine.remote import compile_cpus
 
-    cpu, n = float(np.median(cpus)), compile_cpus()
+    cpu, n = float(np.median(cpu_times)), compile_cpus()
     return {"cpu_s": cpu, "cpus": n, "cpu_ceiling_rtf": duration * n / cpu if cpu > 0 else float("inf")}
 
 
@@ -376,7 +376,7 @@ def add_floor(row: Row, bag: Path, work: Path, repeats: int) -> None:
         return
     row.extra.update(floor_rtf=f["rtf"], floor_wall_s=f["wall_s"], floor_us=f["wall_s"] / max(f["inputs"], 1) * 1e6,
                      floor_walls_s=f["walls"], floor_counts=f["counts"],
-                     floor_cpu_ceiling_rtf=cpu_ceiling(f["cpus"], f["duration_s"])["cpu_ceiling_rtf"])
+                     floor_cpu_ceiling_rtf=cpu_ceiling(f["cpu_times"], f["duration_s"])["cpu_ceiling_rtf"])
     if f["rtf"] and row.rtf:
         row.extra["replay_over_floor"] = f["rtf"] / row.rtf
 

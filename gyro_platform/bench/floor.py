@@ -210,13 +210,13 @@ def floor_seconds(bag: str | Path, work: str | Path, repeats: int, output_rate: 
                   storage: str | None = None) -> dict[str, Any]:
     """:func:`io_floor` of ``bag`` ``repeats`` times after one untimed pass (output bags under
     ``work``, deleted after each): the last pass's figures with ``wall_s`` the median (s),
-    ``rtf`` the duration over it, ``walls`` and ``cpus`` every pass's wall and CPU (s)."""
+    ``rtf`` the duration over it, ``walls`` and ``cpu_times`` every pass's wall and CPU (s)."""
     import shutil
 
     template = output_template()
     work = Path(work)
     walls: list[float] = []
-    cpus: list[float] = []
+    cpu_times: list[float] = []
     res: dict[str, Any] = {}
     for i in range(repeats + 1):
         path = work / f"io_floor_{Path(bag).name}_{i}"
@@ -224,7 +224,7 @@ def floor_seconds(bag: str | Path, work: str | Path, repeats: int, output_rate: 
         shutil.rmtree(path, ignore_errors=True)       # unwritten pages dropped, not flushed during the next
         if i:
             walls.append(res["wall_s"])
-            cpus.append(res["cpu_s"])
+            cpu_times.append(res["cpu_s"])
     wall = float(np.median(walls))
     return {**res, "wall_s": wall, "rtf": res["duration_s"] / wall if wall > 0 else None, "walls": walls,
-            "cpus": cpus}
+            "cpu_times": cpu_times}

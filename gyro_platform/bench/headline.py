@@ -72,8 +72,8 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
         extra = r.get("extra") or {}
         after = extra.get("after_setup_s")
         bound = ""
-        if extra.get("cold_cpu_s") is not None and extra.get("cpus"):     # the cold run's CPU on this machine's CPUs
-            best = extra["cold_cpu_s"] / extra["cpus"] / r["warm_s"]
+        if extra.get("cold_cpu_bound_s") is not None:     # the cold run's CPU on this machine's CPUs
+            best = extra["cold_cpu_bound_s"] / r["warm_s"]
             bound = f", its CPU {extra['cold_cpu_s']:.0f} s allows ≥ ×{best:.1f} on {extra['cpus']} CPUs"
         text = f"×{ratio:.1f} ({r['cold_s']:.1f} s / {r['warm_s']:.2f} s{bound})"
         if after is None:
