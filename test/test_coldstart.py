@@ -304,11 +304,19 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     monkeypatch.setattr(cs, "usable_cpus", lambda: 2)
     monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
     monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
+    # the new host's worker compiles nothing, cold or warm (its kernels come from the client)
+    monkeypatch.setattr(cs, "_sweep_new_host", lambda d, w, c: lambda cache, i: (fake(cache)[0] / 5, "", {}))
     monkeypatch.setattr(cs, "husky_bag", lambda: (None, "not found"))
     monkeypatch.setattr(cs.shutil, "copytree", lambda src, dst: Path(dst).mkdir())   # a fresh folder: "cold"
     rows = cs.coldstart(tmp_path / "out", repeats=3)
     by = {r.name: r for r in rows}
-    assert set(by) == {"compile", "run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run"}
+    assert set(by) == {"compile", "run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run",
+                       "sweep_worker_new_host"}
+    host = by["sweep_worker_new_host"]
+    assert host.cold_s == 2.0 and host.notice is False and host.ratio == pytest.approx(2.0 / 0.44)
+    assert "compiled!" not in cs._line(host) and "no compile notice" not in cs._line(by["run_default"])
+    host.notice = True
+    assert cs._line(host).endswith("(the cold run compiled!)")
     assert rows[0].name == "compile" and rows[0].cold_s == 10.0 and rows[0].warm_s == pytest.approx(2.1)
     assert by["replay_husky"].status == "not found"
     r = by["run_default"]

@@ -26,25 +26,32 @@ Rows (``--quick``: 5 s of the scene, the husky recording's first 30 s):
   then stopped by SIGTERM (the rclpy node warms up the same kernels; it needs a ROS install);
 * a Dask worker's first run: ``sweep`` of one default-scene run on a fresh one-worker local
   cluster; the figure is the run's own ``wall_s`` in the fresh worker (its kernels compiled or
-  loaded), the whole command beside it.
+  loaded), the whole command beside it;
+* a Dask worker on a new host: the same sweep through ``--scheduler`` to a ``dask scheduler``
+  and a ``dask worker`` of their own, the worker on the cache under test (cold: empty), the
+  sweep command on a copy of the set-up step's cache, whose kernels it sends the worker
+  (``sweep.kernels``); the figure is again the run's own ``wall_s``, and the worker's stderr the
+  notice column's (it should compile nothing).
 
 "Cold" is a fresh ``NUMBA_CACHE_DIR`` (nothing compiled: what a fresh install, CI runner,
 container or new worker host pays); "warm" the same folder afterwards (median of ``repeats``).
-Each command's stderr on the cold run has to say that kernels compile (``compile notice``
-column). Beside the cold wall time of the set-up step, ``run default`` and the husky replay, the
-CPU the cold command used (``cold_cpu_s``: user + system time of it and of the processes it waited
-for, its compile helpers): with ``N`` usable CPUs no run of that much work ends sooner than CPU ÷
-``N``, which bounds cold ÷ warm from below on this machine (last column; not for the node, stopped
-once ready, nor the Dask worker, whose figure is its run inside the worker). "First run after the
-set-up step": the command once on a copy of the cache ``gyro-platform compile`` filled (a fresh
-install that ran the README's set-up command or a ``colcon build``), against warm. Wall clock,
-interpreter start-up included; the machine may be shared (load average in the JSON). Writes
-``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under ``--out``.
+Each command's stderr on the cold run has to say that kernels compile (``compile notice`` column;
+the new host's worker, sent its kernels, must not). Beside the cold wall time of the set-up step,
+``run default`` and the husky replay, the CPU the cold command used (``cold_cpu_s``: user + system
+time of it and of the processes it waited for, its compile helpers): with ``N`` usable CPUs no run
+of that much work ends sooner than CPU ÷ ``N``, which bounds cold ÷ warm from below on this machine
+(last column; not for the node, stopped once ready, nor the Dask worker, whose figure is its run
+inside the worker). "First run after the set-up step": the command once on a copy of the cache
+``gyro-platform compile`` filled (a fresh install that ran the README's set-up command or a ``colcon
+build``), against warm. Wall clock, interpreter start-up included; the machine may be shared (load
+average in the JSON). Writes ``coldstart.json``, ``coldstart.md`` and ``coldstart.png`` under
+``--out``.
 """
 from __future__ import annotations
 
 import csv
 from dataclasses import dataclass, field
+import json
 from pathlib import Path
 import resource
 import shutil
@@ -220,6 +227,47 @@ def _sweep_first_run(duration: float, work: Path):
     return run
 
 
+def _sweep_new_host(duration: float, work: Path, client_cache: Path):
+    """A worker on another host: ``dask scheduler`` and ``dask worker`` processes of their own,
+    the worker on the kernel cache under test (``cache``: empty when cold), the sweep command
+    (``--scheduler``) on ``client_cache`` (what the set-up step filled), which sends the worker
+    its kernels (``sweep.kernels``). stderr is the worker's: its compile notices, if any."""
+    spec = work / "coldstart_sweep.yaml"
+    spec.write_text(SWEEP_SPEC.format(duration=duration))
+    dask = [sys.executable, "-m", "dask"]
+
+    def run(cache: Path, i: int):
+        out, sched_file = work / f"sweep_host_{cache.name}_{i}", work / f"scheduler_{cache.name}_{i}.json"
+        log = work / f"worker_{cache.name}_{i}.log"
+        with open(log, "w") as wlog:
+            procs = [subprocess.Popen([*dask, "scheduler", "--scheduler-file", str(sched_file), "--port", "0",
+                                       "--no-dashboard"], env=_env(client_cache), stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL)]
+            try:
+                procs.append(subprocess.Popen([*dask, "worker", "--scheduler-file", str(sched_file), "--nthreads", "1",
+                                               "--nworkers", "1", "--no-dashboard"], env=_env(cache),
+                                              stdout=subprocess.DEVNULL, stderr=wlog))
+                t0 = time.monotonic()
+                while not sched_file.exists() and time.monotonic() - t0 < 60.0:
+                    time.sleep(0.05)
+                address = json.loads(sched_file.read_text())["address"]
+                wall, _, _ = timed([*_cli(), "sweep", str(spec), "--scheduler", address, "--out", str(out),
+                                    "--no-plots"], client_cache)
+            finally:
+                for p in reversed(procs):
+                    p.terminate()
+                    try:
+                        p.wait(timeout=20)
+                    except subprocess.TimeoutExpired:
+                        p.kill()
+                        p.wait()
+        with open(out / "results.csv", newline="") as f:
+            rec = next(csv.DictReader(f))
+        shutil.rmtree(out, ignore_errors=True)
+        return float(rec["wall_s"]), log.read_text(errors="replace"), {"command_s": wall}
+    return run
+
+
 def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[ColdRow]:
     """Every row cold then warm; print the table, write JSON, Markdown and PNG."""
     duration = 5.0 if quick else None
@@ -283,6 +331,18 @@ def coldstart(out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Cold
                                      f"Dask worker's first run (default scene{', 5 s' if quick else ''}, 1 worker)"),
                              _sweep_first_run(duration or 60.0, work), repeats, work, prefilled))
         print(_line(rows[-1]), flush=True)
+
+        host = ColdRow("sweep_worker_new_host", f"Dask worker on a new host, kernels from the client (default scene"
+                       f"{', 5 s' if quick else ''}, sweep --scheduler; client after the set-up step)",
+                       extra={"expects_compile": False})
+        if prefilled is None:
+            host.status = "not measured: the set-up step failed (the client's kernels are its cache)"
+        else:
+            client_cache = work / "numba_client"
+            shutil.copytree(prefilled, client_cache)
+            host = _measure(host, _sweep_new_host(duration or 60.0, work, client_cache), repeats, work, prefilled)
+        rows.append(host)
+        print(_line(rows[-1]), flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     write_outputs(rows, out_dir, quick=quick, repeats=repeats)
@@ -317,8 +377,10 @@ def _line(r: ColdRow) -> str:
     cpu = f" (CPU {_bound(r)})" if _bound(r) else ""
     if r.name == "compile":
         return f"  {r.what}: cold {r.cold_s:.2f} s{cpu}, warm {r.warm_s:.2f} s"
-    return (f"  {r.what}: cold {r.cold_s:.2f} s{cpu}, warm {r.warm_s:.2f} s, ×{r.ratio:.1f}{after}"
-            f"{'' if r.notice else ' (no compile notice on the cold run!)'}")
+    expect = r.extra.get("expects_compile", True)
+    odd = "" if r.notice == expect else (" (no compile notice on the cold run!)" if expect else
+                                         " (the cold run compiled!)")
+    return f"  {r.what}: cold {r.cold_s:.2f} s{cpu}, warm {r.warm_s:.2f} s, ×{r.ratio:.1f}{after}{odd}"
 
 
 def table(rows: list[ColdRow]) -> str:

@@ -43,6 +43,8 @@ a worker thread (the replay's bag reader) whose consumer stops, and inside
 compile event, before any typing (the node tells a cold cache so: ``engine.remote``). :func:`cache_dir` is the folder
 in use. :func:`cached_array` keeps a constant array the kernels computed (the linear model's rest
 matrices) in that folder beside them, so that a later process loads no kernel to get it.
+:func:`cache_files` reads that folder as files and :func:`add_cache_files` installs them in
+another machine's (a new Dask worker host: ``sweep.kernels``), adding only what it lacks.
 """
 from __future__ import annotations
 
@@ -67,7 +69,8 @@ import numpy as np
 
 from ..signals import StopSignals
 
-__all__ = ["njit", "plain", "cache_dir", "cached_array", "compile_notices", "quiet_compile_header", "when_compiling",
+__all__ = ["njit", "plain", "cache_dir", "cached_array", "cache_files", "add_cache_files", "compile_notices",
+           "quiet_compile_header", "when_compiling",
            "not_when_compiling", "compiled_elsewhere", "notices_prog", "abandon_compiles_when", "CompileAbandoned",
            "compiles_refused", "CompileRefused", "can_refuse_compiles",
            "PackageCacheLocator", "source_digest", "digest_sources"]
@@ -170,18 +173,88 @@ def cached_array(name: str, key: str, shape: tuple[int, ...], compute: Callable[
     except (OSError, ValueError, EOFError):
         pass
     a = np.ascontiguousarray(compute(), dtype=np.float64)
+    _write_whole(path, lambda f: np.save(f, a, allow_pickle=False))
+    return a
+
+
+def _write_whole(path: Path, write: Callable) -> bool:
+    """``write(file)`` into a temporary beside ``path``, then renamed to it: a reader finds the
+    whole file or none. False (nothing left behind) when the folder cannot be written."""
     tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with open(tmp, "wb") as f:
-            np.save(f, a, allow_pickle=False)
+            write(f)
         os.replace(tmp, path)
+        return True
     except OSError:
         try:
             tmp.unlink()
         except OSError:
             pass
-    return a
+        return False
+
+
+def cache_files(base: Path | None = None) -> dict[str, bytes]:
+    """The kernel cache folder ``base`` (default :func:`cache_dir`) as files: path relative to
+    it (POSIX) → bytes, the lock files and temporaries left out. :func:`add_cache_files` installs
+    them in another machine's folder of the same code version (``sweep.kernels``)."""
+    base = cache_dir() if base is None else base
+    files: dict[str, bytes] = {}
+    for p in sorted(base.rglob("*")):
+        if p.suffix in (".lock", ".tmp") or not p.is_file():
+            continue
+        try:
+            files[p.relative_to(base).as_posix()] = p.read_bytes()
+        except OSError:                     # removed meanwhile: not shipped
+            pass
+    return files
+
+
+def _kernel_of(rel: str) -> str:
+    """The kernel a cache file belongs to: numba's index ``<kernel>.nbi`` and its data files
+    ``<kernel>.<n>.nbc`` → ``<kernel>``; any other file (a constant) is its own."""
+    if rel.endswith(".nbi"):
+        return rel[:-4]
+    if rel.endswith(".nbc"):
+        return rel.rsplit(".", 2)[0]
+    return rel
+
+
+def add_cache_files(files: dict[str, bytes], base: Path | None = None) -> int:
+    """Install in the kernel cache folder ``base`` (default :func:`cache_dir`) the kernels and
+    constants of ``files`` (:func:`cache_files` of a folder of the same code version) that it
+    does not hold; returns how many were added. A kernel whose index is there stays as it is
+    (its data file names are that index's); otherwise its data files are written first and its
+    index last, each whole, under the index's lock (a process loading it meanwhile finds an entry
+    only once its data is there; one compiling it meanwhile adds its entry after). numba loads
+    an entry only for the CPU it was compiled for (the index keys by the target's name and
+    features): on another CPU the kernel compiles as before. Paths that leave ``base`` are
+    refused (ValueError) before anything is written."""
+    base = cache_dir() if base is None else base
+    groups: dict[str, list[str]] = {}
+    for rel in files:
+        parts = rel.split("/")
+        if rel.startswith("/") or any(x in ("", ".", "..") for x in parts):
+            raise ValueError(f"kernel cache file {rel!r} is not a path inside the cache folder")
+        groups.setdefault(_kernel_of(rel), []).append(rel)
+    added = 0
+    for kernel, rels in sorted(groups.items()):
+        index = base / (kernel + ".nbi")
+        if not any(r.endswith(".nbi") for r in rels):       # a constant
+            if not (base / kernel).exists() and _write_whole(base / kernel, lambda f: f.write(files[kernel])):
+                added += 1
+            continue
+        if index.exists():
+            continue
+        index.parent.mkdir(parents=True, exist_ok=True)
+        with _index_lock(str(index)):
+            if index.exists():                              # saved by a compile meanwhile
+                continue
+            ok = all(_write_whole(base / r, lambda f, r=r: f.write(files[r]))
+                     for r in sorted(rels, key=lambda r: r.endswith(".nbi")))
+            added += ok
+    return added
 
 
 class PackageCacheLocator(caching._CacheLocator):

@@ -17,9 +17,10 @@
 Runs go to a Dask cluster: by default a local cluster of worker processes (one per core, one
 thread each, on 127.0.0.1, no dashboard); ``--scheduler ADDRESS`` uses any running cluster
 (start one with ``dask scheduler`` and ``dask worker ADDRESS`` on each machine; the workers need
-this package installed). Every finished run is written at once (``store``), so Ctrl-C, SIGTERM
-or a killed worker lose at most the runs in flight, and the same command again runs only what
-is missing.
+this package installed), and sends it this machine's compiled kernels (``kernels``): a new
+worker host's first run loads them instead of compiling. Every finished run is written at once
+(``store``), so Ctrl-C, SIGTERM or a killed worker lose at most the runs in flight, and the same
+command again runs only what is missing.
 
 Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
 ``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them), the
@@ -145,6 +146,10 @@ def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str 
         client = make_client(workers, scheduler) if own else client
         futures = []
         try:
+            if scheduler or not own:        # another machine's workers: this machine's kernels for them
+                from .kernels import ship_kernels
+
+                ship_kernels(client, say)
             workers = len(client.scheduler_info()["workers"])
             say(f"{len(tasks)} run(s) to do, {len(done)} already done, on {workers} worker(s)")
             futures = client.map(execute_run, tasks, key=[f"gyro-sweep-{spec.fingerprint()}-{t.run}" for t in tasks],
