@@ -322,7 +322,8 @@ def save_plot(data: PlotData, path_png: Any, title: str | None, summary: dict) -
     """:func:`make_figure` written as PNG (folders made)."""
     path = Path(path_png)
     path.parent.mkdir(parents=True, exist_ok=True)
-    make_figure(data, title, summary).savefig(path, dpi=100)
+    # zlib level 1: the same pixels, ~25 ms less than PIL's default level 6 (the file ~15 % larger)
+    make_figure(data, title, summary).savefig(path, dpi=100, pil_kwargs={"compress_level": 1})
     return path
 
 
@@ -351,7 +352,7 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
     for i, g in enumerate(GIMBAL_NAMES):
         axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
     axs[0].set_ylabel("gimbal angle [mrad]")
-    axs[0].set_title("gimbal angles", fontsize=10)
+    axs[0].set_title("gimbal angles", fontsize=10, y=1.0)
     axs[0].legend(loc="upper right", ncol=5, fontsize=8)
     d = data.drift_angle
     rates = s.get("drift_rate_deg_per_h", {})
@@ -365,7 +366,7 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
             c = d[win, i].mean() - r * t[win].mean()
             axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
     axs[1].set_ylabel("drift angle [µrad]")
-    axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10)
+    axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10, y=1.0)
     axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
     for b, torque in data.bearings.items():
         axs[2].plot(t, torque, label=b, lw=1)
@@ -374,7 +375,7 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
         axs[2].plot(t, st, label="servo", lw=1, ls=":")
     axs[2].set_ylabel("|torque| [N m]")
     axs[2].set_title("bearing reaction torques" + (" and servo torque" if st is not None else "")
-                     + " (magnitude)", fontsize=10)
+                     + " (magnitude)", fontsize=10, y=1.0)
     if data.bearings:
         axs[2].set_yscale("symlog", linthresh=1e-9)
         # plain-text tick labels ("1e-06"): the default ones are mathtext, whose parser is
@@ -387,9 +388,12 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
         for i, ax in enumerate(AXES):
             axs[3].plot(t, w[:, i], label=f"ω_{ax}", lw=1)
         axs[3].set_ylabel("vehicle rate [rad/s]")
-        axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10)
+        axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10, y=1.0)
         axs[3].legend(loc="upper right", ncol=3, fontsize=8)
     axs[-1].set_xlabel("time since the first output [s]")
+    # the panel titles sit at y=1.0 as given (where matplotlib would place them: no tick labels
+    # above the panels) instead of at a position it measures from the axis's bounding box at
+    # every draw (~25 ms of the figure); the same pixels
     for a in axs:
         a.grid(True, alpha=0.3)
     head = textwrap.fill(title or "gyro_platform outputs", 100)
