@@ -121,7 +121,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "gyro-platform = gyro_platform.cli:main",
+            "gyro-platform = gyro_platform.cli:entry",
             "platform_node = gyro_platform.cli:platform_node",
         ],
     },

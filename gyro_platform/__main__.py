@@ -13,8 +13,6 @@
 # limitations under the License.
 
 """``python -m gyro_platform`` = ``gyro-platform``."""
-import sys
+from .cli import entry
 
-from .cli import main
-
-sys.exit(main())
+entry()

@@ -809,3 +809,32 @@ def test_the_ros2_run_entry_sets_one_blas_thread_before_numpy_loads(tmp_path):
     assert threads["entry"] == 1, threads
     if (os.cpu_count() or 1) > 1:            # the probe can tell: without the entry a worker per core
         assert threads["direct"] > 1, threads
+
+
+EXIT_PROBE = """
+import atexit, sys, threading, time
+from gyro_platform.cli import exit_now
+atexit.register(lambda: print("atexit ran", flush=False))
+print("buffered", end=" ")
+sys.stderr.write("err buffered ")
+if sys.argv[1] == "thread":
+    def late():
+        time.sleep(0.3)
+        print("thread finished", end=" ")
+    threading.Thread(target=late).start()
+exit_now(int(sys.argv[2]))
+print("not reached")
+"""
+
+
+@pytest.mark.parametrize("mode, code", [("plain", 0), ("plain", 3), ("thread", 143)])
+def test_a_command_ends_without_teardown_but_with_its_atexit_handlers_output_and_status(mode, code):
+    """``exit_now`` (the console script's end): the atexit handlers run, buffered stdout and
+    stderr reach the pipe, the status is the command's; a thread still running is waited for
+    (the usual exit) instead of being cut off."""
+    r = subprocess.run([sys.executable, "-c", EXIT_PROBE, mode, str(code)], capture_output=True, text=True,
+                       timeout=60, env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+    assert r.returncode == code
+    assert r.stderr == "err buffered "
+    expect = "buffered thread finished atexit ran\n" if mode == "thread" else "buffered atexit ran\n"
+    assert r.stdout == expect
