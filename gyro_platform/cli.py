@@ -33,21 +33,19 @@ stderr, ``gyro-platform <command>: error: …``.
 from __future__ import annotations
 
 import argparse
-import atexit
 import gc
 import importlib
 import os
 import sys
-import threading
 from typing import NoReturn
 
 from . import __version__
 from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
                      EXIT_WRITE, not_finite)
 from .filesystem import write_failure
-from .signals import stop_exit_code, stop_reason, StopSignals
+from .signals import exit_now, stop_exit_code, stop_reason, StopSignals
 
-__all__ = ["main", "entry", "exit_now", "platform_node", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK",
+__all__ = ["main", "entry", "platform_node", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK",
            "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_DATA", "EXIT_WRITE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]   # re-exported from errors
 
@@ -190,28 +188,6 @@ def entry() -> NoReturn:
     """The ``gyro-platform`` console script and ``python -m gyro_platform``: :func:`main` on this
     process's command line, then :func:`exit_now` with its status."""
     exit_now(main())
-
-
-def exit_now(code: int) -> NoReturn:
-    """End this process with ``code`` once the command is done: the ``atexit`` handlers run
-    (helper processes stopped, logging flushed, temporary folders removed), stdout and stderr are
-    flushed, then ``os._exit`` — without the interpreter's teardown of what a command leaves
-    behind (~10⁵ objects, the compiled kernels' code: ~0.2 s after every ``run`` or ``replay``,
-    measured). Where a thread other than the main one still runs (it would be cut off) or
-    ``atexit`` cannot be run here, the usual exit (``sys.exit``)."""
-    run_exitfuncs = getattr(atexit, "_run_exitfuncs", None)
-    busy = any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread())
-    if busy or run_exitfuncs is None:
-        sys.exit(code)
-    try:
-        run_exitfuncs()
-    finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError, AttributeError):    # a closed pipe or stream, or none
-                pass
-        os._exit(code)
 
 
 def platform_node() -> int:

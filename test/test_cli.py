@@ -813,7 +813,7 @@ def test_the_ros2_run_entry_sets_one_blas_thread_before_numpy_loads(tmp_path):
 
 EXIT_PROBE = """
 import atexit, sys, threading, time
-from gyro_platform.cli import exit_now
+from gyro_platform.signals import exit_now
 atexit.register(lambda: print("atexit ran", flush=False))
 print("buffered", end=" ")
 sys.stderr.write("err buffered ")

@@ -19,5 +19,5 @@ integrators behind one contract with error control (the ``integrators`` package)
 stepping (``batch``), the ``Simulator`` (state, ``push``/``push_many``, outputs), the
 catalogue of hard cases (``hardcases``), one BLAS thread per process (``blas``) and a cold start's
 simulator (``remote``: the interpreted kernels in a helper process until the compiled ones are made). May import
-``physics`` and ``errors``.
+``physics``, ``errors`` and ``signals``.
 """

@@ -35,7 +35,7 @@ load from the cache), replays the record into it (the same calls must give the s
 checks that both give the same outputs and statistics, and from then on is the compiled one
 (its methods bound on the instance: nothing added per call). If the compile process failed,
 the rest compiles in this process (said on stderr, as any first run); if the replay differs,
-the helper keeps answering (said once). Imports ``physics`` (``jit``) and ``errors``.
+the helper keeps answering (said once). Imports ``physics`` (``jit``), ``errors`` and ``signals``.
 """
 from __future__ import annotations
 
@@ -55,6 +55,7 @@ from .. import errors
 from ..errors import SimulationError
 from ..physics.jit import (compiled_elsewhere, CompileRefused, compiles_refused, not_when_compiling, notices_prog,
                            when_compiling)
+from ..signals import exit_now
 
 __all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "compile_cpus",
            "one_compile_process", "COMPILE_JOBS_ENV"]
@@ -545,4 +546,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    exit_now(main(sys.argv[1:]))            # the kernels are in the cache: no teardown to wait for

@@ -16,8 +16,8 @@
 units, made once for the recorder and the replay), the one JSON writer of every command's files
 (``jsonio``: strict JSON), the recorder (``recording``: CSV, JSON summaries, plots) and the
 helper process that draws a command's plot while it runs (``plot_process``).
-May import the engine's output records (``engine.outputs``), ``messages``, ``errors`` and
-``filesystem``.
+May import the engine's output records (``engine.outputs``), ``messages``, ``errors``,
+``signals`` and ``filesystem``.
 """
 from .recording import Recorder
 

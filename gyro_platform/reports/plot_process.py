@@ -25,12 +25,12 @@ killed, timed out, could not unpickle the job, failed to draw), :func:`draw` dra
 process instead, as without a helper: the plot never depends on it. The helper ignores SIGINT
 (a Ctrl-C stops the command in order, which then still plots), exits at the end of its
 stdin (the command ended without a plot), and once its plot is written exits at once
-(``os._exit``: no interpreter teardown for the command to wait for). May import ``recording`` and ``filesystem`` only.
+(``signals.exit_now``: no interpreter teardown for the command to wait for). May import
+``recording``, ``filesystem`` and ``signals`` only.
 """
 from __future__ import annotations
 
 import atexit
-import os
 from pathlib import Path
 import pickle
 import subprocess
@@ -38,6 +38,7 @@ import sys
 from typing import Any
 
 from ..filesystem import child_env
+from ..signals import exit_now
 
 #: the longest wait for the helper's plot (s), after which it is killed and this process draws
 TIMEOUT_S = 120.0
@@ -112,10 +113,9 @@ def _main() -> int:
         return 0                                # the command ended without a plot
     save_plot(data, path, title, summary)
     sys.stdout.write("ok\n")
-    sys.stdout.flush()
-    # the PNG is written and closed: exit at once, without the interpreter's teardown of
-    # matplotlib and NumPy (~0.1 s that the command would wait for at its end)
-    os._exit(0)
+    # the PNG is written and closed: no teardown of matplotlib and NumPy (~0.1 s that the
+    # command would wait for at its end)
+    exit_now(0)
 
 
 if __name__ == "__main__":
