@@ -361,10 +361,11 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
         lbl = f"{ax}: {rates.get(ax, float('nan')):+.4g} °/h"
         line, = axs[1].plot(t, d[:, i] * 1e6, label=lbl, lw=1)
         r = s.get("drift_rate", {}).get(ax)
-        if r is not None and t.size > 1:
-            win = t >= t0f
+        win = t >= t0f
+        if r is not None and t.size > 1 and win.any():
             c = d[win, i].mean() - r * t[win].mean()
-            axs[1].plot(t[win], (c + r * t[win]) * 1e6, ls="--", lw=0.8, color=line.get_color())
+            tw = t[win][[0, -1]]            # a straight line: its two ends (the same pixels as every point's)
+            axs[1].plot(tw, (c + r * tw) * 1e6, ls="--", lw=0.8, color=line.get_color())
     axs[1].set_ylabel("drift angle [µrad]")
     axs[1].set_title("drift angle (platform attitude error, platform axes)", fontsize=10, y=1.0)
     axs[1].legend(loc="upper left", fontsize=8, title="drift rate (LSQ fit, dashed)", title_fontsize=8)
