@@ -247,10 +247,14 @@ def _sweep_new_host(duration: float, work: Path, client_cache: Path):
                 procs.append(subprocess.Popen([*dask, "worker", "--scheduler-file", str(sched_file), "--nthreads", "1",
                                                "--nworkers", "1", "--no-dashboard"], env=_env(cache),
                                               stdout=subprocess.DEVNULL, stderr=wlog))
-                t0 = time.monotonic()
-                while not sched_file.exists() and time.monotonic() - t0 < 60.0:
-                    time.sleep(0.05)
-                address = json.loads(sched_file.read_text())["address"]
+                address, t0 = None, time.monotonic()
+                while address is None:          # the scheduler's file, once written whole
+                    try:
+                        address = json.loads(sched_file.read_text())["address"]
+                    except (OSError, ValueError, KeyError):
+                        if time.monotonic() - t0 > 60.0:
+                            raise RuntimeError("dask scheduler did not start within 60 s") from None
+                        time.sleep(0.05)
                 wall, _, _ = timed([*_cli(), "sweep", str(spec), "--scheduler", address, "--out", str(out),
                                     "--no-plots"], client_cache)
             finally:
