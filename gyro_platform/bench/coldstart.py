@@ -213,17 +213,28 @@ def _measure(row: ColdRow, run, repeats: int, work: Path, prefilled: Path | None
     return row
 
 
-def _sweep_first_run(duration: float, work: Path):
+def _sweep_spec(work: Path, duration: float) -> Path:
+    """The one-run sweep file of the Dask rows (``SWEEP_SPEC``)."""
     spec = work / "coldstart_sweep.yaml"
     spec.write_text(SWEEP_SPEC.format(duration=duration))
+    return spec
+
+
+def _run_wall(out: Path) -> float:
+    """The run's own ``wall_s`` (s) from the sweep's ``results.csv`` in ``out``; ``out`` removed."""
+    with open(out / "results.csv", newline="") as f:
+        rec = next(csv.DictReader(f))
+    shutil.rmtree(out, ignore_errors=True)
+    return float(rec["wall_s"])
+
+
+def _sweep_first_run(duration: float, work: Path):
+    spec = _sweep_spec(work, duration)
 
     def run(cache: Path, i: int):
         out = work / f"sweep_{cache.name}_{i}"
         wall, err, _ = timed([*_cli(), "sweep", str(spec), "--workers", "1", "--out", str(out), "--no-plots"], cache)
-        with open(out / "results.csv", newline="") as f:
-            rec = next(csv.DictReader(f))
-        shutil.rmtree(out, ignore_errors=True)
-        return float(rec["wall_s"]), err, {"command_s": wall}
+        return _run_wall(out), err, {"command_s": wall}
     return run
 
 
@@ -232,8 +243,7 @@ def _sweep_new_host(duration: float, work: Path, client_cache: Path):
     the worker on the kernel cache under test (``cache``: empty when cold), the sweep command
     (``--scheduler``) on ``client_cache`` (what the set-up step filled), which sends the worker
     its kernels (``sweep.kernels``). stderr is the worker's: its compile notices, if any."""
-    spec = work / "coldstart_sweep.yaml"
-    spec.write_text(SWEEP_SPEC.format(duration=duration))
+    spec = _sweep_spec(work, duration)
     dask = [sys.executable, "-m", "dask"]
 
     def run(cache: Path, i: int):
@@ -265,10 +275,7 @@ def _sweep_new_host(duration: float, work: Path, client_cache: Path):
                     except subprocess.TimeoutExpired:
                         p.kill()
                         p.wait()
-        with open(out / "results.csv", newline="") as f:
-            rec = next(csv.DictReader(f))
-        shutil.rmtree(out, ignore_errors=True)
-        return float(rec["wall_s"]), log.read_text(errors="replace"), {"command_s": wall}
+        return _run_wall(out), log.read_text(errors="replace"), {"command_s": wall}
     return run
 
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from .bags import cache_dir, cached_imu_bag, husky_bag, IMU_TOPIC, short_copy, vehicle_imu
 from .bars import BARS
-from .report import write_report
+from .report import cpu_ceiling_text, write_report
 from ..filesystem import child_env
 
 __all__ = ["Row", "add_floor", "consumer", "kernel_us", "replay_once", "node_us", "table"]
@@ -495,10 +495,11 @@ def _line(r: Row) -> str:
 def _ceiling(r: Row, lead: str = "") -> str:
     """What the replay's CPU allows: 'CPU 0.60 s: ≤ ×400 on 2 CPUs' (and its floor's), or ''."""
     e = r.extra
-    if "cpu_ceiling_rtf" not in e:
+    text = cpu_ceiling_text(e)
+    if not text:
         return ""
     fl = f" (floor ≤ ×{e['floor_cpu_ceiling_rtf']:.3g})" if "floor_cpu_ceiling_rtf" in e else ""
-    return f"{lead}CPU {e['cpu_s']:.2f} s: ≤ ×{e['cpu_ceiling_rtf']:.3g} on {e['cpus']} CPUs{fl}"
+    return f"{lead}{text}{fl}"
 
 
 def table(rows: list[Row]) -> str:

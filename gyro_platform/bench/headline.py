@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .bars import BARS
+from .report import cpu_ceiling_text
 from ..reports.jsonio import write_json
 
 __all__ = ["headline", "headline_rows", "table"]
@@ -98,8 +99,9 @@ def headline_rows(out_dir: Path, since: float = 0.0) -> list[dict[str, Any]]:
             if whole is not None:
                 prints = "" if printed is None else f"new process: prints ×{printed:.3g}, "
                 rtf += f" ({prints}whole command ×{whole:.3g})"
-            if extra.get("cpu_ceiling_rtf") is not None:       # what its CPU allows on this machine's CPUs
-                rtf += f" (CPU {extra['cpu_s']:.2f} s: ≤ ×{extra['cpu_ceiling_rtf']:.3g} on {extra['cpus']} CPUs)"
+            ceiling = cpu_ceiling_text(extra)                  # what its CPU allows on this machine's CPUs
+            if ceiling:
+                rtf += f" ({ceiling})"
             if over is None:
                 add(f"{r['what']}: real-time ×", rtf, r["rtf"], target, met(r["rtf"]))
             else:

@@ -13,7 +13,8 @@
 # limitations under the License.
 
 """What a benchmark section writes: its Markdown table printed and saved, its rows as strict JSON
-(``reports.jsonio``) with the machine's context (Python, load, CPUs, UTC date), and its plot."""
+(``reports.jsonio``) with the machine's context (Python, load, CPUs, UTC date), and its plot; and
+the text of a replay's CPU ceiling, the same in the consumer table and the headline."""
 from __future__ import annotations
 
 from dataclasses import asdict
@@ -39,3 +40,11 @@ def write_report(stem: str, rows: Sequence[Any], text: str, out_dir: Path,
     (out_dir / f"{stem}.md").write_text(text)
     plot(rows, out_dir / f"{stem}.png")
     print(f"wrote {out_dir / f'{stem}.json'}, {out_dir / f'{stem}.md'}, {out_dir / f'{stem}.png'}")
+
+
+def cpu_ceiling_text(extra: dict[str, Any]) -> str:
+    """What a replay's CPU allows (``extra`` of a consumer row: ``cpu_s``, ``cpu_ceiling_rtf``,
+    ``cpus``; ``consumer.cpu_ceiling``): 'CPU 0.60 s: ≤ ×400 on 2 CPUs', or '' without them."""
+    if extra.get("cpu_ceiling_rtf") is None:
+        return ""
+    return f"CPU {extra['cpu_s']:.2f} s: ≤ ×{extra['cpu_ceiling_rtf']:.3g} on {extra['cpus']} CPUs"
