@@ -352,6 +352,9 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
     for i, g in enumerate(GIMBAL_NAMES):
         axs[0].plot(t, q[:, i] * 1e3, label=g, lw=1)
     axs[0].set_ylabel("gimbal angle [mrad]")
+    # panel titles at y=1.0 as given (where matplotlib would place them: no tick labels above the
+    # panels) instead of where it measures each axis's bounding box at every draw to put them
+    # (~25 ms of the figure); the same pixels
     axs[0].set_title("gimbal angles", fontsize=10, y=1.0)
     axs[0].legend(loc="upper right", ncol=5, fontsize=8)
     d = data.drift_angle
@@ -392,9 +395,6 @@ def make_figure(data: PlotData, title: str | None, summary: dict):
         axs[3].set_title("vehicle angular rate (input, body axes FLU)", fontsize=10, y=1.0)
         axs[3].legend(loc="upper right", ncol=3, fontsize=8)
     axs[-1].set_xlabel("time since the first output [s]")
-    # the panel titles sit at y=1.0 as given (where matplotlib would place them: no tick labels
-    # above the panels) instead of at a position it measures from the axis's bounding box at
-    # every draw (~25 ms of the figure); the same pixels
     for a in axs:
         a.grid(True, alpha=0.3)
     head = textwrap.fill(title or "gyro_platform outputs", 100)
