@@ -20,6 +20,7 @@ geometry and its three fidelities (``model``), the switchable effects (``effects
 options (``options``: mode, fidelity, effects, integrator settings), the platform as an ODE
 system over one input interval (``system``), the kinks of its right-hand side (``switching``) and
 the single gimballed gyro (``gyro``), and how its kernels are compiled and cached (``jit``: the
-one module that touches files, the kernel cache and the constants kept beside it). May import
+one module that touches files, the kernel cache and the constants kept beside it) and loaded
+(``kernel_loading``: their bitcode parsed only when needed, numba's runtime kept compiled). May import
 only ``errors`` and ``signals``: it knows nothing of integrators' bookkeeping, bags or ROS.
 """

@@ -67,6 +67,7 @@ from numba.core.dispatcher import Dispatcher
 from numba.core.runtime import rtsys
 import numpy as np
 
+from . import kernel_loading
 from ..signals import StopSignals
 
 __all__ = ["njit", "plain", "cache_dir", "cached_array", "cache_files", "add_cache_files", "compile_notices",
@@ -112,18 +113,22 @@ def digest_sources() -> list[Path]:
     """The files whose bytes name the cache folder: the kernel modules (taking ``njit`` from
     here) and every package module they import from, transitively. numba freezes a kernel's
     globals when it compiles, constants imported from other modules (the step controller's
-    ``COARSEN``, ``SWITCH_MIN`` …) included, so a change there must give a new folder too."""
+    ``COARSEN``, ``SWITCH_MIN`` …) included, so a change there must give a new folder too. This
+    module and what it imports (how kernels are compiled, cached and loaded, not what they
+    compute) are left out."""
     source = {str(p.resolve()): p.read_bytes() for p in PACKAGE.rglob("*.py")}
     files = frozenset(source)           # membership, not a stat per candidate
-    todo = [p for p, data in source.items() if os.path.basename(p) != "jit.py" and b"jit import njit" in data]
+    here = str(Path(__file__).resolve())
+    todo = [p for p, data in source.items() if p != here and b"jit import njit" in data]
     seen: set[str] = set()
     while todo:
         p = todo.pop()
         if p in seen:
             continue
         seen.add(p)
-        todo.extend(_package_imports(p, source[p], files) - seen)
-    seen.discard(str((PACKAGE / "physics" / "jit.py").resolve()))
+        if p != here:
+            todo.extend(_package_imports(p, source[p], files) - seen)
+    seen.discard(here)
     return sorted(map(Path, seen))
 
 
@@ -361,6 +366,7 @@ def _load_without_refresh(self, sig, target_context):
 
 
 caching.Cache.load_overload = _load_without_refresh
+kernel_loading.install(cache_dir, _write_whole)     # bitcode parsed when needed, the runtime's code kept
 
 
 # ---- compile notices and interruptible compiles ------------------------------------------------

@@ -1,0 +1,156 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""What a process pays to load cached kernels, less (imports numba and llvmlite only; installed
+by ``jit``).
+
+numba loads a cached kernel as its machine code plus, beside it, the kernel's LLVM bitcode (the
+"module for linking", which only a kernel compiled later in the process and calling this one
+needs), and it parses that bitcode at once to list the symbols it defines; and at a process's
+first kernel it compiles the helper functions of its runtime (NRT) from LLVM IR. Measured on a
+new process's replay of the 1 kHz bag (10 kernels loaded): 28 ms parsing bitcode, 12 ms listing
+its symbols, 22 ms compiling the runtime, of ~0.2 s the first replay in a process takes more
+than the next.
+
+* :func:`install` ``(folder)`` patches numba so that a cached kernel's bitcode is parsed only
+  when it is needed: when a kernel being compiled links this one
+  (``CPUCodeLibrary._get_module_for_linking``), or when numba asks whether a name it does not
+  know yet is defined (``JitEngine.is_symbol_defined``: the pending kernels' symbols are listed
+  then, as numba would have listed them at load). The one question a load asks, the address of
+  the kernel's own entry points (numba's mangled names, ``_ZN…``), is answered by the execution
+  engine, which has the machine code's symbols (``CPUCodeLibrary.get_pointer_to_function``);
+  anything else is numba's own path.
+* The runtime's helper library is compiled once per code version and CPU and kept as machine
+  code in ``folder()``/``nrt-<digest of numba's CPU key>.nbl`` (``nrtdynmod.compile_nrt_functions``);
+  a missing, damaged or foreign file is compiled again and rewritten.
+
+Results are the same machine code: the kernels are numba's cached ones and the runtime's is
+what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0`` leaves numba as it is.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+import pickle
+from typing import Callable
+import weakref
+
+import llvmlite.binding as ll
+from numba.core import codegen as _codegen
+from numba.core.runtime import nrtdynmod
+
+__all__ = ["install", "nrt_path"]
+
+_Library = _codegen.CPUCodeLibrary
+_numba_unserialize = _Library._unserialize.__func__
+_numba_module_for_linking = _Library._get_module_for_linking
+_numba_pointer_to_function = _codegen.JITCodeLibrary.get_pointer_to_function
+_numba_is_symbol_defined = _codegen.JitEngine.is_symbol_defined
+_numba_compile_nrt = nrtdynmod.compile_nrt_functions
+
+_folder: Callable[[], Path] | None = None
+_write: Callable[[Path, Callable], bool] | None = None
+
+
+def _unserialize(cls, codegen, state):
+    """numba's ``_unserialize`` of a cached library, its bitcode kept unparsed (see module doc)."""
+    name, kind, data = state
+    if kind != "object":
+        return _numba_unserialize(cls, codegen, state)
+    object_code, shared_bitcode = data
+    self = codegen.create_library(name)
+    self.enable_object_caching()
+    self._set_compiled_object(object_code)
+    self._lazy_bitcode = shared_bitcode
+    self._lazy_loaded = True
+    self._finalize_final_module()           # the machine code into the execution engine
+    engine = codegen._engine
+    engine.__dict__.setdefault("_pending_libraries", []).append(weakref.ref(self))
+    return self
+
+
+def _module_for_linking(self):
+    """numba's, the cached bitcode parsed the first time it is asked for."""
+    bitcode = self.__dict__.pop("_lazy_bitcode", None)
+    if bitcode is not None:
+        self._shared_module = ll.parse_bitcode(bitcode)
+    return _numba_module_for_linking(self)
+
+
+def _is_symbol_defined(self, name):
+    """numba's answer, the symbols of the kernels loaded meanwhile listed first when ``name`` is
+    not known yet."""
+    if name in self._defined_symbols:
+        return True
+    pending = self.__dict__.get("_pending_libraries")
+    if pending:
+        self._pending_libraries = []
+        for ref in pending:
+            library = ref()
+            if library is not None:
+                self._load_defined_symbols(library._get_module_for_linking())
+    return _numba_is_symbol_defined(self, name)
+
+
+def _pointer_to_function(self, name):
+    """The address of a numba function (a mangled ``_ZN…`` name) from the execution engine for a
+    library loaded from the cache; numba's path for any other name or library."""
+    if "_lazy_loaded" in self.__dict__ and name.startswith("_ZN"):
+        self._ensure_finalized()
+        address = self._codegen._engine.get_function_address(name)
+        if address:
+            return address
+    return _numba_pointer_to_function(self, name)
+
+
+def nrt_path(codegen) -> Path:
+    """The file of the runtime's helper library for this code version and ``codegen``'s CPU."""
+    key = repr((codegen.magic_tuple(), ll.llvm_version_info)).encode()
+    return _folder() / f"nrt-{hashlib.sha256(key).hexdigest()[:20]}.nbl"
+
+
+def _compile_nrt(ctx):
+    """numba's ``compile_nrt_functions``, loaded from :func:`nrt_path` when it is there."""
+    codegen = ctx.codegen()
+    path = nrt_path(codegen)
+    try:
+        state = pickle.loads(path.read_bytes())
+        if isinstance(state, tuple) and len(state) == 3 and state[1] == "object":
+            return codegen.unserialize_library(state)
+    except Exception:  # noqa: BLE001 — missing, damaged or foreign: compiled again below
+        pass
+    ir_mod, library = nrtdynmod.create_nrt_module(ctx)
+    library.enable_object_caching()
+    library.add_ir_module(ir_mod)
+    library.finalize()
+    state = library.serialize_using_object_code()
+    _write(path, lambda f: f.write(pickle.dumps(state)))
+    return library
+
+
+def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], bool]) -> bool:
+    """Patch numba as the module doc says (once; not under ``GYRO_PLATFORM_LAZY_LOAD=0``).
+    ``folder()``: the kernel cache folder in use; ``write_whole(path, write)``: a file written
+    whole or not at all. True when installed."""
+    global _folder, _write
+    if os.environ.get("GYRO_PLATFORM_LAZY_LOAD") == "0":
+        return False
+    _folder, _write = folder, write_whole
+    _Library._unserialize = classmethod(_unserialize)
+    _Library._get_module_for_linking = _module_for_linking
+    _codegen.JITCodeLibrary.get_pointer_to_function = _pointer_to_function
+    _codegen.JitEngine.is_symbol_defined = _is_symbol_defined
+    nrtdynmod.compile_nrt_functions = _compile_nrt
+    return True

@@ -1,0 +1,153 @@
+# Copyright 2026 gyro_platform developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Loading cached kernels without parsing their bitcode, and numba's runtime kept compiled
+(``physics.kernel_loading``), each in a new process (the patches are process-wide).
+
+Behaviour: a process running the default scene from the cache parses no LLVM bitcode and
+gives outputs (every gimbal and drift angle) equal bit for bit to a process with numba's own loading
+(``GYRO_PLATFORM_LAZY_LOAD=0``, which parses the bitcode of every kernel it loads: the check
+can fail); a kernel compiled after a lazy load, calling the loaded one, links it (its bitcode
+parsed then) and computes what the Python function computes; an unknown mangled name has no
+address. numba's runtime library is compiled in the first process and loaded from its file in
+the next (arrays allocated by the runtime in both); a damaged file is compiled again.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from gyro_platform.scenes.runner import run_scene
+from gyro_platform.scenes.schema import load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: counts numba's parses of bitcode while the default scene runs 0.5 s from the cache (every
+#: compile refused); prints JSON: parses, the outputs' final gimbal angles and drift (repr)
+SCENE_PROBE = """
+import json
+import llvmlite.binding as ll
+import gyro_platform.physics.jit as jit
+count = [0]
+parse = ll.parse_bitcode
+def counted(data):
+    count[0] += 1
+    return parse(data)
+ll.parse_bitcode = counted
+from gyro_platform.scenes.runner import run_scene
+from gyro_platform.scenes.schema import load_scene
+with jit.compiles_refused():
+    recorder, summary, results = run_scene(load_scene("default").with_duration(0.5))
+import numpy as np
+values = np.concatenate([recorder.gimbal_angles.ravel(), recorder.drift_angle.ravel()])
+print(json.dumps({"parses": count[0], "n": len(recorder), "values": values.tobytes().hex()}))
+"""
+
+#: a cached package kernel loaded lazily, then a new kernel calling it compiled (links it)
+LINK_PROBE = """
+import json
+import numpy as np
+import llvmlite.binding as ll
+import gyro_platform.physics.jit as jit
+from numba import njit
+from gyro_platform.physics.rotations import quat_to_matrix
+count = [0]
+parse = ll.parse_bitcode
+def counted(data):
+    count[0] += 1
+    return parse(data)
+ll.parse_bitcode = counted
+q = np.array([0.1, -0.2, 0.3, 0.9])
+R = np.zeros((3, 3))
+with jit.compiles_refused():
+    quat_to_matrix(q, R)                       # loaded from the cache
+loaded = count[0]
+library = quat_to_matrix.overloads[quat_to_matrix.signatures[0]].library
+@njit
+def twice(q, R):
+    quat_to_matrix(q, R)
+    return 2.0 * R
+out = twice(q, R)
+ref = np.zeros((3, 3))
+quat_to_matrix.py_func(q, ref)
+print(json.dumps({"loaded": loaded, "after_link": count[0], "lazy": "_lazy_loaded" in library.__dict__,
+                  "max_diff": float(np.max(np.abs(out - 2.0 * ref))),
+                  "unknown": library.get_pointer_to_function("_ZN3not7a5kernelE")}))
+"""
+
+#: numba's runtime initialised, then an array made by a small jitted function (the runtime's
+#: allocator); prints whether the runtime's library was loaded from its file, and the sum
+NRT_PROBE = """
+import json
+import numpy as np
+import gyro_platform.physics.jit as jit
+from gyro_platform.physics import kernel_loading
+from numba import njit
+from numba.core.registry import cpu_target
+@njit
+def made(n):
+    return np.arange(n) * 2.0
+total = float(made(10).sum())
+from numba.core.runtime import rtsys
+print(json.dumps({"loaded": "_lazy_loaded" in rtsys.library.__dict__, "sum": total,
+                  "file": str(kernel_loading.nrt_path(cpu_target.target_context.codegen()))}))
+"""
+
+
+@pytest.fixture(scope="module")
+def default_cached():
+    """This process's kernel cache holds the default scene's kernels (loaded, or compiled now)."""
+    run_scene(load_scene("default").with_duration(0.5))
+
+
+def _run(probe: str, **env: str) -> dict:
+    full = dict(os.environ, PYTHONPATH=str(ROOT), **env)
+    out = subprocess.run([sys.executable, "-c", probe], env=full, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_cached_kernels_load_without_parsing_bitcode_and_give_the_same_outputs(default_cached):
+    lazy = _run(SCENE_PROBE)
+    numba_own = _run(SCENE_PROBE, GYRO_PLATFORM_LAZY_LOAD="0")
+    assert lazy["parses"] == 0
+    assert numba_own["parses"] >= 3                 # numba's loading parses each kernel's bitcode
+    assert lazy["n"] == numba_own["n"] >= 10
+    assert lazy["values"] == numba_own["values"]    # the same machine code: the same bits
+
+
+def test_a_kernel_compiled_after_a_lazy_load_links_the_loaded_one(default_cached):
+    r = _run(LINK_PROBE)
+    assert r["lazy"] is True and r["loaded"] == 0   # loaded, its bitcode not parsed
+    assert r["after_link"] >= 1                     # parsed when the new kernel linked it
+    assert r["max_diff"] <= 1e-15
+    assert r["unknown"] == 0                        # numba's answer for a name nothing defines
+
+
+def test_the_runtime_library_is_compiled_once_then_loaded(tmp_path):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
+    first = _run(NRT_PROBE, **env)
+    assert first["loaded"] is False and first["sum"] == 90.0
+    assert Path(first["file"]).is_file() and Path(first["file"]).is_relative_to(tmp_path)
+    second = _run(NRT_PROBE, **env)
+    assert second["loaded"] is True and second["sum"] == 90.0
+    Path(first["file"]).write_bytes(b"not a library")
+    third = _run(NRT_PROBE, **env)                  # damaged: compiled again and rewritten
+    assert third["loaded"] is False and third["sum"] == 90.0
+    assert _run(NRT_PROBE, **env)["loaded"] is True
