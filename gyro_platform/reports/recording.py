@@ -35,6 +35,7 @@ import numpy as np
 
 from .jsonio import write_json
 from .summary import AXES, figures_of_arrays, ROTORS, RunFigures, summary_dict, SUMMARY_UNITS
+from .. import quaternions
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES, Outputs
 
 QUAT = ("qx", "qy", "qz", "qw")
@@ -274,14 +275,13 @@ class Recorder:
         instant, ``Log(Mᵀ A_B(t)ᵀ M A_P(t))`` with ``A_X(t) = R_IX(0)ᵀ R_IX(t)`` and ``M = R_BP``
         (platform axes). Each attitude is taken in its own inertial frame, so only their
         changes are compared; the platform is assumed to start at the mounting orientation."""
-        from scipy.spatial.transform import Rotation
-
-        P = Rotation.from_quat(self.field("platform_attitude"))
-        B = Rotation.from_quat(self.field("vehicle_attitude"))
-        M = Rotation.from_quat(np.asarray(mounting, dtype=float))
-        AP = P[0].inv() * P
-        AB = B[0].inv() * B
-        return (M.inv() * AB.inv() * M * AP).as_rotvec()
+        P = quaternions.normalized(self.field("platform_attitude"))
+        B = quaternions.normalized(self.field("vehicle_attitude"))
+        M = quaternions.normalized(mounting)
+        AP = quaternions.mul(quaternions.conj(P[0]), P)
+        AB = quaternions.mul(quaternions.conj(B[0]), B)
+        Mi = quaternions.conj(M)
+        return quaternions.as_rotvec(quaternions.mul(quaternions.mul(quaternions.mul(Mi, quaternions.conj(AB)), M), AP))
 
     # ---- plot ---------------------------------------------------------------------------
     def plot_data(self) -> PlotData:

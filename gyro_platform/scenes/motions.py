@@ -45,16 +45,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Sequence
+from typing import Sequence, TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from .. import quaternions
 from ..engine.inputs import RateSample
 from ..physics.params import EARTH_RATE, STANDARD_GRAVITY
 
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
 G = STANDARD_GRAVITY
 _GRAV_UP = np.array([0.0, 0.0, G])  # −g_N: specific force of a vehicle at rest, N axes
+
+
+def _rotation():
+    """SciPy's ``Rotation``, imported on first use: ~0.2 s that the Euler-angle motions (the
+    default scene's) do without (:mod:`gyro_platform.quaternions`)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 def _times(t) -> np.ndarray:
@@ -120,7 +131,7 @@ class _ExpRateMotion(Motion):
 
     def __init__(self, omega_b, initial: Rotation | None = None):
         self._w = np.asarray(omega_b, dtype=float).reshape(3)
-        self._R0 = initial if initial is not None else Rotation.identity()
+        self._R0 = initial if initial is not None else _rotation().identity()
 
     def omega(self, t) -> np.ndarray:
         t = _times(t)
@@ -128,7 +139,7 @@ class _ExpRateMotion(Motion):
 
     def attitude(self, t) -> Rotation:
         t = _times(t)
-        return self._R0 * Rotation.from_rotvec(np.outer(t, self._w))
+        return self._R0 * _rotation().from_rotvec(np.outer(t, self._w))
 
 
 class ConstantRate(_ExpRateMotion):
@@ -158,7 +169,7 @@ class EarthFixed(_ExpRateMotion):
 
     def __init__(self, latitude: float, heading: float = 0.0, earth_rate: float = EARTH_RATE,
                  gravity: float = G):
-        R0 = Rotation.from_euler("ZYX", [heading, 0.0, 0.0])
+        R0 = _rotation().from_euler("ZYX", [heading, 0.0, 0.0])
         w_n = earth_rate * np.array([0.0, math.cos(latitude), math.sin(latitude)])
         super().__init__(R0.inv().apply(w_n), R0)
         self._f = R0.inv().apply([0.0, 0.0, gravity])
@@ -190,13 +201,16 @@ class EulerMotion(Motion):
         psi, theta, phi, dpsi, dtheta, dphi = self.euler(_times(t))
         return euler_body_rates(phi, theta, dphi, dtheta, dpsi)
 
-    def attitude(self, t) -> Rotation:
+    def quaternion(self, t) -> np.ndarray:
         psi, theta, phi = self.euler(_times(t))[:3]
-        return Rotation.from_euler("ZYX", np.stack([psi, theta, phi], axis=-1))
+        return quaternions.from_euler_zyx(psi, theta, phi)
+
+    def attitude(self, t) -> Rotation:
+        return _rotation().from_quat(self.quaternion(t))
 
     def specific_force(self, t) -> np.ndarray:
         t = _times(t)
-        return self.attitude(t).inv().apply(self.accel_n(t) + _GRAV_UP)
+        return quaternions.rotate_inv(self.quaternion(t), self.accel_n(t) + _GRAV_UP)
 
 
 @dataclass(frozen=True)
@@ -325,7 +339,7 @@ class Coning(Motion):
     def __init__(self, half_angle: float, frequency: float, axis: int = 0, phase: float = 0.0,
                  initial: Rotation | None = None):
         self.theta, self.Omega, self.axis, self.phase = half_angle, frequency, int(axis), phase
-        self._R0 = initial if initial is not None else Rotation.identity()
+        self._R0 = initial if initial is not None else _rotation().identity()
         self._j, self._k = (self.axis + 1) % 3, (self.axis + 2) % 3
 
     @property
@@ -350,7 +364,7 @@ class Coning(Motion):
         return w
 
     def attitude(self, t) -> Rotation:
-        return self._R0 * Rotation.from_rotvec(self._rotvec(_times(t)))
+        return self._R0 * _rotation().from_rotvec(self._rotvec(_times(t)))
 
     def specific_force(self, t) -> np.ndarray:
         return self.attitude(t).inv().apply(_GRAV_UP)
@@ -386,7 +400,7 @@ class RateSteps(Motion):
             raise ValueError("rise_time must be ≥ 0")
         if np.any(np.diff(self.times) < self.T) or np.any(np.diff(self.times) <= 0):
             raise ValueError("step times must increase by more than rise_time")
-        self._R0 = initial if initial is not None else Rotation.identity()
+        self._R0 = initial if initial is not None else _rotation().identity()
         prev = np.vstack([np.zeros(3), self.rates[:-1]])
         self._prev = prev
         if self.T > 0:
@@ -401,10 +415,10 @@ class RateSteps(Motion):
         R = self._R0
         for k in range(self.times.size):
             if k > 0:
-                R = self._Rm[k - 1] * Rotation.from_rotvec(
+                R = self._Rm[k - 1] * _rotation().from_rotvec(
                     self.rates[k - 1] * (self.times[k] - self.times[k - 1] - self.T))
             self._Rk.append(R)
-            self._Rm.append(R * Rotation.from_rotvec(self._ramp_rotvec(k, self.T)))
+            self._Rm.append(R * _rotation().from_rotvec(self._ramp_rotvec(k, self.T)))
 
     def _ramp_rotvec(self, k: int, tau) -> np.ndarray:
         """Rotation vector accumulated τ s into ramp k (τ ≤ T)."""
@@ -441,10 +455,10 @@ class RateSteps(Motion):
                 continue
             tau = t[i] - self.times[ki]
             if tau < self.T:
-                out.append(self._Rk[ki] * Rotation.from_rotvec(self._ramp_rotvec(ki, tau)))
+                out.append(self._Rk[ki] * _rotation().from_rotvec(self._ramp_rotvec(ki, tau)))
             else:
-                out.append(self._Rm[ki] * Rotation.from_rotvec(self.rates[ki] * (tau - self.T)))
-        return Rotation.concatenate(out)
+                out.append(self._Rm[ki] * _rotation().from_rotvec(self.rates[ki] * (tau - self.T)))
+        return _rotation().concatenate(out)
 
     def specific_force(self, t) -> np.ndarray:
         return self.attitude(t).inv().apply(_GRAV_UP)
