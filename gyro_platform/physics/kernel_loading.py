@@ -36,7 +36,8 @@ than the next.
   a missing, damaged or foreign file is compiled again and rewritten.
 
 Results are the same machine code: the kernels are numba's cached ones and the runtime's is
-what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0`` leaves numba as it is.
+what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0``, or a numba without the pieces
+patched (:func:`_fits_this_numba`), leaves numba as it is.
 """
 from __future__ import annotations
 
@@ -67,7 +68,7 @@ _write: Callable[[Path, Callable], bool] | None = None
 def _unserialize(cls, codegen, state):
     """numba's ``_unserialize`` of a cached library, its bitcode kept unparsed (see module doc)."""
     name, kind, data = state
-    if kind != "object":
+    if kind != "object" or not (isinstance(data, tuple) and len(data) == 2):
         return _numba_unserialize(cls, codegen, state)
     object_code, shared_bitcode = data
     self = codegen.create_library(name)
@@ -135,9 +136,22 @@ def _compile_nrt(ctx):
     library.enable_object_caching()
     library.add_ir_module(ir_mod)
     library.finalize()
-    state = library.serialize_using_object_code()
+    try:
+        state = library.serialize_using_object_code()
+    except (ValueError, RuntimeError):     # not kept: compiled again next time
+        return library
     _write(path, lambda f: f.write(pickle.dumps(state)))
     return library
+
+
+def _fits_this_numba() -> bool:
+    """True when numba has the pieces the patches stand in for (as numba 0.58–0.68 do); another
+    numba keeps its own loading."""
+    library = ("_unserialize", "_get_module_for_linking", "_set_compiled_object", "_finalize_final_module",
+               "enable_object_caching")
+    engine = ("is_symbol_defined", "_load_defined_symbols", "get_function_address")
+    return (all(hasattr(_Library, a) for a in library) and all(hasattr(_codegen.JitEngine, a) for a in engine)
+            and hasattr(nrtdynmod, "create_nrt_module"))
 
 
 def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], bool]) -> bool:
@@ -145,7 +159,7 @@ def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], 
     ``folder()``: the kernel cache folder in use; ``write_whole(path, write)``: a file written
     whole or not at all. True when installed."""
     global _folder, _write
-    if os.environ.get("GYRO_PLATFORM_LAZY_LOAD") == "0":
+    if os.environ.get("GYRO_PLATFORM_LAZY_LOAD") == "0" or not _fits_this_numba():
         return False
     _folder, _write = folder, write_whole
     _Library._unserialize = classmethod(_unserialize)
