@@ -71,7 +71,7 @@ ALLOWED: dict[str, set[str]] = {
     "bench": {"sweep", "replay", "pipeline", "scenes", "bags", "messages", "reports", "engine", "physics", "errors",
               "signals", "filesystem", "ros.core"},
     "ros": {"replay", "pipeline", "scenes", "bags", "messages", "reports", "engine", "physics", "errors", "signals",
-            "filesystem"},
+            "filesystem", "quaternions"},
     "cli": {"prefill", "sweep", "bench", "ros", "replay", "pipeline", "scenes", "bags", "messages", "reports", "engine",
             "physics", "errors", "signals", "filesystem"},
     "prefill": {"ros", "replay", "scenes", "bench.bags", "messages", "engine", "physics", "errors", "signals",

@@ -15,7 +15,8 @@
 """``gyro_platform.quaternions`` against SciPy's ``Rotation`` (the library it stands in for on
 the default scene's path), on random attitudes and the edges (the identity, angles near 0 and
 π, the small-angle series' switch at 1e-3 rad, non-unit input); and the default scene's path
-imports no ``scipy.spatial`` (the reason the module exists: ~0.2 s of ``run default``).
+imports no ``scipy.spatial`` (the reason the module exists: ~0.2 s of ``run default``), nor does
+the URDF the DDS node publishes before it is ready.
 """
 from __future__ import annotations
 
@@ -77,6 +78,22 @@ def test_rotation_vectors_are_scipys_from_zero_to_pi(angle):
     assert np.allclose(Q.as_rotvec(R.as_quat()), R.as_rotvec(), rtol=1e-13, atol=1e-15)
 
 
+def test_rotation_vectors_to_quaternions_are_scipys():
+    for scale in (1.0, 1e-3, 1e-6, 0.0):
+        v = RNG.normal(size=(300, 3)) * scale
+        assert np.allclose(Q.from_rotvec(v), Rotation.from_rotvec(v).as_quat(), rtol=0, atol=1e-16)
+
+
+def test_urdf_rpy_are_scipys_and_exact_at_gimbal_lock():
+    assert np.allclose(Q.as_euler_xyz(R.as_quat()), R.as_euler("xyz"), rtol=0, atol=1e-14)
+    for pitch in (np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-9, -np.pi / 2 + 1e-12):   # scipy would warn here
+        a = np.column_stack([RNG.uniform(-3, 3, 40), np.full(40, pitch), RNG.uniform(-3, 3, 40)])
+        q = Rotation.from_euler("xyz", a).as_quat()
+        back = Rotation.from_euler("xyz", Q.as_euler_xyz(q)).as_matrix()     # the same rotation
+        assert np.allclose(back, Rotation.from_quat(q).as_matrix(), rtol=0, atol=1e-14)
+    assert np.allclose(Q.as_euler_xyz([1.0, 0.0, 0.0, 0.0]), [np.pi, 0.0, 0.0], rtol=0, atol=0)
+
+
 def test_an_euler_motion_gives_scipys_attitude_and_specific_force():
     m = Sinusoidal(roll=Sine(0.3, 0.2), pitch=Sine(0.1, 0.125, 0.5), yaw=Sine(1.5, 0.05), heave=Sine(1.0, 0.1))
     t = np.linspace(0.0, 20.0, 401)
@@ -85,6 +102,17 @@ def test_an_euler_motion_gives_scipys_attitude_and_specific_force():
     assert np.allclose(m.quaternion(t), ref.as_quat(), rtol=0, atol=1e-15)
     assert np.allclose(m.specific_force(t), ref.inv().apply(m.accel_n(t) + [0.0, 0.0, 9.80665]), rtol=0, atol=1e-13)
     assert np.allclose(m.attitude(t).as_quat(), ref.as_quat(), rtol=0, atol=1e-15)
+
+
+def test_the_urdf_imports_no_scipy_spatial():
+    probe = ("import sys\nfrom gyro_platform.ros.urdf import config_model, config_urdf\n"
+             "from gyro_platform.ros.config import NodeConfig\n"
+             "c = NodeConfig.from_ros_params({})\ntext = config_urdf(c)\nconfig_model(c).transforms({'alpha4': 0.3})\n"
+             "print(len(text) > 1000, sorted(m for m in sys.modules if m.startswith('scipy.spatial')))\n")
+    out = subprocess.run([sys.executable, "-c", probe], env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "True []"
 
 
 def test_the_default_scene_imports_no_scipy_spatial(tmp_path):

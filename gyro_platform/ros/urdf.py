@@ -43,15 +43,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from .. import quaternions
 from ..engine.outputs import GIMBAL_NAMES, MOUNT_NAMES
 from ..physics.model import GIMBAL_AXES, SPIN_AXES
 from ..physics.params import NO_POLAR_INERTIA, ParameterError, PlatformParams
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 #: densities of the equivalent solids (kg/m³): aluminium frames and housings, steel rotors
 DENSITY = {"structure": 2700.0, "rotor": 7850.0}
@@ -81,12 +84,19 @@ class Joint:
     axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     limits: tuple[float, float] | None = None   # rad, revolute only
 
-    def rotation(self, q: float = 0.0) -> Rotation:
-        """Rotation parent → child (maps child-axes vectors to parent axes) at position ``q`` rad."""
-        r = Rotation.from_quat(self.quat)
+    def quaternion(self, q: float = 0.0) -> np.ndarray:
+        """Rotation parent → child (maps child-axes vectors to parent axes) at position ``q`` rad,
+        as a unit quaternion (x, y, z, w)."""
+        r = quaternions.normalized(self.quat)
         if self.type == "fixed":
             return r
-        return r * Rotation.from_rotvec(np.asarray(self.axis, float) * float(q))
+        return quaternions.mul(r, quaternions.from_rotvec(np.asarray(self.axis, float) * float(q)))
+
+    def rotation(self, q: float = 0.0) -> Rotation:
+        """:meth:`quaternion` as SciPy's ``Rotation``."""
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_quat(self.quaternion(q))
 
 
 @dataclass(frozen=True)
@@ -122,11 +132,13 @@ class PlatformModel:
         res = []
         for j in self.joints:
             q = float(positions.get(j.name, 0.0)) if j.type != "fixed" else 0.0
-            res.append((j, np.asarray(j.xyz, float), j.rotation(q).as_quat()))
+            res.append((j, np.asarray(j.xyz, float), j.quaternion(q)))
         return res
 
     def link_rotations(self, positions: Mapping[str, float]) -> dict[str, Rotation]:
         """Forward kinematics: rotation base_link → link (child axes to base axes) of every link."""
+        from scipy.spatial.transform import Rotation
+
         rot = {BASE_FRAME: Rotation.identity()}
         for j in self.joints:
             q = float(positions.get(j.name, 0.0)) if j.type != "fixed" else 0.0
@@ -210,7 +222,7 @@ def platform_model(p: PlatformParams, stabilised: bool) -> PlatformModel:
         "beta10": (0.0, 0.0, 0.0),
     }
     ident = (0.0, 0.0, 0.0, 1.0)
-    mounting = tuple(float(x) for x in Rotation.from_quat(p.mounting).as_quat())
+    mounting = tuple(float(x) for x in quaternions.normalized(p.mounting))
     joints: list[Joint] = []
     if stabilised:
         limits = ((-math.pi, math.pi), (-math.pi / 2, math.pi / 2), (-math.pi, math.pi))
@@ -242,7 +254,7 @@ def _vec(v: Sequence[float]) -> str:
 
 def _rpy(quat: Sequence[float]) -> str:
     """URDF rpy (fixed axes x-y-z: R = Rz(y) Ry(p) Rx(r)) of a quaternion."""
-    return _vec(Rotation.from_quat(quat).as_euler("xyz"))
+    return _vec(quaternions.as_euler_xyz(quat))
 
 
 def _cylinder_rpy(axis: Sequence[float]) -> str:
