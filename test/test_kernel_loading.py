@@ -38,11 +38,11 @@ from gyro_platform.scenes.schema import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: counts numba's parses of bitcode while the default scene runs 0.5 s from the cache (every
-#: compile refused); prints JSON: parses, the outputs' final gimbal angles and drift (repr)
-SCENE_PROBE = """
+#: counts numba's parses of LLVM bitcode in ``count[0]`` (the probes start with it)
+COUNT_PARSES = """
 import json
 import llvmlite.binding as ll
+import numpy as np
 import gyro_platform.physics.jit as jit
 count = [0]
 parse = ll.parse_bitcode
@@ -50,29 +50,23 @@ def counted(data):
     count[0] += 1
     return parse(data)
 ll.parse_bitcode = counted
+"""
+
+#: the default scene run 0.5 s from the cache (every compile refused); prints JSON: parses, the
+#: number of outputs, every gimbal and drift angle (bytes, hex)
+SCENE_PROBE = COUNT_PARSES + """
 from gyro_platform.scenes.runner import run_scene
 from gyro_platform.scenes.schema import load_scene
 with jit.compiles_refused():
     recorder, summary, results = run_scene(load_scene("default").with_duration(0.5))
-import numpy as np
 values = np.concatenate([recorder.gimbal_angles.ravel(), recorder.drift_angle.ravel()])
 print(json.dumps({"parses": count[0], "n": len(recorder), "values": values.tobytes().hex()}))
 """
 
 #: a cached package kernel loaded lazily, then a new kernel calling it compiled (links it)
-LINK_PROBE = """
-import json
-import numpy as np
-import llvmlite.binding as ll
-import gyro_platform.physics.jit as jit
+LINK_PROBE = COUNT_PARSES + """
 from numba import njit
 from gyro_platform.physics.rotations import quat_to_matrix
-count = [0]
-parse = ll.parse_bitcode
-def counted(data):
-    count[0] += 1
-    return parse(data)
-ll.parse_bitcode = counted
 q = np.array([0.1, -0.2, 0.3, 0.9])
 R = np.zeros((3, 3))
 with jit.compiles_refused():
