@@ -89,6 +89,7 @@ setup(
         "numpy>=1.24",
         "scipy>=1.10",
         "numba>=0.58",
+        "llvmlite",         # numba's own: physics/kernel_loading.py parses a cached kernel's bitcode when needed
         "matplotlib>=3.6",
         "pyyaml>=6",
         "rosbags>=0.11.6,<0.12",  # the range tested (test/rosbags_range.sh); internals used: bags/__init__.py

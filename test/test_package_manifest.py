@@ -45,6 +45,7 @@ PROVIDERS = {
     "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib",
     "numba": PIP,
+    "llvmlite": PIP,            # numba's own, imported by physics/kernel_loading.py
     "rosbags": PIP,
     "apsw": PIP,
     "threadpoolctl": PIP,
