@@ -288,7 +288,8 @@ def test_cache_folder_changes_with_every_source_a_kernel_freezes_and_only_those(
 
 def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch):
     """The bench row logic without running the commands: the first run of each on its fresh cache
-    folder is cold (and says so), the later ones warm; ratio, table, JSON, Markdown, PNG."""
+    folder is cold (and says so), the later ones warm (the node's cache compiled in between: it
+    is stopped once ready); ratio, table, JSON, Markdown, PNG."""
     import json
 
     from gyro_platform.bench import coldstart as cs
@@ -300,9 +301,22 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
         seen[str(cache)] = n + 1
         return (10.0, cs.NOTICE) if n == 0 else (2.0 + 0.1 * n, "")
 
-    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: (*fake(cache), 16.0))      # 16 CPU s
+    compiles: list[tuple[str, int]] = []        # (cache, runs on it before) of each `compile` command
+
+    def fake_timed(cmd, cache, timeout=0):
+        if cmd[-1] == "compile":
+            compiles.append((str(cache), seen.get(str(cache), 0)))
+        return (*fake(cache), 16.0)                 # 16 CPU s
+
+    node_caches: list[str] = []
+
+    def fake_line(cmd, cache, line, timeout=0):
+        node_caches.append(str(cache))
+        return fake(cache)
+
+    monkeypatch.setattr(cs, "timed", fake_timed)
     monkeypatch.setattr(cs, "usable_cpus", lambda: 2)
-    monkeypatch.setattr(cs, "time_to_line", lambda cmd, cache, line, timeout=0: fake(cache))
+    monkeypatch.setattr(cs, "time_to_line", fake_line)
     monkeypatch.setattr(cs, "_sweep_first_run", lambda d, w: lambda cache, i: (*fake(cache), {"command_s": 9.0}))
     # the new host's worker compiles nothing, cold or warm (its kernels come from the client)
     monkeypatch.setattr(cs, "_sweep_new_host", lambda d, w, c: lambda cache, i: (fake(cache)[0] / 5, "", {}))
@@ -319,6 +333,9 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     assert cs._line(host).endswith("(the cold run compiled!)")
     assert rows[0].name == "compile" and rows[0].cold_s == 10.0 and rows[0].warm_s == pytest.approx(2.1)
     assert by["replay_husky"].status == "not found"
+    # the node, stopped once ready, is warm only once its cache is compiled: after its cold run
+    cold_node = next(c for c in node_caches if node_caches.count(c) > 1)
+    assert (cold_node, 1) in compiles
     r = by["run_default"]
     assert r.cold_s == 10.0 and r.warm_s == pytest.approx(2.2) and r.ratio == pytest.approx(10 / 2.2)
     assert r.notice and r.extra["warm_notice"] is False
