@@ -59,7 +59,6 @@ _numba_unserialize = _Library._unserialize.__func__
 _numba_module_for_linking = _Library._get_module_for_linking
 _numba_pointer_to_function = _codegen.JITCodeLibrary.get_pointer_to_function
 _numba_is_symbol_defined = _codegen.JitEngine.is_symbol_defined
-_numba_compile_nrt = nrtdynmod.compile_nrt_functions
 
 _folder: Callable[[], Path] | None = None
 _write: Callable[[Path, Callable], bool] | None = None
