@@ -43,6 +43,7 @@ from . import __version__
 from .errors import (EXIT_CODES, EXIT_DATA, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE,
                      EXIT_WRITE, not_finite)
 from .filesystem import write_failure
+from .heap import keep_freed_memory
 from .signals import exit_now, stop_exit_code, stop_reason, StopSignals
 
 __all__ = ["main", "entry", "platform_node", "build_parser", "SUBCOMMANDS", "EXIT_CODES", "EXIT_OK",
@@ -128,6 +129,8 @@ def command_of(argv: list[str]) -> str:
     return next((a for a in argv if not a.startswith("-")), "")
 
 
+#: the commands that end within minutes: their C heap keeps what they free (``heap``; not the node)
+BATCH = ("run", "replay", "bench", "compile", "sweep")
 #: commands that end with a plot unless told ``--no-plot`` (their helper starts first: reports.plot_process)
 PLOTTING = ("run", "replay")
 
@@ -146,6 +149,8 @@ def _main(argv: list[str] | None) -> int:
     limit_blas_threads()        # small matrices: one BLAS thread (engine.blas); before NumPy loads, whose
     #                             OpenBLAS then starts no worker threads (its import 0.10 -> 0.05 s)
     words = sys.argv[1:] if argv is None else argv
+    if argv is None and command_of(words) in BATCH:
+        keep_freed_memory()     # a short run: memory it frees kept for its next chunk (heap.py)
     if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
         from .reports import plot_process
         plot_process.start()            # matplotlib imported beside this process's start-up
