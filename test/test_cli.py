@@ -484,20 +484,41 @@ def test_a_command_line_freezes_its_start_up_objects_and_a_library_call_does_not
     """The process's own command line moves the objects of its start-up (numpy, numba, the
     command's modules: ~10⁵) to the collector's permanent generation before the command runs, so
     that no full collection scans them again (4-7 % of a warm ``run`` or ``replay``, benchmarks
-    in docs/benchmarks.md); ``main(argv)`` called by a program leaves its collector alone."""
-    probe = ("import gc, sys; from gyro_platform.cli import main; import gyro_platform.scenes.command as c; "
-             "seen = []; run = c.run; c.run = lambda a: seen.append(gc.get_freeze_count()) or run(a); "
-             "lib = sys.argv[1] == 'library'; sys.argv[1:] = ['run', 'default', '--duration', '0.2', '--no-files']; "
-             "code = main(sys.argv[1:] if lib else None); print(code, seen[0])")
-    counts = {}
+    in docs/benchmarks.md), and keeps the collector off while they are made (no collection
+    until the command runs, ~25 ms of a replay's start; on again for the command); ``main(argv)``
+    called by a program leaves its collector alone (it collects while the modules load)."""
+    probe = textwrap.dedent("""
+        import gc, importlib, sys
+        n, seen = [0], []
+        gc.callbacks.append(lambda phase, info: n.__setitem__(0, n[0] + (phase == "start")))
+        load = importlib.import_module
+
+        def import_module(name, *rest):
+            m = load(name, *rest)
+            if name == "gyro_platform.scenes.command" and not getattr(m, "probed", False):
+                m.probed, run = True, m.run
+                m.run = lambda a: seen.append((gc.get_freeze_count(), gc.isenabled(), n[0] - n0)) or run(a)
+            return m
+
+        importlib.import_module = import_module
+        from gyro_platform.cli import main
+        lib = sys.argv[1] == "library"
+        sys.argv[1:] = ["run", "default", "--duration", "0.2", "--no-files"]
+        n0 = n[0]
+        code = main(sys.argv[1:] if lib else None)
+        print(code, *seen[0], gc.isenabled())
+    """)
+    got = {}
     for how in ("command", "library"):
         p = subprocess.run([PY, "-c", probe, how], cwd=tmp_path, capture_output=True, text=True, timeout=600,
                            env={**os.environ, "PYTHONPATH": str(REPO)})
         assert p.returncode == 0, p.stderr[-2000:]
-        code, frozen = p.stdout.split()[-2:]
+        code, frozen, enabled, collections, after = p.stdout.split()[-5:]
         assert code in ("0", "1"), p.stdout      # 1: 0.2 s is too short for the scene's expectations
-        counts[how] = int(frozen)
-    assert counts["command"] > 50_000 and counts["library"] == 0, counts
+        assert enabled == after == "True", p.stdout     # on while the command runs, and after it
+        got[how] = (int(frozen), int(collections))
+    assert got["command"][0] > 50_000 and got["command"][1] == 0, got
+    assert got["library"][0] == 0 and got["library"][1] > 10, got
 
 
 # ---- a regular (non-editable) install finds its scenes --------------------------------------
