@@ -211,7 +211,11 @@ def platform_node() -> int:
     """``ros2 run gyro_platform platform_node`` (setup.py's console script): one BLAS thread set
     before NumPy loads (rclpy's and the node's imports load it; engine.blas), then the node's
     ``main``. Through ``gyro_platform.ros.node:main`` directly NumPy's OpenBLAS started a worker
-    per core first (~50 ms of the node's start here, and idle threads on a many-core computer)."""
+    per core first (~50 ms of the node's start here, and idle threads on a many-core computer).
+    The collector is off while the node's modules load and it warms up, as for a command line
+    (:func:`main`); it is on again once the start-up's objects are frozen
+    (``ros.warmup.freeze_startup_objects``)."""
+    gc.disable()
     from .engine.blas import limit_blas_threads
     limit_blas_threads()
     from .ros.node import main as node_main

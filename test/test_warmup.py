@@ -82,3 +82,16 @@ def test_warm_up_compiles_what_the_first_samples_use(params):
     assert r["n"] >= r["outputs"]                           # it built every output message
     assert r["published"] >= 1 and r["compiled"] > 0
     assert r["new"] == {}, f"kernels compiled only by the first real samples: {r['new']}"
+
+
+def test_the_node_entry_point_collects_again_once_its_start_up_is_frozen():
+    """``ros2 run``'s entry point (``cli.platform_node``) keeps the collector off while the node's
+    modules load and it warms up; ``freeze_startup_objects`` (after the warm-up, before the first
+    sample) freezes the start-up's objects and switches the collector on again: a node that ran
+    for hours without it would keep every reference cycle it ever made."""
+    probe = ("import gc; gc.disable(); from gyro_platform.ros.warmup import freeze_startup_objects; "
+             "freeze_startup_objects(); print(gc.isenabled(), gc.get_freeze_count())")
+    p = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    enabled, frozen = p.stdout.split()
+    assert enabled == "True" and int(frozen) > 1000, p.stdout

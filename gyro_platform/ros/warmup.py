@@ -112,6 +112,9 @@ def freeze_startup_objects() -> None:
     collection, then ``gc.freeze()``. The ~10⁵ objects of start-up (modules, compiled kernels,
     the model, message classes) move to the permanent generation, so that a collection during
     operation scans only what came after: a full collection of them takes ~40 ms, one callback
-    stalled that long at 1 kHz input (the per-message path itself allocates nothing that lives)."""
+    stalled that long at 1 kHz input (the per-message path itself allocates nothing that lives).
+    The collector is then on (an entry point may keep it off while the node starts:
+    ``cli.platform_node``)."""
     gc.collect()
     gc.freeze()
+    gc.enable()
