@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     if quiet:
         gc.disable()
     try:
-        return _main(argv)
+        return _main(argv, quiet)
     except KeyboardInterrupt:               # Ctrl-C while the command is still being imported and set up
         print("gyro-platform: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -154,7 +154,9 @@ def main(argv: list[str] | None = None) -> int:
             gc.enable()
 
 
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, quiet: bool = False) -> int:
+    """The command of ``argv`` (None: this process's command line); ``quiet``: the collector was
+    switched off for the start-up (:func:`main`), to be switched on again before the command runs."""
     from .engine.blas import limit_blas_threads
     limit_blas_threads()        # small matrices: one BLAS thread (engine.blas); before NumPy loads, whose
     #                             OpenBLAS then starts no worker threads (its import 0.10 -> 0.05 s)
@@ -183,6 +185,7 @@ def _main(argv: list[str] | None) -> int:
         # it would cost what it saves): 4-7 % of a warm `run default` or `replay` command; the
         # collector, off while they were made (main), on again for the command
         gc.freeze()
+    if quiet:
         gc.enable()
     with StopSignals(prog, final=argv is None):      # argv None: the process's own command line
         try:
