@@ -21,6 +21,7 @@ options (``options``: mode, fidelity, effects, integrator settings), the platfor
 system over one input interval (``system``), the kinks of its right-hand side (``switching``) and
 the single gimballed gyro (``gyro``), and how its kernels are compiled and cached (``jit``: the
 one module that touches files, the kernel cache and the constants kept beside it) and loaded
-(``kernel_loading``: their bitcode parsed only when needed, numba's runtime kept compiled). May import
+(``kernel_loading``: their bitcode parsed only when needed, numba's runtime kept compiled;
+``lean_overloads``: numba's library pieces that cost more to compile than their kernels). May import
 only ``errors`` and ``signals``: it knows nothing of integrators' bookkeeping, bags or ROS.
 """

@@ -31,7 +31,9 @@ the other's machine code. A cached kernel loads without numba's refresh of its
 implementation registries (:func:`_load_without_refresh`: ~0.25 s of every process's start).
 While a kernel compiles, the garbage collector runs less often (:func:`_sparse_gc_compile`,
 ``COMPILE_GC_THRESHOLD``: numba makes millions of short-lived objects, and the default
-thresholds spent ~7 % of a compile walking them).
+thresholds spent ~7 % of a compile walking them). At a process's first compile,
+:mod:`.lean_overloads` makes numba's library pieces that cost more than their kernels cheaper
+(a slice assignment's shape-mismatch message).
 
 :func:`compile_notices` (command-line processes, Dask workers, the rclpy node): while kernels
 compile, one line on stderr, then one line per compiled kernel; and a compile asked for on the
@@ -67,7 +69,7 @@ from numba.core.dispatcher import Dispatcher
 from numba.core.runtime import rtsys
 import numpy as np
 
-from . import kernel_loading
+from . import kernel_loading, lean_overloads
 from ..signals import StopSignals
 
 __all__ = ["njit", "plain", "cache_dir", "cached_array", "cache_files", "add_cache_files", "compile_notices",
@@ -367,6 +369,20 @@ def _load_without_refresh(self, sig, target_context):
 
 caching.Cache.load_overload = _load_without_refresh
 kernel_loading.install(cache_dir, _write_whole)     # bitcode parsed when needed, the runtime's code kept
+
+
+class _LeanAtFirstCompile(event.Listener):
+    """Installs :mod:`.lean_overloads` at a process's first compile (a process that only loads
+    cached kernels imports nothing for it); numba's compile event comes before any typing."""
+
+    def on_start(self, ev) -> None:
+        lean_overloads.install()
+
+    def on_end(self, ev) -> None:
+        pass
+
+
+event.register("numba:compile", _LeanAtFirstCompile())
 
 
 # ---- compile notices and interruptible compiles ------------------------------------------------
