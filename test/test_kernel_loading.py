@@ -21,7 +21,10 @@ gives outputs (every gimbal and drift angle) equal bit for bit to a process with
 can fail); a kernel compiled after a lazy load, calling the loaded one, links it (its bitcode
 parsed then) and computes what the Python function computes; an unknown mangled name has no
 address. numba's runtime library is compiled in the first process and loaded from its file in
-the next (arrays allocated by the runtime in both); a damaged file is compiled again.
+the next (arrays allocated by the runtime in both); a damaged file is compiled again. numba's
+type of an array argument is the same as numba's own for plain arrays of every layout and dtype
+kind, readonly ones and subclasses (errors too), and neither the scene nor a replay (mcap,
+sqlite3) imports ``numpy.ma`` any more (numba's own loading does: the check can fail).
 """
 from __future__ import annotations
 
@@ -31,8 +34,10 @@ from pathlib import Path
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
+from gyro_platform.physics import kernel_loading
 from gyro_platform.scenes.runner import run_scene
 from gyro_platform.scenes.schema import load_scene
 
@@ -41,6 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: counts numba's parses of LLVM bitcode in ``count[0]`` (the probes start with it)
 COUNT_PARSES = """
 import json
+import sys
 import llvmlite.binding as ll
 import numpy as np
 import gyro_platform.physics.jit as jit
@@ -60,7 +66,8 @@ from gyro_platform.scenes.schema import load_scene
 with jit.compiles_refused():
     recorder, summary, results = run_scene(load_scene("default").with_duration(0.5))
 values = np.concatenate([recorder.gimbal_angles.ravel(), recorder.drift_angle.ravel()])
-print(json.dumps({"parses": count[0], "n": len(recorder), "values": values.tobytes().hex()}))
+print(json.dumps({"parses": count[0], "n": len(recorder), "values": values.tobytes().hex(),
+                  "masked": "numpy.ma" in sys.modules}))
 """
 
 #: a cached package kernel loaded lazily, then a new kernel calling it compiled (links it)
@@ -124,6 +131,59 @@ def test_cached_kernels_load_without_parsing_bitcode_and_give_the_same_outputs(d
     assert numba_own["parses"] >= 3                 # numba's loading parses each kernel's bitcode
     assert lazy["n"] == numba_own["n"] >= 10
     assert lazy["values"] == numba_own["values"]    # the same machine code: the same bits
+    # numba's typeof of an array imports numpy.ma (15-19 ms) to ask whether it is masked
+    assert lazy["masked"] is False and numba_own["masked"] is True
+
+
+#: a replay of the bag ``argv[1]`` into ``argv[2]`` in a new process: is numpy.ma imported after it?
+REPLAY_PROBE = """
+import json, sys
+from gyro_platform.replay.loop import replay, ReplayConfig
+summary = replay(sys.argv[1], sys.argv[2], ReplayConfig(plot=False))
+print(json.dumps({"masked": "numpy.ma" in sys.modules, "outputs": summary["counts"]["out"]}))
+"""
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_a_replay_imports_no_masked_array_module(storage, tmp_path):
+    from gyro_platform.bench.bags import vehicle_imu, write_imu_bag
+
+    bag = write_imu_bag(tmp_path / "in", vehicle_imu(1.0, rate=200.0), storage=storage)
+    full = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", REPLAY_PROBE, str(bag), str(tmp_path / "out")], env=full,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["outputs"] > 0 and r["masked"] is False
+
+
+def _typeof_both(value):
+    """(ours, numba's) type of ``value`` as an argument, or the exception each raised."""
+    from numba.core.typing.typeof import _TypeofContext, Purpose
+
+    c = _TypeofContext(Purpose.argument)
+    got = []
+    for f in (kernel_loading._typeof_ndarray, kernel_loading._numba_typeof_ndarray):
+        try:
+            got.append(f(value, c))
+        except Exception as e:      # noqa: BLE001 - compared below
+            got.append((type(e), str(e)))
+    return got
+
+
+def test_array_types_are_numbas():
+    from numba.core.typing.typeof import typeof_impl
+
+    assert typeof_impl.dispatch(np.ndarray) is kernel_loading._typeof_ndarray
+    ro = np.arange(6.0)
+    ro.flags.writeable = False
+    values = [np.zeros(3), np.zeros((2, 3), order="F"), np.zeros((4, 4))[::2, 1:], ro, np.array(2.5),
+              np.zeros(5, np.int32), np.zeros(2, np.bool_), np.zeros((1, 2, 3), np.float32),
+              np.zeros(3, np.complex128), np.zeros(3, "M8[ns]"), np.zeros(3, object), np.zeros(0, np.uint8),
+              np.zeros(2, [("a", "<f8"), ("b", "<i4")]), np.zeros(3).view(np.recarray)]
+    for v in values:
+        ours, numbas = _typeof_both(v)
+        assert ours == numbas, (v.dtype, v.shape)
 
 
 def test_a_kernel_compiled_after_a_lazy_load_links_the_loaded_one(default_cached):

@@ -241,7 +241,7 @@ class OutputBag:
         lut = self._lut
         if bag is not None:
             fresh = (ids >= len(lut)) | (lut[np.minimum(ids, len(lut) - 1)] == 0)
-            for cid in (np.unique(ids[fresh]).tolist() if fresh.any() else ()):
+            for cid in sorted(set(ids[fresh].tolist())):
                 if cid not in self._copies:
                     conn = next((c for c in bag.connections if c.id == cid), None)
                     if conn is not None:

@@ -12,8 +12,8 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""What a process pays to load cached kernels, less (imports numba and llvmlite only; installed
-by ``jit``).
+"""What a process pays to load cached kernels, less (imports numba, llvmlite and numpy only;
+installed by ``jit``).
 
 numba loads a cached kernel as its machine code plus, beside it, the kernel's LLVM bitcode (the
 "module for linking", which only a kernel compiled later in the process and calling this one
@@ -34,6 +34,12 @@ than the next.
 * The runtime's helper library is compiled once per code version and CPU and kept as machine
   code in ``folder()``/``nrt-<digest of numba's CPU key>.nbl`` (``nrtdynmod.compile_nrt_functions``);
   a missing, damaged or foreign file is compiled again and rewritten.
+* numba's type of an array argument (``typeof`` of an ``ndarray``, at a kernel's first call in a
+  process, before the cache is looked up) first asks whether it is a masked array,
+  ``isinstance(val, np.ma.MaskedArray)``, and with numpy 2 that attribute imports ``numpy.ma``:
+  15–19 ms of every process's first kernel call here. :func:`_typeof_ndarray` asks it only where
+  ``numpy.ma`` is imported (no masked array exists before) or the array is of a subclass
+  (numba's own then); a plain array gets numba's type, built as numba builds it.
 
 Results are the same machine code: the kernels are numba's cached ones and the runtime's is
 what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0``, or a numba without the pieces
@@ -45,12 +51,16 @@ import hashlib
 import os
 from pathlib import Path
 import pickle
+import sys
 from typing import Callable
 import weakref
 
 import llvmlite.binding as ll
-from numba.core import codegen as _codegen
+from numba.core import codegen as _codegen, errors as _errors, types as _types
 from numba.core.runtime import nrtdynmod
+from numba.core.typing import typeof as _typeof
+from numba.np import numpy_support as _np_support
+import numpy as np
 
 __all__ = ["install", "nrt_path"]
 
@@ -143,6 +153,20 @@ def _compile_nrt(ctx):
     return library
 
 
+_numba_typeof_ndarray = _typeof.typeof_impl.dispatch(np.ndarray)
+
+
+def _typeof_ndarray(val, c):
+    """numba's ``_typeof_ndarray`` without importing ``numpy.ma`` (see module doc)."""
+    if type(val) is not np.ndarray or "numpy.ma" in sys.modules:
+        return _numba_typeof_ndarray(val, c)
+    try:
+        dtype = _np_support.from_dtype(val.dtype)
+    except _errors.NumbaNotImplementedError:
+        raise _errors.NumbaValueError(f"Unsupported array dtype: {val.dtype}")
+    return _types.Array(dtype, val.ndim, _np_support.map_layout(val), readonly=not val.flags.writeable)
+
+
 def _fits_this_numba() -> bool:
     """True when numba has the pieces the patches stand in for (as numba 0.58–0.68 do); another
     numba keeps its own loading."""
@@ -166,4 +190,6 @@ def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], 
     _codegen.JITCodeLibrary.get_pointer_to_function = _pointer_to_function
     _codegen.JitEngine.is_symbol_defined = _is_symbol_defined
     nrtdynmod.compile_nrt_functions = _compile_nrt
+    if getattr(_numba_typeof_ndarray, "__name__", "") == "_typeof_ndarray":    # numba's, as in 0.58–0.68
+        _typeof.typeof_impl.register(np.ndarray, _typeof_ndarray)
     return True

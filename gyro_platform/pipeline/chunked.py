@@ -207,8 +207,8 @@ class ChunkedRuns:
                 acc = acc[:over[0]]
         self._refusable = refusable
         if acc.size:
-            starts = np.flatnonzero(gb.action[acc] == RESET)
-            bounds = np.unique(np.concatenate([[0], starts, [acc.size]]))
+            starts = np.flatnonzero(gb.action[acc] == RESET)      # increasing, in [0, acc.size)
+            bounds = np.concatenate([[0], starts[starts > 0], [acc.size]])
             for a, b in zip(bounds[:-1], bounds[1:]):
                 self._run(acc[a:b], rb, res)
 
