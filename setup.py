@@ -99,6 +99,7 @@ setup(
         # a cut MCAP chunk decompressed as far as it goes (bags/salvage.py); both are rosbags' own
         "lz4>=4",
         "backports.zstd>=1.0; python_version < '3.14'",     # from 3.14 the standard library's compression.zstd
+        "zstandard>=0.21",  # bags compressed message by message: one decompression context (bags/fast.py)
         "tqdm>=4.60",       # replay progress bar
         "threadpoolctl>=3.1",  # one BLAS thread per process (engine/blas.py)
     ],

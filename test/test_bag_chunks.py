@@ -15,8 +15,10 @@
 """InputBag.chunks: the rows of InputBag.messages (rosbags' Reader, or the salvage reader) in
 blocks — same rows, same order, same errors — on the shared recordings, on generated sqlite3
 and MCAP bags (several topics, equal and out-of-order timestamps, overlapping and compressed
-MCAP chunks, a bag of several files, per-message compression, an unindexed MCAP file) and on
-damaged bags. Issue 17: valid MCAP files with JSON/protobuf channels are read (those channels
+MCAP chunks, a bag of several files, per-message compression (read fast, each payload
+decompressed; a payload that does not decompress: the same rows, then the same error), an
+unindexed MCAP file) and on damaged bags.
+Issue 17: valid MCAP files with JSON/protobuf channels are read (those channels
 skipped with a count), and two types on one topic are not merged into the input."""
 from __future__ import annotations
 
@@ -230,10 +232,30 @@ def test_multi_file_bags(tmp_path):
         assert err is None and len(ref) == len(rows)
 
 
-def test_rosbags_fallback_for_compressed_messages_and_unindexed_mcap(tmp_path):
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_bags_compressed_message_by_message_same_rows(tmp_path, storage):
     rows = mixed_rows(200)
+    bag = write_rosbags(tmp_path / "zmsg", rows, storage, compression=CompressionMode.MESSAGE)
+    ref, err = assert_same_rows(bag, expect_source="fast")          # each payload decompressed
+    assert err is None and len(ref) == len(rows)
+    assert sorted(r for _, _, r in ref) == sorted(r for *_, r in rows)
+
+
+def test_a_payload_that_does_not_decompress_same_rows_then_same_error(tmp_path):
+    import sqlite3
+
+    rows = mixed_rows(300)
     bag = write_rosbags(tmp_path / "zmsg", rows, "sqlite3", compression=CompressionMode.MESSAGE)
-    assert assert_same_rows(bag, expect_source="rosbags")[1] is None
+    db = next(bag.glob("*.db3"))
+    with sqlite3.connect(db) as con:     # the 150th message in time order: not a zstd frame
+        (mid,) = con.execute("SELECT id FROM messages ORDER BY timestamp LIMIT 1 OFFSET 149").fetchone()
+        con.execute("UPDATE messages SET data = ? WHERE id = ?", (b"\x00\x01\x02\x03not zstd", mid))
+    ref, err = assert_same_rows(bag, expect_source="fast")
+    assert isinstance(err, BagReadError) and len(ref) == 149
+
+
+def test_rosbags_fallback_for_unindexed_mcap(tmp_path):
+    rows = mixed_rows(200)
     bag = write_rosbags(tmp_path / "zfile", rows, "mcap", compression=CompressionMode.FILE)
     assert assert_same_rows(bag, expect_source="fast")[1] is None      # decompressed by rosbags first
     f = write_mcap(tmp_path / "noindex.mcap", sorted(rows, key=lambda r: r[2]), index=False)

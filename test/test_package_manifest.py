@@ -72,6 +72,7 @@ PROVIDERS = {
     "mujoco": PIP,
     "lz4": PIP,
     "backports": PIP,           # backports.zstd, before Python 3.14
+    "zstandard": PIP,           # mcap's own; bags compressed message by message (bags/fast.py)
 }
 #: standard-library modules of a later Python than some this package runs on (imported in a
 #: try/except beside their backport): compression.zstd from 3.14

@@ -24,9 +24,10 @@ order, as rosbags' ``Reader.messages`` gives them, read without a Python object 
   ``heapq.merge`` of per-chunk sorted lists orders them: by (log time, chunk offset, record order).
 
 A bag folder reads its storage files in ``metadata.yaml`` order with rosbags' mapping of storage
-connections to bag connections. What these readers do not cover (per-message zstd compression,
-MCAP files without chunk index, other storage plugins) returns None from :func:`row_batches`;
-the caller then reads through rosbags. Errors propagate as raised (apsw errors, rosbags
+connections to bag connections. What these readers do not cover (MCAP files
+without chunk index, other storage plugins) returns None from :func:`row_batches`;
+the caller then reads through rosbags. A bag compressed message by message is read the same
+way, each payload decompressed (:func:`decompressed`). Errors propagate as raised (apsw errors, rosbags
 ``ReaderError`` …) after every row before them has been yielded; the caller turns them into
 ``BagReadError``.
 """
@@ -50,15 +51,15 @@ Batch = tuple[np.ndarray, np.ndarray, Any]
 
 def row_batches(reader: Any, conns: list[Any], max_rows: int) -> Iterator[Batch] | None:
     """Batches of rows of ``conns`` from an open rosbags ``Reader``, in rosbags' order; None when
-    this bag needs rosbags' own reading (compressed messages, unindexed MCAP, unknown plugin)."""
+    this bag needs rosbags' own reading (unindexed MCAP, unknown plugin)."""
     from rosbags.rosbag2.reader import DirectoryReader
     from rosbags.rosbag2.storage_mcap import McapReader
     from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
 
     st = reader.storage
+    per_message = False
     if isinstance(st, DirectoryReader):
-        if st.metadata.compression_mode == "message":
-            return None
+        per_message = st.metadata.compression_mode == "message"
         plan = [(s, _storage_connmap(s, conns)) for s in st.storages]
     else:
         plan = [(st, {c.id: c.id for c in conns})]
@@ -66,7 +67,31 @@ def row_batches(reader: Any, conns: list[Any], max_rows: int) -> Iterator[Batch]
     for s, _ in plan:
         if not (isinstance(s, Sqlite3Reader) or (isinstance(s, McapReader) and s.chunks)):
             return None
-    return _plan_batches(plan, max_rows)
+    batches = _plan_batches(plan, max_rows)
+    return decompressed(batches) if per_message else batches
+
+
+def decompressed(batches: Iterator[Batch]) -> Iterator[Batch]:
+    """The batches of a bag compressed message by message (``compression_mode: message``; zstd,
+    the one format rosbags opens) with each payload decompressed, as rosbags'
+    ``Reader.messages`` gives them. One ``zstandard`` decompression context serves every
+    payload: rosbags' ``zstd.decompress`` sets one up per call (~18 µs a 1 kHz Imu message
+    here, ~0.5 µs with the context kept; the same bytes). A payload that does not decompress
+    raises rosbags' error after the rows before it have been yielded."""
+    from rosbags.rosbag2 import ReaderError
+    import zstandard
+
+    dctx = zstandard.ZstdDecompressor()
+    for conn, ts, payloads in batches:
+        out: list[bytes] = []
+        try:
+            for raw in payloads:
+                out.append(dctx.decompress(raw))
+        except zstandard.ZstdError as e:
+            if out:
+                yield conn[:len(out)], ts[:len(out)], out
+            raise ReaderError(f"message at {int(ts[len(out)])} ns does not decompress: {e}") from e
+        yield conn, ts, out
 
 
 def _plan_batches(plan: list[tuple[Any, dict[int, int]]], max_rows: int) -> Iterator[Batch]:
