@@ -241,6 +241,26 @@ def test_bags_compressed_message_by_message_same_rows(tmp_path, storage):
     assert sorted(r for _, _, r in ref) == sorted(r for *_, r in rows)
 
 
+def test_payloads_of_several_frames_or_without_size_same_rows(tmp_path):
+    """rosbags' zstd.decompress reads several frames and frames whose header states no size."""
+    import sqlite3
+
+    import zstandard
+    from rosbags.rosbag2.reader import zstd
+
+    rows = mixed_rows(120)
+    bag = write_rosbags(tmp_path / "zmsg", rows, "sqlite3", compression=CompressionMode.MESSAGE)
+    db = next(bag.glob("*.db3"))
+    sizeless = zstandard.ZstdCompressor(write_content_size=False)
+    with sqlite3.connect(db) as con:
+        for k, (mid, data) in enumerate(con.execute("SELECT id, data FROM messages ORDER BY id").fetchall()):
+            raw = zstd.decompress(data)
+            new = (zstd.compress(raw[:5]) + zstd.compress(raw[5:])) if k % 2 else sizeless.compress(raw)
+            con.execute("UPDATE messages SET data = ? WHERE id = ?", (new, mid))
+    ref, err = assert_same_rows(bag, expect_source="fast")
+    assert err is None and sorted(r for _, _, r in ref) == sorted(r for *_, r in rows)
+
+
 def test_a_payload_that_does_not_decompress_same_rows_then_same_error(tmp_path):
     import sqlite3
 

@@ -37,7 +37,7 @@ than the next.
 * numba's type of an array argument (``typeof`` of an ``ndarray``, at a kernel's first call in a
   process, before the cache is looked up) first asks whether it is a masked array,
   ``isinstance(val, np.ma.MaskedArray)``, and with numpy 2 that attribute imports ``numpy.ma``:
-  15–19 ms of every process's first kernel call here. :func:`_typeof_ndarray` asks it only where
+  ~20 ms of every process's first kernel call here. :func:`_typeof_ndarray` asks it only where
   ``numpy.ma`` is imported (no masked array exists before) or the array is of a subclass
   (numba's own then); a plain array gets numba's type, built as numba builds it.
 
