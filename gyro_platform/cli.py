@@ -161,12 +161,13 @@ def _main(argv: list[str] | None, quiet: bool = False) -> int:
     limit_blas_threads()        # small matrices: one BLAS thread (engine.blas); before NumPy loads, whose
     #                             OpenBLAS then starts no worker threads (its import 0.10 -> 0.05 s)
     words = sys.argv[1:] if argv is None else argv
-    if argv is None and command_of(words) in BATCH:
+    command = command_of(words)
+    if argv is None and command in BATCH:
         keep_freed_memory()     # a short run: memory it frees kept for its next chunk (heap.py)
-    if argv is None and command_of(words) in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
+    if argv is None and command in PLOTTING and not {"--no-plot", "-h", "--help"} & set(words):
         from .reports import plot_process
         plot_process.start()            # matplotlib imported beside this process's start-up
-    parser = build_parser(command_of(words))
+    parser = build_parser(command)
     args = parser.parse_args(argv)
     bad = _check_scalar_values(parser, args)
     if bad:

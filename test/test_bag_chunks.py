@@ -258,6 +258,11 @@ def test_payloads_of_several_frames_or_without_size_same_rows(tmp_path):
             new = (zstd.compress(raw[:5]) + zstd.compress(raw[5:])) if k % 2 else sizeless.compress(raw)
             con.execute("UPDATE messages SET data = ? WHERE id = ?", (new, mid))
     ref, err = assert_same_rows(bag, expect_source="fast")
+    try:                            # rosbags 0.11.6 (zstandard) refuses a frame without a size
+        zstd.decompress(sizeless.compress(b"x"))
+    except Exception:               # noqa: BLE001 - then both readers end there, with the same error
+        assert isinstance(err, BagReadError)
+        return
     assert err is None and sorted(r for _, _, r in ref) == sorted(r for *_, r in rows)
 
 

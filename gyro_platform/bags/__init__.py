@@ -45,6 +45,12 @@ Internals used, and why (no public API does it at an acceptable cost):
   ``Reader.messages``, sqlite3 0.8–0.9 against 1.1–1.5).
 * ``salvage`` and ``fast``: ``metadata.parse_qos`` (QoS text → ``Qos``, as rosbags parses it)
   and ``storage_mcap.decompress`` for damaged or foreign files rosbags' ``Reader`` refuses.
+* ``fast``: ``reader.zstd``, the module whose ``decompress`` rosbags' ``Reader.messages`` applies
+  to each message of a bag compressed message by message (``backports.zstd`` or
+  ``compression.zstd`` in 0.11.9, ``zstandard`` in 0.11.6): what a payload the kept
+  decompression context does not take (several frames, no size in its header) goes to, so that
+  it reads as rosbags reads it in every version. Why: rosbags sets up a context per message
+  (~18 µs a 1 kHz Imu message; ~0.5 µs with one kept).
 """
 from .reader import InputBag
 from .writer import OutputBag

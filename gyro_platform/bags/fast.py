@@ -84,14 +84,18 @@ def decompressed(batches: Iterator[Batch]) -> Iterator[Batch]:
     import zstandard
 
     one_frame = zstandard.ZstdDecompressor().decompress
+
+    def payload(raw: bytes) -> bytes:
+        try:
+            return one_frame(raw, allow_extra_data=False)
+        except zstandard.ZstdError:
+            return zstd.decompress(raw)         # rosbags' own reading of it, or its error
+
     for conn, ts, payloads in batches:
         out: list[bytes] = []
         try:
             for raw in payloads:
-                try:
-                    out.append(one_frame(raw, allow_extra_data=False))
-                except zstandard.ZstdError:
-                    out.append(zstd.decompress(raw))
+                out.append(payload(raw))
         except Exception:
             if out:
                 yield conn[:len(out)], ts[:len(out)], out
