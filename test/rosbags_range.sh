@@ -29,7 +29,7 @@ DIR=${RANGE_DIR:-/tmp}
 SPEC=$(grep -o '"rosbags[^"]*"' "$REPO/setup.py" | tr -d '"')      # e.g. rosbags>=0.11.6,<0.12
 LOW=$(sed -n 's/.*>=\([0-9.]*\).*/\1/p' <<<"$SPEC")
 TESTS=(test/test_bag_writer.py test/test_bag_chunks.py test/test_replay.py test/test_faults.py)
-DEPS=(numpy numba scipy matplotlib pyyaml apsw mcap zstandard tqdm threadpoolctl ruamel.yaml.clib pytest hypothesis)
+DEPS=(numpy numba scipy matplotlib pyyaml apsw mcap zstandard lz4 "backports.zstd; python_version < '3.14'" tqdm threadpoolctl ruamel.yaml.clib pytest hypothesis)
 
 [ $# -gt 0 ] || set -- low high
 status=0
