@@ -263,6 +263,7 @@ def test_ctrl_c_leaves_a_readable_table_and_exit_130(tmp_path):
     text = (tmp_path / "log.txt").read_text()
     assert code == 130, text
     assert "Traceback" not in text
+    assert (out / "workers.log").is_file()      # the workers' Dask records went there, not to the terminal
     rows = _table(out)
     assert 2 <= len(rows) < 400 and all(r["status"] == "ok" for r in rows)
     assert len(rows) == len(list((out / "runs").glob("run_*.json")))
@@ -304,3 +305,49 @@ def test_a_local_cluster_as_large_as_the_cpus_compiles_in_one_process_per_worker
         client.cluster.close()
     assert list(seen.values()) == [expect]
     assert remote.COMPILE_JOBS_ENV not in os.environ
+
+
+WORKER_LOG_SCRIPT = """
+import logging, sys
+from pathlib import Path
+from gyro_platform.sweep.command import close_client, make_client
+
+def fail_loudly():
+    try:
+        raise OSError("the scheduler went away (made up)")
+    except OSError:
+        logging.getLogger("distributed.worker").exception("Failed to communicate during heartbeat.")
+    logging.getLogger("distributed.worker").warning("a worker warning")
+
+log = Path(sys.argv[1]) if sys.argv[1] != "-" else None
+client = make_client(workers=1, worker_log=log)
+try:
+    client.run(fail_loudly)
+finally:
+    close_client(client)
+print("closed")
+"""
+
+
+@pytest.mark.parametrize("to_file", [False, True])
+def test_local_workers_log_into_the_sweeps_folder_not_the_terminal(tmp_path, to_file):
+    """A local worker process inherits the command's stderr: an error Dask logs there (with its
+    traceback, as the heartbeat of an interrupted sweep's worker does) reaches the terminal
+    unless the cluster is made with ``worker_log``; then the file holds it, warnings too."""
+    from gyro_platform.sweep.worker_log import log_size, logged_records
+
+    log = tmp_path / "workers.log"
+    log.write_text("2026-01-01 00:00:00,000 - distributed.worker - ERROR - an earlier sweep's\n")
+    start = log_size(log)
+    proc = subprocess.run([sys.executable, "-c", WORKER_LOG_SCRIPT, str(log) if to_file else "-"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "closed" in proc.stdout, proc.stderr
+    text = log.read_text()
+    if to_file:
+        assert "Traceback" not in proc.stderr and "made up" not in proc.stderr, proc.stderr
+        assert "Failed to communicate during heartbeat." in text and "OSError: the scheduler went away" in text
+        assert "a worker warning" in text
+        assert logged_records(log, start) == 1 and logged_records(log) == 2
+    else:
+        assert "Traceback" in proc.stderr and "made up" in proc.stderr
+        assert logged_records(log, start) == 0 and logged_records(log) == 1

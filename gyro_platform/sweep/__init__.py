@@ -16,8 +16,9 @@
 
 Holds the sweep file schema and its seeded draws (``spec``), one run as a pure function of its
 task (``runs``), the crash-safe result store and the results table (``store``), the budget plots
-(``plots``), this machine's compiled kernels for another machine's workers (``kernels``) and the
-``gyro-platform sweep`` command (``command``). May import ``scenes``,
+(``plots``), this machine's compiled kernels for another machine's workers (``kernels``), where
+local worker processes log (``worker_log``) and the ``gyro-platform sweep`` command
+(``command``). May import ``scenes``,
 ``replay``, ``pipeline``, ``bags``, ``messages``, ``reports``, ``engine``, ``physics``, ``errors``,
 ``signals`` and ``filesystem``; nothing imports it but ``cli`` and
 ``bench``. Dask (``distributed``) and pyarrow are imported only where a sweep runs.

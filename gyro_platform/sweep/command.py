@@ -30,7 +30,9 @@ writing into the same folder now (``OUT/.lock``), or a ``--scheduler`` that cann
 (tried before anything is written); 4 an output could not be written (disk full: one line
 naming the file; no temporary is left, the records written so far stay readable); 130
 interrupted (Ctrl-C), 143 terminated (SIGTERM): the table holds the runs finished so far. A
-damaged run record is named on stderr and its run done again.
+damaged run record is named on stderr and its run done again. The local cluster's worker processes
+log Dask's own records (warnings and errors, with tracebacks) into ``OUT/workers.log``
+(``worker_log``), not the terminal; the command says in one line how many errors they logged.
 """
 from __future__ import annotations
 
@@ -72,7 +74,9 @@ class SweepResult:
 
 
 #: the files a sweep writes into its folder (checked before any run: none may be a folder)
-OUTPUT_FILES = ("sweep.json", "summary.json", "results.csv", "results.parquet", "budget.png")
+OUTPUT_FILES = ("sweep.json", "summary.json", "results.csv", "results.parquet", "budget.png", "workers.log")
+#: the local cluster's worker processes log here (``worker_log``), not on the terminal
+WORKER_LOG = "workers.log"
 
 #: s, how long ``--scheduler`` is tried before it is refused as unreachable
 SCHEDULER_TIMEOUT_S = 20.0
@@ -94,9 +98,12 @@ def connect_scheduler(address: str):
         raise SchedulerError(f"--scheduler {address}: no Dask scheduler reachable: {why}") from None
 
 
-def make_client(workers: int | None = None, scheduler: str | None = None):
-    """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes."""
+def make_client(workers: int | None = None, scheduler: str | None = None, worker_log: Path | None = None):
+    """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes (their
+    log records into ``worker_log`` if given: :class:`~.worker_log.WorkerLogFile`)."""
     from distributed import Client, LocalCluster
+
+    from .worker_log import WorkerLogFile
 
     if scheduler:
         return connect_scheduler(scheduler)
@@ -110,7 +117,8 @@ def make_client(workers: int | None = None, scheduler: str | None = None):
     try:
         with one_compile_process(n >= compile_cpus()):
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address=None, silence_logs=40)
+                                   dashboard_address=None, silence_logs=40,
+                                   plugins=(WorkerLogFile(worker_log),) if worker_log else ())
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
@@ -131,6 +139,8 @@ def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str 
                 say: Callable[[str], None], client: Any) -> SweepResult:
     from distributed import as_completed
 
+    from .worker_log import log_size, logged_records
+
     store = ResultStore(out, spec.fingerprint(), {"sweep": str(spec.source), "scene": str(spec.scene_path),
                                                   "kind": spec.kind, "runs": spec.n_runs, "seed": spec.seed}).open()
     done = store.finished()
@@ -143,7 +153,8 @@ def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str 
     t0 = time.perf_counter()
     if tasks:
         own = client is None
-        client = make_client(workers, scheduler) if own else client
+        log_start = log_size(out / WORKER_LOG)
+        client = make_client(workers, scheduler, out / WORKER_LOG) if own else client
         futures = []
         try:
             if scheduler or not own:        # another machine's workers: this machine's kernels for them
@@ -176,6 +187,8 @@ def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str 
         finally:
             if own:
                 close_client(client)
+                if logged := logged_records(out / WORKER_LOG, log_start):
+                    say(f"the local Dask workers logged {logged} error(s) of their own: {out / WORKER_LOG}")
     res.wall_s = time.perf_counter() - t0
     every = store.records()
     res.records = [r for r in every if r["run"] < spec.n_runs]     # a smaller runs: counts only its own
