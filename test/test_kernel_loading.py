@@ -67,7 +67,7 @@ with jit.compiles_refused():
     recorder, summary, results = run_scene(load_scene("default").with_duration(0.5))
 values = np.concatenate([recorder.gimbal_angles.ravel(), recorder.drift_angle.ravel()])
 print(json.dumps({"parses": count[0], "n": len(recorder), "values": values.tobytes().hex(),
-                  "masked": "numpy.ma" in sys.modules}))
+                  "masked": "numpy.ma" in sys.modules, "arrayobj": "numba.np.arrayobj" in sys.modules}))
 """
 
 #: a cached package kernel loaded lazily, then a new kernel calling it compiled (links it)
@@ -133,6 +133,9 @@ def test_cached_kernels_load_without_parsing_bitcode_and_give_the_same_outputs(d
     assert lazy["values"] == numba_own["values"]    # the same machine code: the same bits
     # numba's typeof of an array imports numpy.ma (15-19 ms) to ask whether it is masked
     assert lazy["masked"] is False and numba_own["masked"] is True
+    # the environments of numba's array functions in the kernels: rebuilt without importing
+    # numba's array module (~23 ms with the string code it imports)
+    assert lazy["arrayobj"] is False and numba_own["arrayobj"] is True
 
 
 #: a replay of the bag ``argv[1]`` into ``argv[2]`` in a new process: is numpy.ma imported after it?
@@ -140,7 +143,8 @@ REPLAY_PROBE = """
 import json, sys
 from gyro_platform.replay.loop import replay, ReplayConfig
 summary = replay(sys.argv[1], sys.argv[2], ReplayConfig(plot=False))
-print(json.dumps({"masked": "numpy.ma" in sys.modules, "outputs": summary["counts"]["out"]}))
+print(json.dumps({"masked": "numpy.ma" in sys.modules, "outputs": summary["counts"]["out"],
+                  "arrayobj": "numba.np.arrayobj" in sys.modules}))
 """
 
 
@@ -154,7 +158,7 @@ def test_a_replay_imports_no_masked_array_module(storage, tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     r = json.loads(out.stdout.strip().splitlines()[-1])
-    assert r["outputs"] > 0 and r["masked"] is False
+    assert r["outputs"] > 0 and r["masked"] is False and r["arrayobj"] is False
 
 
 def _typeof_both(value):
@@ -192,6 +196,55 @@ def test_a_kernel_compiled_after_a_lazy_load_links_the_loaded_one(default_cached
     assert r["after_link"] >= 1                     # parsed when the new kernel linked it
     assert r["max_diff"] <= 1e-15
     assert r["unknown"] == 0                        # numba's answer for a name nothing defines
+
+
+#: a module of a cached kernel that calls a package kernel and numba's array functions
+ROTATE_MODULE = """
+import numpy as np
+from numba import njit
+from gyro_platform.physics.rotations import quat_to_matrix
+@njit(cache=True)
+def rotate_all(qs):
+    out = np.empty((qs.shape[0], 3, 3))
+    for i in range(qs.shape[0]):
+        R = np.zeros((3, 3))
+        quat_to_matrix(qs[i], R)
+        out[i, :, :] = R
+    return out.sum(axis=0)
+"""
+
+#: argv[1]: the folder of ``rotate.py``. The default scene's kernels loaded (their environments
+#: of numba's array module rebuilt without it), then ``rotate_all`` compiled or loaded
+ENV_PROBE = """
+import json, sys
+import numpy as np
+import gyro_platform.physics.jit as jit
+from gyro_platform.scenes.runner import run_scene
+from gyro_platform.scenes.schema import load_scene
+with jit.compiles_refused():
+    run_scene(load_scene("default").with_duration(0.5))
+before = "numba.np.arrayobj" in sys.modules
+sys.path.insert(0, sys.argv[1])
+from rotate import rotate_all
+qs = np.array([[0.1, -0.2, 0.3, 0.9], [0.0, 0.0, 0.0, 1.0], [0.5, 0.5, -0.5, 0.5]])
+qs /= np.linalg.norm(qs, axis=1)[:, None]
+got = rotate_all(qs)
+ref = rotate_all.py_func(qs)
+print(json.dumps({"before": before, "max_diff": float(np.max(np.abs(got - ref))),
+                  "hits": int(sum(rotate_all.stats.cache_hits.values()))}))
+"""
+
+
+def test_a_kernel_compiled_and_cached_after_lazy_environments_loads_again(default_cached, tmp_path):
+    """numba's array functions' environments rebuilt with only their module's name: a kernel
+    compiled afterwards in that process, which uses them, computes what Python computes, and its
+    cache file (environments pickled again) loads in the next process and computes the same."""
+    (tmp_path / "rotate.py").write_text(ROTATE_MODULE)       # cached in tmp_path/__pycache__
+    first = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
+    assert first["before"] is False and first["hits"] == 0 and first["max_diff"] <= 1e-15
+    assert list((tmp_path / "__pycache__").glob("rotate.rotate_all-*.nbc"))
+    second = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
+    assert second["before"] is False and second["hits"] == 1 and second["max_diff"] <= 1e-15
 
 
 def test_the_runtime_library_is_compiled_once_then_loaded(tmp_path):

@@ -37,7 +37,6 @@ from numba import types
 from numba.core import cgutils, config
 from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
-from numba.np.arrayobj import make_array, populate_array
 
 __all__ = ["borrow", "view1", "view2", "view3"]
 
@@ -45,9 +44,20 @@ __all__ = ["borrow", "view1", "view2", "view3"]
 def _borrowed(context, builder, rtype, data, shape, strides, itemsize):
     """The array value of type ``rtype`` over ``data`` with no meminfo and no parent: it holds
     no reference (the codegen of :func:`_make_view`'s views and of :func:`borrow`)."""
-    out = make_array(rtype)(context, builder)
+    from numba.np.arrayobj import populate_array
+
+    out = _array(rtype)(context, builder)
     populate_array(out, data=data, shape=shape, strides=strides, itemsize=itemsize, meminfo=None, parent=None)
     return impl_ret_borrowed(context, builder, rtype, out._getvalue())
+
+
+def _array(aryty):
+    """numba's array structure of ``aryty`` (codegen). numba's array code is imported where a
+    kernel compiles, not with this module: a process that loads its kernels from the cache
+    never needs it (~23 ms of its start, with the string code it imports)."""
+    from numba.np.arrayobj import make_array
+
+    return make_array(aryty)
 
 
 def _make_view(ndim: int):
@@ -61,7 +71,7 @@ def _make_view(ndim: int):
 
         def codegen(context, builder, sig, args):
             aryty, offty, shty = sig.args
-            src = make_array(aryty)(context, builder, args[0])
+            src = _array(aryty)(context, builder, args[0])
             itemsize = context.get_constant(types.intp, context.get_abi_sizeof(context.get_data_type(aryty.dtype)))
             o = context.cast(builder, args[1], offty, types.intp)
             dims = [context.cast(builder, builder.extract_value(args[2], i), shty.dtype, types.intp)
@@ -84,7 +94,7 @@ def _borrow(typingctx, ary):
     sig = ary(ary)
 
     def codegen(context, builder, sig, args):
-        src = make_array(sig.args[0])(context, builder, args[0])
+        src = _array(sig.args[0])(context, builder, args[0])
         return _borrowed(context, builder, sig.return_type, src.data, src.shape, src.strides, src.itemsize)
 
     return sig, codegen

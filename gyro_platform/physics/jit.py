@@ -118,9 +118,16 @@ def digest_sources() -> list[Path]:
     ``COARSEN``, ``SWITCH_MIN`` …) included, so a change there must give a new folder too. This
     module and what it imports (how kernels are compiled, cached and loaded, not what they
     compute) are left out."""
-    source = {str(p.resolve()): p.read_bytes() for p in PACKAGE.rglob("*.py")}
+    source = {}
+    for folder, dirs, names in os.walk(PACKAGE):        # PACKAGE is resolved: no resolve per file
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for name in names:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                with open(path, "rb") as f:
+                    source[path] = f.read()
     files = frozenset(source)           # membership, not a stat per candidate
-    here = str(Path(__file__).resolve())
+    here = os.path.join(PACKAGE, "physics", "jit.py")
     todo = [p for p, data in source.items() if p != here and b"jit import njit" in data]
     seen: set[str] = set()
     while todo:

@@ -41,6 +41,16 @@ than the next.
   ``numpy.ma`` is imported (no masked array exists before) or the array is of a subclass
   (numba's own then); a plain array gets numba's type, built as numba builds it.
 
+* A cached kernel's environments (numba's per-function record of the module globals and
+  constant objects the compiled code may ask for at run time) are rebuilt at load by importing
+  the module of each function (``environment._rebuild_env``), numba's own library modules
+  included: loading the replay's kernels imported ``numba.np.arrayobj`` (with numba's string
+  and hashing code, ~23 ms) for the array functions compiled into them. Only object-mode code
+  reads an environment's globals; the package's kernels are nopython, and numba's library
+  functions in them too. :func:`_rebuild_env` gives an environment of a numba module not yet
+  imported the module's name alone as its globals (what numba writes when it caches it again),
+  and its constants as numba does; any other module is imported as numba does.
+
 Results are the same machine code: the kernels are numba's cached ones and the runtime's is
 what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0``, or a numba without the pieces
 patched (:func:`_fits_this_numba`), leaves numba as it is.
@@ -56,7 +66,7 @@ from typing import Callable
 import weakref
 
 import llvmlite.binding as ll
-from numba.core import codegen as _codegen, errors as _errors, types as _types
+from numba.core import codegen as _codegen, environment as _environment, errors as _errors, types as _types
 from numba.core.runtime import nrtdynmod
 from numba.core.typing import typeof as _typeof
 from numba.np import numpy_support as _np_support
@@ -69,6 +79,7 @@ _numba_unserialize = _Library._unserialize.__func__
 _numba_module_for_linking = _Library._get_module_for_linking
 _numba_pointer_to_function = _codegen.JITCodeLibrary.get_pointer_to_function
 _numba_is_symbol_defined = _codegen.JitEngine.is_symbol_defined
+_numba_rebuild_env = _environment._rebuild_env
 
 _folder: Callable[[], Path] | None = None
 _write: Callable[[Path, Callable], bool] | None = None
@@ -125,6 +136,19 @@ def _pointer_to_function(self, name):
     return _numba_pointer_to_function(self, name)
 
 
+def _rebuild_env(modname, consts, env_name):
+    """numba's ``_rebuild_env``, without importing a numba module for it (see module doc)."""
+    env = _environment.lookup_environment(env_name)
+    if env is not None or not (isinstance(modname, str) and modname.startswith("numba.")) \
+            or modname in sys.modules:
+        return _numba_rebuild_env(modname, consts, env_name)
+    env = _environment.Environment({"__name__": modname})
+    env.consts[:] = consts
+    env.env_name = env_name
+    _environment.Environment._memo[env_name] = env
+    return env
+
+
 def nrt_path(codegen) -> Path:
     """The file of the runtime's helper library for this code version and ``codegen``'s CPU."""
     key = repr((codegen.magic_tuple(), ll.llvm_version_info)).encode()
@@ -174,7 +198,8 @@ def _fits_this_numba() -> bool:
                "enable_object_caching")
     engine = ("is_symbol_defined", "_load_defined_symbols", "get_function_address")
     return (all(hasattr(_Library, a) for a in library) and all(hasattr(_codegen.JitEngine, a) for a in engine)
-            and hasattr(nrtdynmod, "create_nrt_module"))
+            and hasattr(nrtdynmod, "create_nrt_module") and hasattr(_environment.Environment, "_memo")
+            and hasattr(_environment, "lookup_environment"))
 
 
 def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], bool]) -> bool:
@@ -190,6 +215,8 @@ def install(folder: Callable[[], Path], write_whole: Callable[[Path, Callable], 
     _codegen.JITCodeLibrary.get_pointer_to_function = _pointer_to_function
     _codegen.JitEngine.is_symbol_defined = _is_symbol_defined
     nrtdynmod.compile_nrt_functions = _compile_nrt
+    if getattr(_numba_rebuild_env, "__module__", "") == "numba.core.environment":
+        _environment._rebuild_env = _rebuild_env
     if getattr(_numba_typeof_ndarray, "__name__", "") == "_typeof_ndarray":    # numba's, as in 0.58–0.68
         _typeof.typeof_impl.register(np.ndarray, _typeof_ndarray)
     return True
