@@ -24,7 +24,10 @@ address. numba's runtime library is compiled in the first process and loaded fro
 the next (arrays allocated by the runtime in both); a damaged file is compiled again. numba's
 type of an array argument is the same as numba's own for plain arrays of every layout and dtype
 kind, readonly ones and subclasses (errors too), and neither the scene nor a replay (mcap,
-sqlite3) imports ``numpy.ma`` any more (numba's own loading does: the check can fail).
+sqlite3) imports ``numpy.ma`` or numba's array module any more (numba's own loading does: the
+check can fail); a kernel compiled and cached after those lazy environments loads again. numba's
+extensions (a fake one installed for the test) are initialised where a kernel compiles, not
+where one is loaded.
 """
 from __future__ import annotations
 
@@ -245,6 +248,54 @@ def test_a_kernel_compiled_and_cached_after_lazy_environments_loads_again(defaul
     assert list((tmp_path / "__pycache__").glob("rotate.rotate_all-*.nbc"))
     second = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
     assert second["before"] is False and second["hits"] == 1 and second["max_diff"] <= 1e-15
+
+
+#: prints whether numba's extensions were initialised after a package kernel ran (argv[1] = 1:
+#: then also after a new function of this process compiled)
+EXTENSIONS_PROBE = """
+import json, os, sys
+import numpy as np
+import gyro_platform.physics.jit as jit
+from gyro_platform.physics.rotations import quat_to_matrix
+R = np.zeros((3, 3))
+quat_to_matrix(np.array([0.1, -0.2, 0.3, 0.9]), R)
+mark = os.environ["FAKE_EXTENSION_MARK"]
+seen = {"after_kernel": os.path.exists(mark), "compiled": int(sum(quat_to_matrix.stats.cache_misses.values()))}
+if sys.argv[1] == "1":
+    from numba import njit
+    njit(lambda x: x + 1)(1)
+    seen["after_own_function"] = os.path.exists(mark)
+print(json.dumps(seen))
+"""
+
+
+def test_numba_extensions_are_initialised_where_a_kernel_compiles_not_where_one_loads(default_cached, tmp_path):
+    """numba initialises its installed extensions (entry points ``numba_extensions``, read from
+    every installed distribution) at a dispatcher's first call; for the package's kernels that
+    happens where one compiles: loading one from the cache leaves them alone, a function of
+    the process's own or a package kernel compiled on an empty cache initialise them first."""
+    site = tmp_path / "site"
+    (site / "fake_numba_ext-0.1.dist-info").mkdir(parents=True)
+    (site / "fake_numba_ext-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: fake-numba-ext\n"
+                                                                    "Version: 0.1\n")
+    (site / "fake_numba_ext-0.1.dist-info" / "entry_points.txt").write_text(
+        "[numba_extensions]\ninit = fake_numba_ext:init\n")
+    (site / "fake_numba_ext.py").write_text("import os\n\ndef init():\n"
+                                            "    open(os.environ['FAKE_EXTENSION_MARK'], 'w').close()\n")
+
+    def probe(name: str, own: str, **env: str) -> dict:
+        mark = tmp_path / name
+        full = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(site)]), FAKE_EXTENSION_MARK=str(mark),
+                    **env)
+        out = subprocess.run([sys.executable, "-c", EXTENSIONS_PROBE, own], env=full, capture_output=True,
+                             text=True, timeout=600)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    loaded = probe("loaded", "1")
+    assert loaded == {"after_kernel": False, "compiled": 0, "after_own_function": True}
+    cold = probe("cold", "0", NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    assert cold == {"after_kernel": True, "compiled": 1}
 
 
 def test_the_runtime_library_is_compiled_once_then_loaded(tmp_path):

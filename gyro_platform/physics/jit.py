@@ -28,7 +28,9 @@ their kernels to a cache index under an exclusive lock (:func:`_locked_save`): n
 save reads, extends and rewrites the index unlocked, so two processes adding different
 signatures of one kernel could both take data file ``.1.nbc`` and leave an index entry naming
 the other's machine code. A cached kernel loads without numba's refresh of its
-implementation registries (:func:`_load_without_refresh`: ~0.25 s of every process's start).
+implementation registries (:func:`_load_without_refresh`: ~0.25 s of every process's start),
+and without initialising numba's installed extensions, which a compile does first
+(:func:`_chain_init`: reading every installed distribution's entry points, ~8–14 ms).
 While a kernel compiles, the garbage collector runs less often (:func:`_sparse_gc_compile`,
 ``COMPILE_GC_THRESHOLD``: numba makes millions of short-lived objects, and the default
 thresholds spent ~7 % of a compile walking them). At a process's first compile,
@@ -64,7 +66,7 @@ from typing import Callable
 
 import numba
 from numba import njit  # noqa: F401  (re-exported: the kernel modules' decorator)
-from numba.core import caching, config, event
+from numba.core import caching, config, entrypoints, event
 from numba.core.dispatcher import Dispatcher
 from numba.core.runtime import rtsys
 import numpy as np
@@ -378,11 +380,31 @@ caching.Cache.load_overload = _load_without_refresh
 kernel_loading.install(cache_dir, _write_whole)     # bitcode parsed when needed, the runtime's code kept
 
 
+_numba_chain_init = Dispatcher._compilation_chain_init_hook
+
+
+def _chain_init(self) -> None:
+    """numba's hook at every call that looks for an overload (``_compile_for_args``), which
+    first initialises the installed numba extensions (``entrypoints.init_all``: it reads every
+    installed distribution's entry points, ~14 ms at a process's first kernel here) — for the
+    package's kernels only where one is compiled (:class:`_LeanAtFirstCompile`): loading cached
+    machine code and typing numpy arguments need no extension. Other functions: numba's own."""
+    impl = getattr(self._cache, "_impl", None)
+    if impl is None or not isinstance(impl.locator, PackageCacheLocator):
+        _numba_chain_init(self)
+
+
+Dispatcher._compilation_chain_init_hook = _chain_init
+
+
 class _LeanAtFirstCompile(event.Listener):
-    """Installs :mod:`.lean_overloads` at a process's first compile (a process that only loads
-    cached kernels imports nothing for it); numba's compile event comes before any typing."""
+    """At a process's first compile: installs :mod:`.lean_overloads` (a process that only loads
+    cached kernels imports nothing for it), and initialises numba's extensions as numba's
+    compilation hook would have (:func:`_chain_init`); numba's compile event comes before any
+    typing."""
 
     def on_start(self, ev) -> None:
+        entrypoints.init_all()
         lean_overloads.install()
 
     def on_end(self, ev) -> None:
