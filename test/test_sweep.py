@@ -18,7 +18,8 @@ Physics: the drift rate about platform z is −Q10/L11 (oracle O9 b; the default
 expectation −0.41035 °/h at Q10 = 1e-7 N m), so a sweep over the bias torque must give drift
 rates proportional to it. Behaviour: draws depend on the seed and run index only; the table is
 identical on 1 and 2 workers; a refused run does not stop the sweep; a re-run skips finished
-runs; Ctrl-C leaves a readable table and exit code 130.
+runs; Ctrl-C leaves a readable table and exit code 130; the local workers' Dask records go to
+``OUT/workers.log``, not the terminal.
 """
 from __future__ import annotations
 
