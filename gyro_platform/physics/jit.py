@@ -129,7 +129,7 @@ def digest_sources() -> list[Path]:
                 with open(path, "rb") as f:
                     source[path] = f.read()
     files = frozenset(source)           # membership, not a stat per candidate
-    here = os.path.join(PACKAGE, "physics", "jit.py")
+    here = str(Path(__file__).resolve())      # resolved as PACKAGE is: spelled as the keys of ``source``
     todo = [p for p, data in source.items() if p != here and b"jit import njit" in data]
     seen: set[str] = set()
     while todo:
@@ -363,13 +363,20 @@ caching.IndexDataCacheFile.save = _locked_save
 _numba_load_overload = caching.Cache.load_overload
 
 
+def _is_package_cache(cache) -> bool:
+    """True when ``cache`` (a dispatcher's ``_cache``) is a package kernel's
+    (:class:`PackageCacheLocator`); False for numba's in-tree caches and ``NullCache``."""
+    impl = getattr(cache, "_impl", None)
+    return impl is not None and isinstance(impl.locator, PackageCacheLocator)
+
+
 def _load_without_refresh(self, sig, target_context):
     """numba's ``Cache.load_overload`` for the package's kernels without its first step, a
     refresh of the target context: that imports and installs every implementation registry
     numba has (~0.25 s at a process's first kernel, SciPy's BLAS among them), which only
     compiling needs, and numba's compile refreshes by itself. Loading cached machine code needs
     the runtime (NRT) its kernels call, initialised here. Other functions: numba's own."""
-    if not isinstance(self._impl.locator, PackageCacheLocator):
+    if not _is_package_cache(self):
         return _numba_load_overload(self, sig, target_context)
     rtsys.initialize(target_context)
     with self._guard_against_spurious_io_errors():
@@ -389,8 +396,7 @@ def _chain_init(self) -> None:
     installed distribution's entry points, ~14 ms at a process's first kernel here) — for the
     package's kernels only where one is compiled (:class:`_LeanAtFirstCompile`): loading cached
     machine code and typing numpy arguments need no extension. Other functions: numba's own."""
-    impl = getattr(self._cache, "_impl", None)
-    if impl is None or not isinstance(impl.locator, PackageCacheLocator):
+    if not _is_package_cache(self._cache):
         _numba_chain_init(self)
 
 

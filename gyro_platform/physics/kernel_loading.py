@@ -139,8 +139,9 @@ def _pointer_to_function(self, name):
 def _rebuild_env(modname, consts, env_name):
     """numba's ``_rebuild_env``, without importing a numba module for it (see module doc)."""
     env = _environment.lookup_environment(env_name)
-    if env is not None or not (isinstance(modname, str) and modname.startswith("numba.")) \
-            or modname in sys.modules:
+    if env is not None:
+        return env
+    if not (isinstance(modname, str) and modname.startswith("numba.")) or modname in sys.modules:
         return _numba_rebuild_env(modname, consts, env_name)
     env = _environment.Environment({"__name__": modname})
     env.consts[:] = consts

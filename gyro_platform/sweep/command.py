@@ -101,12 +101,12 @@ def connect_scheduler(address: str):
 def make_client(workers: int | None = None, scheduler: str | None = None, worker_log: Path | None = None):
     """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes (their
     log records into ``worker_log`` if given: :class:`~.worker_log.WorkerLogFile`)."""
+    if scheduler:
+        return connect_scheduler(scheduler)
     from distributed import Client, LocalCluster
 
     from .worker_log import WorkerLogFile
 
-    if scheduler:
-        return connect_scheduler(scheduler)
     n = workers or os.cpu_count() or 1
     # the worker processes inherit an ignored SIGINT: Ctrl-C (sent to the whole process group)
     # reaches only this process, which cancels the runs and shuts the cluster down in order;
