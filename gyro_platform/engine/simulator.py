@@ -242,7 +242,7 @@ class Simulator:
         the quantity the tolerance limits); ``max_error_norm``: the largest weighted norm of
         those estimates (≤ 1: every step met rtol/atol); ``n_rejected``: rejected (redone)
         intervals/steps; ``rtol``, ``atol``: the tolerance asked; ``n_fallback``: intervals
-        auto handed to exprb (0 otherwise)."""
+        auto handed to exprb or, where exprb refused too, to rk4 (0 otherwise)."""
         return {"integrator": self.integrator.name, "n_samples": self.n_samples, "n_steps": self.n_steps,
                 "n_rhs": self.system.n_rhs + int(self.engine.ih[J_NRHS]),
                 "max_error_estimate": self.max_error_estimate,
@@ -364,11 +364,13 @@ class Simulator:
             raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
         if st & ST_TOLERANCE and self._auto is not None:
             # the primary cannot meet the tolerance here within its budget: auto's own push
-            # (primary again in Python, then exprb), then back to the compiled path
+            # (its fallback and rescue in Python), then back to the compiled path
             self.engine.sync_to(self._stepper)
+            self._auto.primary_refused = True
             try:
                 self._push_python(t, w, f, has_f)
             finally:
+                self._auto.primary_refused = False
                 self.engine.sync_from(self._stepper)
             return
         if st & ST_LOCK:

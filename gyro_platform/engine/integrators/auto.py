@@ -12,24 +12,32 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""``auto``: a cheap primary method with a robust fallback for the intervals it refuses, and the
-rule that picks the primary (:func:`auto_method`, from the system's fastest mode; the registry
-builds ``auto`` with it)."""
+"""``auto``: a cheap primary method with a robust fallback for the intervals it refuses, a last
+resort for the intervals both refuse, and the rule that picks the primary (:func:`auto_method`,
+from the system's fastest mode; the registry builds ``auto`` with it)."""
 from __future__ import annotations
 
 from .base import Controlled, Integrator
 from ...errors import ToleranceError
 
-__all__ = ["Auto", "AUTO_STICKY", "AUTO_FALLBACK", "auto_method", "AUTO_RK4_LIMIT", "AUTO_RK4_MAX_RTOL",
+__all__ = ["Auto", "AUTO_STICKY", "AUTO_FALLBACK", "AUTO_RESCUE", "auto_method", "AUTO_RK4_LIMIT", "AUTO_RK4_MAX_RTOL",
            "AUTO_RK4_MIN_RTOL", "AUTO_ETD4_BELOW"]
 
 #: the method ``auto`` falls back to (re-linearised at every step: large angles, fast rotors)
 AUTO_FALLBACK = "exprb"
+#: the method ``auto`` tries where its primary and its fallback both refuse an interval. Only
+#: RK4 ends its steps at the support friction's regime changes (``locates_switches``); the
+#: exponential methods step over them, and below rtol ~1e-9 the error of a step holding a change
+#: stays above the tolerance however short the step (the 1 kHz vehicle IMU at rtol 1e-10: etd4
+#: and exprb report 17–220× the tolerance at steps of max_step/4096, and deliver without the
+#: friction), while RK4 delivers (37–77 right-hand sides a sample). Like every method it refuses
+#: what it cannot bring within tolerance.
+AUTO_RESCUE = "rk4"
 #: ``auto`` (see ``auto_method``): RK4 where the fastest mode λ is resolved at the step
 #: (h·λ < AUTO_RK4_LIMIT; RK4's stability boundary is 2.8 on the imaginary axis) and the
 #: tolerance is tight enough that its numerical damping of the nutation stays negligible
 #: (rtol ≤ AUTO_RK4_MAX_RTOL); otherwise etd2, which integrates the gyroscopic linear part
-#: exactly at any spin. Intervals the primary cannot bring within tolerance go to exprb.
+#: exactly at any spin. Intervals the primary cannot bring within tolerance go to exprb, then rk4.
 AUTO_RK4_LIMIT = 1.5
 AUTO_RK4_MAX_RTOL = 1e-6
 #: below this rtol an excited nutation costs RK4 ≥ 1/(24 rtol)^¼·ωh ≈ 100 substeps per 1 ms
@@ -73,34 +81,62 @@ def auto_method(h_lambda: float, rtol: float, excited: bool) -> str:
 class Auto(Integrator):
     """``auto``: a cheap primary method (compiled batch path); an interval it cannot bring within
     the tolerance within the budget is done by the fallback (exprb, re-linearised at every
-    step), and so are the next ``AUTO_STICKY`` intervals (the hard stretch usually lasts), then
-    the primary is tried again. Both honour rtol/atol."""
+    step) or, where that refuses too, the rescue (``AUTO_RESCUE``, unless it is the primary).
+    The method that delivered keeps the next ``AUTO_STICKY`` intervals (the hard stretch
+    usually lasts) and is tried first at the next hard stretch; then the primary is tried
+    again. Every method honours rtol/atol; where none delivers, the last refusal is raised.
 
-    def __init__(self, primary: "Controlled", fallback: Integrator) -> None:
+    ``n_fallback``: intervals done by a method other than the primary; ``n_rescue``: those of
+    them done by the rescue. ``primary_refused``: set by a caller whose own (compiled) run of
+    the primary refused the next interval; that interval starts at the fallback."""
+
+    def __init__(self, primary: "Controlled", fallback: Integrator, rescue: Integrator | None = None) -> None:
         super().__init__(fallback.max_step, fallback.rtol, fallback.atol, fallback.max_substeps)
-        self.primary, self.fallback = primary, fallback
+        self.primary, self.fallback, self.rescue = primary, fallback, rescue
         self.name = f"auto:{primary.name}+{fallback.name}"
         self.order = primary.order
         self.uses_linear_part = primary.uses_linear_part
+        self._chain = (fallback,) if rescue is None else (fallback, rescue)
+        #: the methods after the primary in the order they are tried (the last to deliver first)
+        self.others = list(self._chain)
         self.n_fallback = 0
+        self.n_rescue = 0
         self.sticky = 0
+        self.primary_refused = False
 
     def _advance(self, system, t0, y, t1):
-        if self.sticky == 0:
+        refused, self.primary_refused = self.primary_refused, False
+        if self.sticky == 0 and not refused:
             try:
                 return self.primary.advance(system, t0, y, t1)
             except ToleranceError:
-                self.sticky = AUTO_STICKY
-        self.sticky -= 1
-        self.n_fallback += 1
-        return self.fallback.advance(system, t0, y, t1)
+                pass
+        refusal = None
+        for i, method in enumerate(self.others):
+            try:
+                out = method.advance(system, t0, y, t1)
+            except ToleranceError as e:
+                refusal = e
+                continue
+            if i:                        # a later method delivered: it goes first next time
+                self.others.insert(0, self.others.pop(i))
+            self.sticky = self.sticky - 1 if self.sticky else AUTO_STICKY - 1
+            self.n_fallback += 1
+            self.n_rescue += method is self.rescue
+            return out
+        self.sticky = 0
+        raise refusal
 
     def reset(self) -> None:
         self.primary.reset()
-        self.fallback.reset()
+        for method in self._chain:
+            method.reset()
+        self.others = list(self._chain)
         self.n_fallback = 0
+        self.n_rescue = 0
         self.sticky = 0
+        self.primary_refused = False
 
 
-#: intervals auto gives to its fallback after the primary refused one
+#: intervals auto gives to the method that delivered after the primary refused one
 AUTO_STICKY = 100

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from .auto import Auto, AUTO_FALLBACK, auto_method
+from .auto import Auto, AUTO_FALLBACK, auto_method, AUTO_RESCUE
 from .base import Integrator, MAX_SUBSTEPS
 from .exponential import ETD2, ETD4, ExpRosenbrock
 from .implicit import ImplicitMidpoint
@@ -60,12 +60,14 @@ def make_integrator(name: str, *, max_step: float = 1e-3, rtol: float = 1e-8,
     ``max_substeps``: budget (shortest step ``max_step/max_substeps``). ``auto`` only:
     ``fastest_rate`` (rad/s or 1/s), the system's fastest characteristic rate, and ``excited``,
     whether its motion excites the nutation, choose the primary method (``auto.auto_method``);
-    the fallback is ``AUTO_FALLBACK``. Raises ``ValueError`` for an unknown name or bad values.
+    the fallback is ``AUTO_FALLBACK``, the last resort ``AUTO_RESCUE`` (unless it is the
+    primary). Raises ``ValueError`` for an unknown name or bad values.
     """
     if name == "auto":
         kw = {"max_step": max_step, "rtol": rtol, "atol": atol, "max_substeps": max_substeps}
         primary = auto_method(fastest_rate * max_step, rtol, excited)
-        return Auto(make_integrator(primary, **kw), make_integrator(AUTO_FALLBACK, **kw))
+        rescue = make_integrator(AUTO_RESCUE, **kw) if primary != AUTO_RESCUE else None
+        return Auto(make_integrator(primary, **kw), make_integrator(AUTO_FALLBACK, **kw), rescue)
     cls = _CLASSES.get(name)
     if cls is None:
         raise ValueError(f"unknown integrator {name!r}; known: {', '.join(INTEGRATOR_CHOICES)}")
