@@ -118,7 +118,7 @@ def test_a_driven_platform_at_rtol_1e_10_is_delivered_not_refused(surface):
         run_surface(imu, "etd4", 1e-10, 1e-13)
     ref, _ = run_surface(imu, "rk4", 1e-13, 1e-16, 1e-4, 1 << 16)
     got, st = run_surface(imu, "auto", 1e-10, 1e-13)
-    assert st["integrator"] == "auto:etd4+exprb" and st["n_fallback"] > 0
+    assert st["integrator"] == "auto:etd4+exprb" and st["n_fallback"] >= st["n_rescue"] > 0
     assert st["max_error_norm"] <= 1.0
     assert np.abs(got - ref).max() < 1e-11
 

@@ -242,13 +242,15 @@ class Simulator:
         the quantity the tolerance limits); ``max_error_norm``: the largest weighted norm of
         those estimates (≤ 1: every step met rtol/atol); ``n_rejected``: rejected (redone)
         intervals/steps; ``rtol``, ``atol``: the tolerance asked; ``n_fallback``: intervals
-        auto handed to exprb or, where exprb refused too, to rk4 (0 otherwise)."""
+        auto handed to exprb or, where exprb refused too, to rk4 (0 otherwise); ``n_rescue``:
+        those of them rk4 did."""
         return {"integrator": self.integrator.name, "n_samples": self.n_samples, "n_steps": self.n_steps,
                 "n_rhs": self.system.n_rhs + int(self.engine.ih[J_NRHS]),
                 "max_error_estimate": self.max_error_estimate,
                 "max_error_norm": self.max_error_norm, "n_rejected": self.n_rejected,
                 "rtol": self.integrator.rtol, "atol": self.integrator.atol,
-                "n_fallback": getattr(self.integrator, "n_fallback", 0)}
+                "n_fallback": getattr(self.integrator, "n_fallback", 0),
+                "n_rescue": getattr(self.integrator, "n_rescue", 0)}
 
     def _account(self, est: float, norm: float, rejected: int) -> None:
         fh = self.engine.fh

@@ -45,9 +45,10 @@ than the next.
   constant objects the compiled code may ask for at run time) are rebuilt at load by importing
   the module of each function (``environment._rebuild_env``), numba's own library modules
   included: loading the replay's kernels imported ``numba.np.arrayobj`` (with numba's string
-  and hashing code, ~23 ms) for the array functions compiled into them. Only object-mode code
-  reads an environment's globals; the package's kernels are nopython, and numba's library
-  functions in them too. :func:`_rebuild_env` gives an environment of a numba module not yet
+  and hashing code, ~23 ms) for the array functions compiled into them (whether kernels carry
+  such environments depends on the build: those built here on 2026-11-29 with numba 0.63 or
+  0.68 carry none). Only object-mode code reads an environment's globals; the package's
+  kernels are nopython, and numba's library functions in them too. :func:`_rebuild_env` gives an environment of a numba module not yet
   imported the module's name alone as its globals (what numba writes when it caches it again),
   and its constants as numba does; any other module is imported as numba does.
 
