@@ -48,9 +48,10 @@ than the next.
   and hashing code, ~23 ms) for the array functions compiled into them (whether kernels carry
   such environments depends on the build: those built here on 2026-11-29 with numba 0.63 or
   0.68 carry none). Only object-mode code reads an environment's globals; the package's
-  kernels are nopython, and numba's library functions in them too. :func:`_rebuild_env` gives an environment of a numba module not yet
-  imported the module's name alone as its globals (what numba writes when it caches it again),
-  and its constants as numba does; any other module is imported as numba does.
+  kernels are nopython, and numba's library functions in them too. :func:`_rebuild_env` gives
+  an environment of a numba module not yet imported the module's name alone as its globals
+  (what numba writes when it caches it again), and its constants as numba does; any other
+  module is imported as numba does.
 
 Results are the same machine code: the kernels are numba's cached ones and the runtime's is
 what numba compiled for this CPU. ``GYRO_PLATFORM_LAZY_LOAD=0``, or a numba without the pieces
