@@ -16,13 +16,14 @@
 method that delivered first at the next hard stretch, the last refusal raised when none
 delivers; and on the model: a driven stabilised platform at rtol 1e-10, which etd4 and exprb
 refuse (they step over the support friction's regime changes; without the friction they
-deliver), delivered by the rescue against a tight RK4 reference."""
+deliver): RK4 is auto's primary there, and with fast rotors (etd4 the primary) the rescue
+delivers, both against a tight RK4 reference."""
 import numpy as np
 import pytest
 
 from gyro_platform.bench.roughness import OUT_EVERY, run_surface, surfaces
 from gyro_platform.engine.integrators import Auto, AUTO_STICKY, Integrator, make_integrator, StepStats
-from gyro_platform.engine.simulator import Simulator
+from gyro_platform.engine.simulator import auto_primary, regime_switches, Simulator
 from gyro_platform.errors import ToleranceError
 from gyro_platform.physics.options import DEFAULT_EFFECTS, ModelOptions
 from gyro_platform.physics.params import NAV1
@@ -106,19 +107,59 @@ def test_the_registry_builds_the_chain():
     assert (a.primary.name, [m.name for m in a.others]) == ("etd4", ["exprb", "rk4"])
     a = make_integrator("auto", rtol=1e-6, atol=1e-9, fastest_rate=100.0)
     assert (a.primary.name, [m.name for m in a.others]) == ("rk4", ["exprb"]) and a.rescue is None
+    a = make_integrator("auto", rtol=1e-10, atol=1e-13, fastest_rate=100.0, switches=True)
+    assert (a.primary.name, [m.name for m in a.others]) == ("rk4", ["exprb"]) and a.rescue is None
+    a = make_integrator("auto", rtol=1e-10, atol=1e-13, fastest_rate=3000.0, switches=True)
+    assert a.primary.name == "etd4"                   # RK4 would not resolve the fastest mode
+
+
+@pytest.mark.parametrize("mode, effects, switches", [
+    ("stabilised", DEFAULT_EFFECTS["stabilised"], True),
+    ("stabilised", DEFAULT_EFFECTS["stabilised"] - {"support_friction"}, False),
+    ("carried", DEFAULT_EFFECTS["carried"], False),
+])
+def test_the_model_says_whether_it_has_regime_changes(mode, effects, switches):
+    opt = ModelOptions.make(mode, "linear", effects, rtol=1e-10, atol=1e-13)
+    assert regime_switches(opt) is switches
+    assert (auto_primary(opt) == "rk4") is switches
+
+
+def _driven(imu, integrator, rtol, atol, max_step=1e-3, max_substeps=4096, rotor_factor=1.0):
+    """The stabilised linear model (default effects) driven by ``imu``: (angles at 100 Hz, stats)."""
+    p = NAV1.with_(rotor_speed=tuple(x * rotor_factor for x in NAV1.rotor_speed))
+    opt = ModelOptions.make("stabilised", "linear", DEFAULT_EFFECTS["stabilised"], integrator=integrator,
+                            rtol=rtol, atol=atol, max_step=max_step, max_substeps=max_substeps)
+    sim = Simulator(p, opt)
+    outs = sim.push_many(imu.t, imu.omega, imu.force, output_every=OUT_EVERY)
+    return np.array([[*o.gimbal_angles, *o.drift_angle] for o in outs]), sim.stats
 
 
 @pytest.mark.parametrize("surface", ["smooth", "vibrating"])
-def test_a_driven_platform_at_rtol_1e_10_is_delivered_not_refused(surface):
-    """The stabilised linear model on the 1 kHz vehicle IMU (and with the 37 Hz vibration):
-    etd4 (auto's primary at rtol 1e-10) refuses at the support friction's first regime change
-    even at steps of max_step/4096; auto delivers through the rescue, within 1e-11 rad of RK4 at
-    rtol 1e-13."""
+def test_a_driven_platform_at_rtol_1e_10_steps_with_rk4(surface):
+    """The stabilised linear model on the 1 kHz vehicle IMU (and with the 37 Hz vibration) at
+    rtol 1e-10: etd4 refuses at the support friction's first regime change even at steps of
+    max_step/4096; auto's primary there is RK4 (the model has regime changes), which delivers
+    within 1e-11 rad of RK4 at rtol 1e-13 with no interval left to the chain, as RK4 alone does."""
     imu = surfaces(0.3)[surface]
     with pytest.raises(ToleranceError, match="etd4 cannot meet the tolerance"):
         run_surface(imu, "etd4", 1e-10, 1e-13)
     ref, _ = run_surface(imu, "rk4", 1e-13, 1e-16, 1e-4, 1 << 16)
     got, st = run_surface(imu, "auto", 1e-10, 1e-13)
+    assert st["integrator"] == "auto:rk4+exprb" and st["n_fallback"] == 0
+    assert st["max_error_norm"] <= 1.0
+    assert np.abs(got - ref).max() < 1e-11
+    alone, st_rk4 = run_surface(imu, "rk4", 1e-10, 1e-13)
+    np.testing.assert_array_equal(got, alone)
+    assert st["n_rhs"] == st_rk4["n_rhs"]
+
+
+def test_fast_rotors_at_rtol_1e_10_are_delivered_by_the_rescue():
+    """Rotors at ×3 (the nutation beyond what RK4 resolves at 1 ms: auto's primary is etd4),
+    the same driven platform at rtol 1e-10: etd4 and exprb refuse at the friction's regime
+    changes; auto delivers through the rescue (RK4) within 1e-11 rad of RK4 at rtol 1e-13."""
+    imu = surfaces(0.3)["smooth"]
+    ref, _ = _driven(imu, "rk4", 1e-13, 1e-16, 1e-4, 1 << 16, rotor_factor=3.0)
+    got, st = _driven(imu, "auto", 1e-10, 1e-13, rotor_factor=3.0)
     assert st["integrator"] == "auto:etd4+exprb" and st["n_fallback"] >= st["n_rescue"] > 0
     assert st["max_error_norm"] <= 1.0
     assert np.abs(got - ref).max() < 1e-11

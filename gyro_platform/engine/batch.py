@@ -702,13 +702,3 @@ class Engine:
         self.tr[:] = 0.0
         self.wr[:] = 0.0
         self.fr[:] = 0.0
-
-    def sync_to(self, stepper) -> None:
-        """Controller state (level) to a Python integrator."""
-        if stepper is not None and hasattr(stepper, "level"):
-            stepper.level = int(self.ih[J_LEVEL])
-
-    def sync_from(self, stepper) -> None:
-        """Controller state (level) from a Python integrator."""
-        if stepper is not None and hasattr(stepper, "level"):
-            self.ih[J_LEVEL] = int(stepper.level)

@@ -74,11 +74,18 @@ def nutation_excited(options: ModelOptions) -> bool:
     return options.mode == "carried" and options.fidelity != "precession"
 
 
+def regime_switches(options: ModelOptions) -> bool:
+    """Whether the model has regime changes (a stabilised platform's mount friction: stick zone
+    and slip) that only the integrators which locate them (RK4) step across at tight tolerance."""
+    return options.mode == "stabilised" and options.has("support_friction")
+
+
 def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     """The method ``auto`` steps with for this model: ``integrators.auto_method`` (the rule and
-    its reasons) of the model's fastest mode at max_step, the tolerance and whether the motion
-    excites the nutation."""
-    return auto_method(fastest_mode(params, options) * options.max_step, options.rtol, nutation_excited(options))
+    its reasons) of the model's fastest mode at max_step, the tolerance, whether the motion
+    excites the nutation and whether the model has regime changes."""
+    return auto_method(fastest_mode(params, options) * options.max_step, options.rtol, nutation_excited(options),
+                       regime_switches(options))
 
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
@@ -91,7 +98,8 @@ def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> I
         "max_substeps": options.max_substeps,
     }
     if options.integrator == "auto":
-        kw.update(fastest_rate=fastest_mode(params, options), excited=nutation_excited(options))
+        kw.update(fastest_rate=fastest_mode(params, options), excited=nutation_excited(options),
+                  switches=regime_switches(options))
     return make_integrator(options.integrator, **kw)
 
 
@@ -366,14 +374,13 @@ class Simulator:
             raise InputError(f"sample time {t!r} is not after the last one ({self.t!r})")
         if st & ST_TOLERANCE and self._auto is not None:
             # the primary cannot meet the tolerance here within its budget: auto's own push
-            # (its fallback and rescue in Python), then back to the compiled path
-            self.engine.sync_to(self._stepper)
+            # (its fallback and rescue in Python; the primary is not run again), then back to
+            # the compiled path
             self._auto.primary_refused = True
             try:
                 self._push_python(t, w, f, has_f)
             finally:
                 self._auto.primary_refused = False
-                self.engine.sync_from(self._stepper)
             return
         if st & ST_LOCK:
             raise GimbalLockError(f"gimbal lock (precession model singular) after t = {self.t}; "

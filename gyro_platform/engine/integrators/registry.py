@@ -53,19 +53,20 @@ _CLASSES: dict[str, type[Integrator]] = {
 
 def make_integrator(name: str, *, max_step: float = 1e-3, rtol: float = 1e-8,
                     atol: float = 1e-12, max_substeps: int = MAX_SUBSTEPS, fastest_rate: float = 0.0,
-                    excited: bool = False) -> Integrator:
+                    excited: bool = False, switches: bool = False) -> Integrator:
     """A new integrator by name (see ``INTEGRATOR_CHOICES``).
 
     ``max_step`` (s): step bound; ``rtol``, ``atol`` (state units): local error tolerance;
     ``max_substeps``: budget (shortest step ``max_step/max_substeps``). ``auto`` only:
-    ``fastest_rate`` (rad/s or 1/s), the system's fastest characteristic rate, and ``excited``,
-    whether its motion excites the nutation, choose the primary method (``auto.auto_method``);
+    ``fastest_rate`` (rad/s or 1/s), the system's fastest characteristic rate, ``excited``,
+    whether its motion excites the nutation, and ``switches``, whether it has regime changes
+    only RK4 locates, choose the primary method (``auto.auto_method``);
     the fallback is ``AUTO_FALLBACK``, the last resort ``AUTO_RESCUE`` (unless it is the
     primary). Raises ``ValueError`` for an unknown name or bad values.
     """
     if name == "auto":
         kw = {"max_step": max_step, "rtol": rtol, "atol": atol, "max_substeps": max_substeps}
-        primary = auto_method(fastest_rate * max_step, rtol, excited)
+        primary = auto_method(fastest_rate * max_step, rtol, excited, switches)
         rescue = make_integrator(AUTO_RESCUE, **kw) if primary != AUTO_RESCUE else None
         return Auto(make_integrator(primary, **kw), make_integrator(AUTO_FALLBACK, **kw), rescue)
     cls = _CLASSES.get(name)
