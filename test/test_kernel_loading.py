@@ -270,6 +270,16 @@ print(json.dumps({"before": before, "max_diff": float(np.max(np.abs(got - ref)))
 """
 
 
+def _numba_cache_files(folder: Path, pattern: str) -> list[Path]:
+    """numba's cache files of a module in ``folder``: in its ``__pycache__``, or where
+    ``NUMBA_CACHE_DIR`` is set, in numba's subfolder for ``folder`` there (``<name>_<sha1 of the
+    path>``, numba's ``UserProvidedCacheLocator``)."""
+    root = os.environ.get("NUMBA_CACHE_DIR")
+    if not root:
+        return list((folder / "__pycache__").glob(pattern))
+    return list(Path(root).glob(f"{folder.name}_*/{pattern}"))
+
+
 def test_a_kernel_compiled_and_cached_after_lazy_environments_loads_again(default_cached, tmp_path):
     """numba's array functions' environments rebuilt with only their module's name: a kernel
     compiled afterwards in that process, which uses them, computes what Python computes, and its
@@ -277,7 +287,7 @@ def test_a_kernel_compiled_and_cached_after_lazy_environments_loads_again(defaul
     (tmp_path / "rotate.py").write_text(ROTATE_MODULE)       # cached in tmp_path/__pycache__
     first = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
     assert first["before"] is False and first["hits"] == 0 and first["max_diff"] <= 1e-15
-    assert list((tmp_path / "__pycache__").glob("rotate.rotate_all-*.nbc"))
+    assert _numba_cache_files(tmp_path, "rotate.rotate_all-*.nbc")
     second = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
     assert second["before"] is False and second["hits"] == 1 and second["max_diff"] <= 1e-15
 
