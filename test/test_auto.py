@@ -124,16 +124,6 @@ def test_the_model_says_whether_it_has_regime_changes(mode, effects, switches):
     assert (auto_primary(opt) == "rk4") is switches
 
 
-def _driven(imu, integrator, rtol, atol, max_step=1e-3, max_substeps=4096, rotor_factor=1.0):
-    """The stabilised linear model (default effects) driven by ``imu``: (angles at 100 Hz, stats)."""
-    p = NAV1.with_(rotor_speed=tuple(x * rotor_factor for x in NAV1.rotor_speed))
-    opt = ModelOptions.make("stabilised", "linear", DEFAULT_EFFECTS["stabilised"], integrator=integrator,
-                            rtol=rtol, atol=atol, max_step=max_step, max_substeps=max_substeps)
-    sim = Simulator(p, opt)
-    outs = sim.push_many(imu.t, imu.omega, imu.force, output_every=OUT_EVERY)
-    return np.array([[*o.gimbal_angles, *o.drift_angle] for o in outs]), sim.stats
-
-
 @pytest.mark.parametrize("surface", ["smooth", "vibrating"])
 def test_a_driven_platform_at_rtol_1e_10_steps_with_rk4(surface):
     """The stabilised linear model on the 1 kHz vehicle IMU (and with the 37 Hz vibration) at
@@ -158,8 +148,9 @@ def test_fast_rotors_at_rtol_1e_10_are_delivered_by_the_rescue():
     the same driven platform at rtol 1e-10: etd4 and exprb refuse at the friction's regime
     changes; auto delivers through the rescue (RK4) within 1e-11 rad of RK4 at rtol 1e-13."""
     imu = surfaces(0.3)["smooth"]
-    ref, _ = _driven(imu, "rk4", 1e-13, 1e-16, 1e-4, 1 << 16, rotor_factor=3.0)
-    got, st = _driven(imu, "auto", 1e-10, 1e-13, rotor_factor=3.0)
+    fast = NAV1.with_(rotor_speed=tuple(3.0 * x for x in NAV1.rotor_speed))
+    ref, _ = run_surface(imu, "rk4", 1e-13, 1e-16, 1e-4, 1 << 16, params=fast)
+    got, st = run_surface(imu, "auto", 1e-10, 1e-13, params=fast)
     assert st["integrator"] == "auto:etd4+exprb" and st["n_fallback"] >= st["n_rescue"] > 0
     assert st["max_error_norm"] <= 1.0
     assert np.abs(got - ref).max() < 1e-11

@@ -284,7 +284,7 @@ def test_a_kernel_compiled_and_cached_after_lazy_environments_loads_again(defaul
     """numba's array functions' environments rebuilt with only their module's name: a kernel
     compiled afterwards in that process, which uses them, computes what Python computes, and its
     cache file (environments pickled again) loads in the next process and computes the same."""
-    (tmp_path / "rotate.py").write_text(ROTATE_MODULE)       # cached in tmp_path/__pycache__
+    (tmp_path / "rotate.py").write_text(ROTATE_MODULE)       # cached where _numba_cache_files looks
     first = _run(ENV_PROBE.replace("sys.argv[1]", repr(str(tmp_path))))
     assert first["before"] is False and first["hits"] == 0 and first["max_diff"] <= 1e-15
     assert _numba_cache_files(tmp_path, "rotate.rotate_all-*.nbc")

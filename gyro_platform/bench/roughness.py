@@ -39,7 +39,7 @@ from .report import write_report
 from ..engine.hardcases import engine_vibration
 from ..engine.simulator import Simulator
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
-from ..physics.params import NAV1
+from ..physics.params import NAV1, PlatformParams
 
 __all__ = ["roughness", "RoughRow", "surfaces", "run_surface", "RTOLS", "GRID", "grid"]
 
@@ -80,11 +80,11 @@ def surfaces(duration: float) -> dict[str, VehicleImu]:
 
 
 def run_surface(imu: VehicleImu, integrator: str, rtol: float, atol: float, max_step: float = 1e-3,
-                max_substeps: int = 4096) -> tuple[np.ndarray, dict]:
+                max_substeps: int = 4096, params: PlatformParams = NAV1) -> tuple[np.ndarray, dict]:
     """(angles (N, 8): gimbal angles and drift angle at 100 Hz, rad; the simulator's stats)."""
     opt = ModelOptions.make("stabilised", "linear", DEFAULT_EFFECTS["stabilised"], integrator=integrator,
                             rtol=rtol, atol=atol, max_step=max_step, max_substeps=max_substeps)
-    sim = Simulator(NAV1, opt)
+    sim = Simulator(params, opt)
     outs = sim.push_many(imu.t, imu.omega, imu.force, output_every=OUT_EVERY)
     return np.array([[*o.gimbal_angles, *o.drift_angle] for o in outs]), sim.stats
 

@@ -80,12 +80,19 @@ def regime_switches(options: ModelOptions) -> bool:
     return options.mode == "stabilised" and options.has("support_friction")
 
 
+def auto_inputs(options: ModelOptions, params: PlatformParams = NAV1) -> dict:
+    """What ``auto``'s rule reads of the model (``make_integrator``'s ``auto`` keywords): its
+    fastest mode (``fastest_rate``, rad/s or 1/s), whether the motion excites the nutation
+    (``excited``) and whether it has regime changes (``switches``)."""
+    return {"fastest_rate": fastest_mode(params, options), "excited": nutation_excited(options),
+            "switches": regime_switches(options)}
+
+
 def auto_primary(options: ModelOptions, params: PlatformParams = NAV1) -> str:
     """The method ``auto`` steps with for this model: ``integrators.auto_method`` (the rule and
-    its reasons) of the model's fastest mode at max_step, the tolerance, whether the motion
-    excites the nutation and whether the model has regime changes."""
-    return auto_method(fastest_mode(params, options) * options.max_step, options.rtol, nutation_excited(options),
-                       regime_switches(options))
+    its reasons) of :func:`auto_inputs` and the tolerance."""
+    k = auto_inputs(options, params)
+    return auto_method(k["fastest_rate"] * options.max_step, options.rtol, k["excited"], k["switches"])
 
 
 def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> Integrator:
@@ -98,8 +105,7 @@ def choose_integrator(options: ModelOptions, params: PlatformParams = NAV1) -> I
         "max_substeps": options.max_substeps,
     }
     if options.integrator == "auto":
-        kw.update(fastest_rate=fastest_mode(params, options), excited=nutation_excited(options),
-                  switches=regime_switches(options))
+        kw.update(auto_inputs(options, params))
     return make_integrator(options.integrator, **kw)
 
 
