@@ -109,8 +109,9 @@ setup(
         "sweep": ["dask>=2024.1", "distributed>=2024.1", "pyarrow>=14,<26"],  # 26 needs numpy 2 (ROS Jazzy: 1.26)
         # gyro-platform bench peer: the same carried platform in MuJoCo (bench/peer_mujoco.py)
         "bench": ["mujoco>=3.1"],
-        # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests
-        "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6",
+        # the test suite: pytest, the manifest parser colcon uses, a URDF parser, property tests,
+        # MuJoCo (test_bench checks the model against this second multibody engine)
+        "test": ["pytest>=7", "catkin_pkg>=1.0", "urdf-parser-py>=0.0.4", "hypothesis>=6", "mujoco>=3.1",
                  "sphinx>=7", "myst-parser>=2"],   # test_docs builds the docs with sphinx-build -W
         # the documentation site: sphinx-build -W -b html docs docs/_build/html
         "docs": ["sphinx>=7", "myst-parser>=2"],
