@@ -39,7 +39,7 @@ def _bag_cache(tmp_path, monkeypatch):
 # ---- the MuJoCo peer -------------------------------------------------------------------------
 
 def _mujoco():
-    pytest.importorskip("mujoco", reason="mujoco is not installed (pip install '.[test]' or '.[bench]'): the peer model needs it")
+    pytest.importorskip("mujoco", reason="mujoco is not installed (pip install '.[test]'): the peer model needs it")
     from gyro_platform.bench import peer_mujoco
 
     return peer_mujoco

@@ -28,6 +28,7 @@ import pytest
 from gyro_platform.bench.roughness import REFERENCE, run_surface, surfaces
 from gyro_platform.engine.buffers import J_LEVEL
 from gyro_platform.engine.inputs import RateSample
+from gyro_platform.engine.integrators import piece_substeps
 from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import NAV1
@@ -85,6 +86,28 @@ def test_a_vibrating_vehicle_costs_at_most_half_again_a_smooth_one_at_the_accura
         err[name] = float(np.abs(ang - ref).max())
     assert rhs["vibrating"] <= 1.5 * rhs["smooth"], rhs
     assert max(err.values()) <= 1e-9, err
+
+
+def test_a_piece_takes_the_fewest_substeps_no_longer_than_its_levels():
+    """A whole chunk takes 2^level substeps; a piece of it as many as keep each no longer than
+    the level's (hg / 2^level), and no more; the pieces a chunk is cut into at its kinks take at
+    most one substep more each than their share (a 3 µs stick-zone crossing one, not 2^level)."""
+    rng = np.random.default_rng(7)
+    for level in range(13):
+        for hg in (1e-3, 1e-3 / 3, 0.033):
+            n = 1 << level
+            assert piece_substeps(hg, hg, level) == n
+            cuts = np.sort(rng.uniform(0.0, hg, 5))
+            pieces = np.diff(np.concatenate(([0.0], cuts, [hg])))
+            total = 0
+            for hp in pieces:
+                k = piece_substeps(hp, hg, level)
+                assert k >= 1
+                assert hp / k <= hg / n * (1 + 1e-5)
+                assert k == 1 or hp / (k - 1) > hg / n
+                total += k
+            assert total <= n + len(pieces) - 1
+    assert piece_substeps(3e-6, 1e-3, 2) == 1
 
 
 @pytest.mark.parametrize("rtol", [1e-6, 1e-9])

@@ -38,8 +38,9 @@ one ends and the right-hand side does not see its slope), one right-hand side fe
 interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
 RK4 with the mount friction on also ends a piece of a chunk at the friction's next kink (predicted
 from K[0], ``physics.switching``) and goes on with the rest of the chunk; once per piece, a kink
-found looking back from the piece's end shortens it to end there (redone, one rejection): the plan
-of ``Controlled._advance``/``_chunk`` with ``locates_switches``. A sample is committed (state, time,
+found looking back from the piece's end shortens it to end there (redone, one rejection); a piece
+takes substeps as long as its chunk's level's (``integrators.piece_substeps``): the plan of
+``Controlled._advance``/``_chunk`` with ``locates_switches``. A sample is committed (state, time,
 input, counters) only when its interval succeeded; otherwise everything, ``seg`` too, is as before.
 """
 from __future__ import annotations
@@ -55,8 +56,8 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
-                          TAIL_ULP)
+from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, piece_substeps, STEP_SLACK, SWITCH_EDGE,
+                          SWITCH_MIN, TAIL_MIN, TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -321,6 +322,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         hc = t_end - tc
             for m in range(n):
                 yc[m] = yw[m]
+            piece = can_pass                # a piece of the chunk: substeps as long as the level's
             a2 = 0.0                        # (set in the tail)
             while True:
                 if method != RK4:
@@ -338,7 +340,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     io = po + (1 if in_tail else s + (1 if method == EXPRK_D else 0)) * (n + 1)
                     if in_tail:                     # the Taylor series' bound, after A's data
                         a2 = md[do + mi[po + n]]
-                nsub = 1 << level
+                nsub = piece_substeps(hc, h0, level) if piece else 1 << level
                 h = hc / nsub
                 est = 0.0
                 worst = 0.0

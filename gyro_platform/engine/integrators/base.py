@@ -40,7 +40,8 @@ exponential ones cut whole steps of a grid and end the interval with a short las
 chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
 regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
 chunk; once per piece, a kink it finds looking back from the piece's end (``switch_passed``)
-shortens the piece to end there (redone: one rejection). A step across a kink is only
+shortens the piece to end there (redone: one rejection). A piece takes substeps no longer than
+its chunk's level's (:func:`piece_substeps`), not ``2^level`` of its own. A step across a kink is only
 first-order accurate, so a vibrating input otherwise costs 3–8× the substeps of a smooth one. The compiled batch loop
 (:mod:`gyro_platform.engine.batch`) runs the same controller (``COARSEN``, ``MAX_JUMP``).
 
@@ -56,10 +57,11 @@ from typing import Any, Callable, Hashable, Protocol
 import numpy as np
 
 from ...errors import SimulationError, ToleranceError
+from ...physics.jit import njit
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
-           "is_rejected", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN", "MAX_SWITCHES",
-           "SWITCH_EDGE"]
+           "is_rejected", "piece_substeps", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN",
+           "MAX_SWITCHES", "SWITCH_EDGE"]
 
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 #: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
@@ -108,6 +110,8 @@ MAX_SWITCHES = 8
 #: a kink found looking back from a step's end within this fraction of the step from its start
 #: is the one the step starts at (the backward look is linear: not exact that far back)
 SWITCH_EDGE = 1e-3
+#: a piece up to (1 + PIECE_SLACK) level substeps long takes that many (rounding of its ends)
+PIECE_SLACK = 1e-6
 
 
 class OdeSystem(Protocol):
@@ -279,16 +283,17 @@ class Controlled(Integrator):
         nsub, h0 = self._base(t0, t1)
         return [(t0 + c * h0, h0) for c in range(nsub)], None
 
-    def _chunk(self, system, tc, y, hc, level, q1, step, passed=None):
+    def _chunk(self, system, tc, y, hc, level, q1, step, passed=None, hg=None):
         """One chunk of ``hc`` s from (tc, y) by ``step`` (``_substeps`` or ``_tail``) at
-        ``2^level`` substeps, redone finer until accepted: (y1, norm, est, n_rhs, level,
-        rejected, hc). Raises the refusal beyond the budget. ``passed`` (switch location):
+        ``2^level`` substeps (a piece of a chunk ``hg`` s long: :func:`piece_substeps`), redone
+        finer until accepted: (y1, norm, est, n_rhs, level, rejected, hc, nsub). Raises the
+        refusal beyond the budget. ``passed`` (switch location):
         the system's ``switch_passed``; once per chunk, a kink it finds inside the chunk (judged
         from the end of its last substep) shortens the chunk to end there, redone at the same
         level (one rejection)."""
         nrhs = rejected = 0
         while True:
-            nsub = 1 << level
+            nsub = 1 << level if hg is None else piece_substeps(hc, hg, level)
             h = hc / nsub
             y1, norm, est, n, t_bad = step(system, tc, y, nsub, h)
             nrhs += n
@@ -302,7 +307,7 @@ class Controlled(Integrator):
                     rejected += 1
                     continue
             if norm <= 1.0:
-                return y1, norm, est, nrhs, level, rejected, hc
+                return y1, norm, est, nrhs, level, rejected, hc, nsub
             rejected += 1
             new = next_level(level, norm, q1)
             if not norm < math.inf:
@@ -333,13 +338,13 @@ class Controlled(Integrator):
                     nrhs += 1
                     passed = system.switch_passed
                 hp = hc if ts >= end else ts - tc
-                y, norm, est, n, level, rej, hq = self._chunk(system, tc, y, hp, level, self.q1, self._substeps,
-                                                              passed)
+                y, norm, est, n, level, rej, hq, ns = self._chunk(system, tc, y, hp, level, self.q1,
+                                                                  self._substeps, passed, hg if passed else None)
                 if hq != hp:                # shortened to a kink found inside
                     ts = tc + hq
                 nrhs += n
                 rejected += rej
-                steps += 1 << level
+                steps += ns
                 est_all = max(est_all, est)
                 worst = max(worst, norm)
                 top = max(top, level)
@@ -348,10 +353,10 @@ class Controlled(Integrator):
                     break
                 tc, hc, n_sw = ts, end - ts, n_sw + 1
         if tail is not None:     # its own level from 0; the chunks' controller level is not touched
-            y, norm, est, n, lv, rej, _ = self._chunk(system, tail[0], y, tail[1], 0, self.q1, self._tail)
+            y, norm, est, n, lv, rej, _, ns = self._chunk(system, tail[0], y, tail[1], 0, self.q1, self._tail)
             nrhs += n
             rejected += rej
-            steps += 1 << lv
+            steps += ns
             est_all = max(est_all, est)
             worst = max(worst, norm)
         self.level = level
@@ -364,6 +369,15 @@ class Controlled(Integrator):
     @abstractmethod
     def _substeps(self, system, t0: float, y0: np.ndarray, nsub: int, h: float):
         ...
+
+
+@njit(cache=True)
+def piece_substeps(hp: float, hg: float, level: int) -> int:
+    """Substeps of a piece ``hp`` s long of a chunk ``hg`` s long at ``level``: as many as keep
+    them no longer than the level's (``hg / 2^level``), ``2^level`` for the whole chunk. Pieces
+    end at the mount friction's kinks; a short one takes a few substeps, not the chunk's number.
+    (One rule for the Python controller and the compiled one, :mod:`gyro_platform.engine.batch`.)"""
+    return max(1, math.ceil(hp / hg * (1 << level) - PIECE_SLACK))
 
 
 def is_rejected(norm: float) -> bool:
