@@ -76,13 +76,15 @@ def auto_method(h_lambda: float, rtol: float, excited: bool, switches: bool = Fa
     largest local estimate 2.3e-8; etd4 3.9e-11 after 30 s at 1.4× etd2's CPU, 3.4× on rate
     steps).
 
-    Below ``AUTO_RK4_MIN_RTOL`` a model with regime changes stays with RK4 (where it resolves
-    λ and the motion does not excite the nutation): the exponential methods step over the
-    changes and refuse below rtol ~1e-9 at the first one, so every interval would go down the
-    chain to the rescue, in Python (the 1 kHz vehicle IMU at rtol 1e-10 … 1e-12: 60–145× the
-    CPU of RK4 alone, the same delivered error)."""
-    if h_lambda < AUTO_RK4_LIMIT and not excited and rtol <= AUTO_RK4_MAX_RTOL \
-            and (rtol >= AUTO_RK4_MIN_RTOL or switches):
+    Below ``AUTO_RK4_MIN_RTOL`` a model with regime changes takes RK4 whatever its fastest
+    mode or nutation: the exponential methods step over the changes and refuse below rtol
+    ~1e-9 at the first one, so every interval would go down the chain to the rescue, RK4 itself
+    in Python (the 1 kHz vehicle IMU at rtol 1e-10 … 1e-12: 60–145× the CPU of RK4 alone; with
+    the rotors at ×3, whose nutation RK4 resolves only with substeps, 150–400×; the same
+    delivered error). Compiled, RK4 pays for a fast or excited nutation with its substeps."""
+    if switches and rtol < AUTO_RK4_MIN_RTOL:
+        return "rk4"
+    if h_lambda < AUTO_RK4_LIMIT and not excited and AUTO_RK4_MIN_RTOL <= rtol <= AUTO_RK4_MAX_RTOL:
         return "rk4"
     return "etd2" if rtol >= AUTO_ETD4_BELOW and not excited else "etd4"
 
