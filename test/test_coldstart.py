@@ -33,6 +33,7 @@ import pytest
 
 from gyro_platform.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
 from gyro_platform.physics import jit
+from gyro_platform.scenes.schema import find_scene, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -324,6 +325,13 @@ def test_bench_coldstart_times_each_command_cold_then_warm(tmp_path, monkeypatch
     monkeypatch.setattr(cs.shutil, "copytree", lambda src, dst: Path(dst).mkdir())   # a fresh folder: "cold"
     rows = cs.coldstart(tmp_path / "out", repeats=3)
     by = {r.name: r for r in rows}
+    # --quick: the scene runs as long as its expectations need (shorter: not evaluable, exit 1)
+    runs: list[list[str]] = []
+    monkeypatch.setattr(cs, "timed", lambda cmd, cache, timeout=0: (runs.append(cmd), fake_timed(cmd, cache))[1])
+    quick = {r.name: r for r in cs.coldstart(tmp_path / "quick", quick=True, repeats=1)}
+    run = next(c for c in runs if "run" in c)
+    assert float(run[run.index("--duration") + 1]) >= load_scene(find_scene("default")).test_duration
+    assert quick["run_default"].status == "ok" and quick["run_default"].what == "run default --duration 30"
     assert set(by) == {"compile", "run_default", "replay_husky", "node_dds_ready", "sweep_worker_first_run",
                        "sweep_worker_new_host"}
     host = by["sweep_worker_new_host"]

@@ -55,9 +55,9 @@ def add_arguments(p) -> None:
                    help="which benchmark (default: coldstart, consumer, roughness, then peer)")
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
-                   help="short runs (coldstart: 5 s scene, husky's first 30 s; consumer: 10 s bags, husky's first "
-                        "30 s; roughness: 2 s inputs; peer: 2 s scenes; accuracy: 60 s ship, 30 s aircraft; hard: the "
-                        "tests' durations)")
+                   help="short runs (coldstart: the default scene over its test duration, 5 s sweep scenes, "
+                        "husky's first 30 s; consumer: 10 s bags, husky's first 30 s; roughness: 2 s inputs; "
+                        "peer: 2 s scenes; accuracy: 60 s ship, 30 s aircraft; hard: the tests' durations)")
     p.add_argument("--case", action="append", default=None, help="hard: only this case (repeatable)")
     p.add_argument("--repeats", type=int, default=3, help=f"timing repeats, 1..{MAX_REPEATS} (median quoted)")
     p.add_argument("--runs", type=int, default=8,
