@@ -36,7 +36,7 @@ from .inputs import RateSample
 from .integrators import Auto, auto_method, Integrator, make_integrator
 from .output_kernel import OutputKernel
 from .outputs import OutputBlock, Outputs, outputs_of_row
-from .snapshots import first_segment, Snapshots
+from .snapshots import Snapshots
 from ..errors import GimbalLockError, InputError, SimulationError
 from ..physics.model import spin_momentum
 from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
@@ -287,7 +287,7 @@ class Simulator:
         e.ih[J_STARTED] = 1
         e.ih[J_NSAMP] = 1
         e.ih[J_HAS_F] = f is not None
-        first_segment(self.system.seg, w, f)
+        self.system.set_input(0.0, 1.0, w, w, f, f)     # no interval yet: input held, zero slope
         st = self.layout
         if not self.system.stabilised and st.qd is not None:
             # consistent start of free gyros on a turning vehicle (spec 4.7)

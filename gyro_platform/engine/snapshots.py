@@ -27,7 +27,8 @@ end (rad/s, vehicle axes), specific force at its start and end (m/s², vehicle a
 the samples carry none). The input at the instant itself is ``w1``/``f1``; the vehicle angular
 acceleration is ``(w1 − w0)/dt``. At the first sample after a start or reset there is no
 interval: ``w0 = w1``, ``f0 = f1``, ``t0_rel = 0``, ``dt = 1`` (input held constant, zero slope),
-exactly what ``system.seg`` holds then, so that a reset is a fresh start.
+exactly what ``system.seg`` holds then (``set_input(0, 1, w, w, f, f)``), so that a reset is a
+fresh start.
 """
 from __future__ import annotations
 
@@ -35,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics.system import SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0, SEG_W0, SEG_W1
+from ..physics.system import SEG_N
 
-__all__ = ["Snapshots", "SEG_N", "first_segment"]
+__all__ = ["Snapshots", "SEG_N"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,17 +69,3 @@ class Snapshots:
     def take(self, k: slice | np.ndarray) -> "Snapshots":
         """The instants ``k`` (a slice or an index array)."""
         return Snapshots(self.t[k], self.t_rel[k], self.y[k], self.seg[k], self.n_steps[k])
-
-
-def first_segment(seg: np.ndarray, w: np.ndarray, f: np.ndarray | None) -> None:
-    """Fill ``seg`` (14,) for the first sample after a start/reset: input ``w`` (rad/s) and
-    ``f`` (m/s², None = zeros) held constant over a unit interval starting at 0."""
-    seg[SEG_T0] = 0.0
-    seg[SEG_DT] = 1.0
-    seg[SEG_W0:SEG_W0 + 3] = w
-    seg[SEG_W1:SEG_W1 + 3] = w
-    if f is None:
-        seg[SEG_F0:SEG_F1 + 3] = 0.0
-    else:
-        seg[SEG_F0:SEG_F0 + 3] = f
-        seg[SEG_F1:SEG_F1 + 3] = f
