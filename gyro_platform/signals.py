@@ -15,7 +15,8 @@
 """Stop signals of every command: :class:`StopSignals` turns SIGINT and SIGTERM into one orderly
 stop (``KeyboardInterrupt`` / :class:`Terminated`, exit codes ``errors.EXIT_INTERRUPTED`` /
 ``EXIT_TERMINATED``), :func:`deferred_signals` holds them off while a file is being closed,
-and :func:`exit_now` ends a process that is done (the commands and their helper processes).
+and :func:`exit_now` ends a process that is done (the commands and their helper processes);
+:func:`exit_with_parent` ends a helper process whose parent is gone.
 A leaf room: imports ``errors`` and the standard library."""
 import atexit
 from contextlib import contextmanager
@@ -23,6 +24,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from typing import NoReturn
 
 from .errors import EXIT_INTERRUPTED, EXIT_TERMINATED
@@ -173,3 +175,37 @@ def exit_now(code: int) -> NoReturn:
             except (OSError, ValueError, AttributeError):    # a closed pipe or stream, or none
                 pass
         os._exit(code)
+
+
+#: how often a helper process looks whether the process that started it is still there (s)
+PARENT_POLL_S = 0.2
+#: the environment entry in which a process names itself the parent of a helper it starts
+PARENT_ENV = "GYRO_PLATFORM_PARENT_PID"
+
+
+def parent_env() -> dict[str, str]:
+    """The environment entry that names this process as the parent of a helper it starts
+    (:func:`exit_with_parent` in the helper reads it)."""
+    return {PARENT_ENV: str(os.getpid())}
+
+
+def exit_with_parent(code: int = EXIT_TERMINATED) -> threading.Thread:
+    """End this helper process (``os._exit(code)``, nothing more to run) as soon as the process
+    that started it is gone: killed, or a Dask worker closed by its nanny, with no ``atexit``
+    run to stop its helpers. The parent is the pid in ``PARENT_ENV`` (set by the starter,
+    :func:`parent_env`; taken out of this process's environment), else this process's parent
+    now; once it is gone this process has another parent (init or a subreaper), which a daemon
+    thread checks every ``PARENT_POLL_S`` — beside a kernel compile too (numba's passes give the
+    interpreter up every few ms, LLVM releases it). A parent gone before the helper got here
+    ends it at the first check. Returns the thread."""
+    named = os.environ.pop(PARENT_ENV, "")
+    parent = int(named) if named.isdigit() else os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(code)
+
+    th = threading.Thread(target=watch, name="gyro-parent-watch", daemon=True)
+    th.start()
+    return th

@@ -55,7 +55,7 @@ from .. import errors
 from ..errors import SimulationError
 from ..physics.jit import (compiled_elsewhere, CompileRefused, compiles_refused, not_when_compiling, notices_prog,
                            when_compiling)
-from ..signals import exit_now
+from ..signals import exit_now, exit_with_parent, parent_env
 
 __all__ = ["ColdStart", "WarmingSimulator", "HelperGone", "OutputsAside", "compile_jobs", "compile_cpus",
            "one_compile_process", "COMPILE_JOBS_ENV"]
@@ -77,7 +77,7 @@ def _spawn(mode: str, prog: str, env: dict[str, str]) -> tuple[subprocess.Popen,
     to_r, to_w = os.pipe()
     from_r, from_w = os.pipe()
     path = os.environ.get("PYTHONPATH")
-    env = {**os.environ, **env, "PYTHONPATH": _ROOT + (os.pathsep + path if path else "")}
+    env = {**os.environ, **env, **parent_env(), "PYTHONPATH": _ROOT + (os.pathsep + path if path else "")}
     try:
         proc = subprocess.Popen([sys.executable, "-m", "gyro_platform.engine.remote", mode, str(to_r), str(from_w),
                                  prog], pass_fds=(to_r, from_w), env=env, stdin=subprocess.DEVNULL,
@@ -530,6 +530,7 @@ def main(argv: list[str]) -> int:
     import signal
 
     mode, fd_in, fd_out, prog = argv[0], int(argv[1]), int(argv[2]), argv[3]
+    exit_with_parent()                      # a parent killed (no atexit to stop this one): end too
     inbox = Connection(fd_in, writable=False)
     outbox = Connection(fd_out, readable=False)
     if mode == "interpret":

@@ -62,7 +62,7 @@ from ..engine.remote import one_compile_process
 from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED, EXIT_USAGE
 from ..filesystem import child_env
 from ..physics.jit import cache_dir, not_when_compiling, quiet_compile_header, when_compiling
-from ..signals import Terminated
+from ..signals import exit_with_parent, parent_env, Terminated
 
 __all__ = ["add_arguments", "parts", "run", "steps", "write_bytecode"]
 
@@ -180,7 +180,7 @@ def _start_part(args: argparse.Namespace, part: int, work: Path) -> subprocess.P
            "--part", str(part), "--part-dir", str(work)]
     if args.params_file:
         cmd += ["--params-file", args.params_file]
-    return subprocess.Popen(cmd, env=child_env(), stdin=subprocess.DEVNULL)
+    return subprocess.Popen(cmd, env={**child_env(), **parent_env()}, stdin=subprocess.DEVNULL)
 
 
 def _stop_parts(children: list[subprocess.Popen], exc: BaseException | None) -> None:
@@ -226,6 +226,7 @@ def _run(args: argparse.Namespace) -> int:
             return EXIT_USAGE
         shares = parts(todo, args.jobs)
         if own:
+            exit_with_parent()                  # the first process killed: this share ends too
             quiet_compile_header()              # the first process said it
             failed = _run_steps(prog, shares[args.part])
             (work / f"part-{args.part}").write_text(str(failed))

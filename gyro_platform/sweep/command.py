@@ -100,14 +100,17 @@ def connect_scheduler(address: str):
 
 def make_client(workers: int | None = None, scheduler: str | None = None, worker_log: Path | None = None):
     """A ``distributed.Client``: to ``scheduler``, or to a new local cluster of processes (their
-    log records into ``worker_log`` if given: :class:`~.worker_log.WorkerLogFile`)."""
+    log records into ``worker_log`` if given: :class:`~.worker_log.WorkerLogFile`; a run's kernel
+    compile abandoned when its worker closes: :class:`~.worker_close.StopCompilesAtClose`)."""
     if scheduler:
         return connect_scheduler(scheduler)
     from distributed import Client, LocalCluster
 
+    from .worker_close import StopCompilesAtClose
     from .worker_log import WorkerLogFile
 
     n = workers or os.cpu_count() or 1
+    plugins = (StopCompilesAtClose(),) + ((WorkerLogFile(worker_log),) if worker_log else ())
     # the worker processes inherit an ignored SIGINT: Ctrl-C (sent to the whole process group)
     # reaches only this process, which cancels the runs and shuts the cluster down in order;
     # and, as many workers as CPUs or more, one compile process each: a cold worker's second
@@ -118,7 +121,7 @@ def make_client(workers: int | None = None, scheduler: str | None = None, worker
         with one_compile_process(n >= compile_cpus()):
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                    dashboard_address=None, silence_logs=40,
-                                   plugins=(WorkerLogFile(worker_log),) if worker_log else ())
+                                   plugins=plugins)
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
@@ -182,8 +185,8 @@ def _run_locked(spec: SweepSpec, out: Path, workers: int | None, scheduler: str 
                 say(f"run {rec['run']}: {rec['status']}" + (f" ({rec['message']})" if rec.get("message") else ""))
         except KeyboardInterrupt as e:      # Ctrl-C, or SIGTERM (errors.Terminated)
             res.interrupted, res.stop = True, stop_reason(e)
-            for f in futures:
-                f.cancel()
+            if futures:
+                client.cancel(futures)          # one message (a future's own cancel waits for the scheduler)
         finally:
             if own:
                 close_client(client)
