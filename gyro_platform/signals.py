@@ -16,7 +16,8 @@
 stop (``KeyboardInterrupt`` / :class:`Terminated`, exit codes ``errors.EXIT_INTERRUPTED`` /
 ``EXIT_TERMINATED``), :func:`deferred_signals` holds them off while a file is being closed,
 and :func:`exit_now` ends a process that is done (the commands and their helper processes);
-:func:`exit_with_parent` ends a helper process whose parent is gone.
+:func:`end_process` ends one with nothing more run; :func:`exit_with_parent` ends a helper
+process whose parent is gone.
 A leaf room: imports ``errors`` and the standard library."""
 import atexit
 from contextlib import contextmanager
@@ -169,12 +170,19 @@ def exit_now(code: int) -> NoReturn:
     try:
         run_exitfuncs()
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError, AttributeError):    # a closed pipe or stream, or none
-                pass
-        os._exit(code)
+        end_process(code)
+
+
+def end_process(code: int) -> NoReturn:
+    """stdout and stderr flushed, then ``os._exit(code)``: nothing more runs (no exit handler,
+    no teardown of the interpreter). What :func:`exit_now` does after the exit handlers, and
+    what an exit handler that must come last calls (``sweep.worker_close``)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):    # a closed pipe or stream, or none
+            pass
+    os._exit(code)
 
 
 #: how often a helper process looks whether the process that started it is still there (s)

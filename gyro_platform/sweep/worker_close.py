@@ -22,16 +22,16 @@ wait for it. :class:`StopCompilesAtClose`, a worker plugin given to the local cl
 its running task); :func:`~gyro_platform.sweep.runs.execute_run` runs its scene inside
 ``physics.jit.abandon_compiles_when(CLOSING)``, so the run's wait for the compile ends at once
 (the run ends with ``CompileAbandoned``: recorded nowhere, the sweep has stopped) and the worker
-closes. Imports ``distributed`` (where a sweep runs) and the standard library only.
+closes. Imports ``distributed`` (where a sweep runs), ``signals`` and the standard library only.
 """
 from __future__ import annotations
 
 import atexit
-import os
-import sys
 import threading
 
 from distributed.diagnostics.plugin import WorkerPlugin
+
+from ..signals import end_process
 
 __all__ = ["CLOSING", "StopCompilesAtClose"]
 
@@ -55,11 +55,7 @@ class StopCompilesAtClose(WorkerPlugin):
 def _end_closed_worker() -> None:
     """At the exit of a worker process whose worker closed, after the other exit handlers (its
     helper processes stopped): ``os._exit``, without the interpreter's teardown of the
-    compiler's objects (~1 s after an abandoned compile, for the nanny to wait for)."""
+    compiler's objects (~1 s after an abandoned compile, for the nanny to wait for):
+    ``signals.end_process``."""
     if CLOSING.is_set():
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError, AttributeError):
-                pass
-        os._exit(0)
+        end_process(0)
