@@ -28,7 +28,8 @@ import pytest
 from gyro_platform.bench.roughness import REFERENCE, run_surface, surfaces
 from gyro_platform.engine.buffers import J_LEVEL
 from gyro_platform.engine.inputs import RateSample
-from gyro_platform.engine.integrators import piece_substeps
+from gyro_platform.engine.integrators import (COARSEN, coarser_level, finest_level, level_substeps, MAX_JUMP,
+                                              next_level, piece_substeps)
 from gyro_platform.engine.simulator import Simulator
 from gyro_platform.physics.options import ModelOptions
 from gyro_platform.physics.params import NAV1
@@ -89,13 +90,13 @@ def test_a_vibrating_vehicle_costs_at_most_half_again_a_smooth_one_at_the_accura
 
 
 def test_a_piece_takes_the_fewest_substeps_no_longer_than_its_levels():
-    """A whole chunk takes 2^level substeps; a piece of it as many as keep each no longer than
-    the level's (hg / 2^level), and no more; the pieces a chunk is cut into at its kinks take at
-    most one substep more each than their share (a 3 µs stick-zone crossing one, not 2^level)."""
+    """A whole chunk takes ``level_substeps(level)`` substeps; a piece of it as many as keep each
+    no longer than the level's (hg / n), and no more; the pieces a chunk is cut into at its kinks
+    take at most one substep more each than their share (a 3 µs stick-zone crossing one, not n)."""
     rng = np.random.default_rng(7)
-    for level in range(13):
+    for level in range(24):
         for hg in (1e-3, 1e-3 / 3, 0.033):
-            n = 1 << level
+            n = level_substeps(level)
             assert piece_substeps(hg, hg, level) == n
             cuts = np.sort(rng.uniform(0.0, hg, 5))
             pieces = np.diff(np.concatenate(([0.0], cuts, [hg])))
@@ -107,7 +108,36 @@ def test_a_piece_takes_the_fewest_substeps_no_longer_than_its_levels():
                 assert k == 1 or hp / (k - 1) > hg / n
                 total += k
             assert total <= n + len(pieces) - 1
-    assert piece_substeps(3e-6, 1e-3, 2) == 1
+    assert piece_substeps(3e-6, 1e-3, 4) == 1
+
+
+def test_the_level_grid_steps_by_three_halves_and_four_thirds_and_the_controller_aims_at_it():
+    """Levels give 1, 2, 3, 4, 6, 8, 12, … substeps (every ratio ≤ 2, two levels = ×2); a rejected
+    chunk goes to the coarsest finer level whose predicted error ``norm·(n/n')^q1`` is ≤ 1 (at
+    most ``MAX_JUMP`` levels, ×16 the substeps); an accepted one coarsens only while the
+    prediction stays ≤ ``COARSEN``; the budget's finest level is the last within ``max_substeps``."""
+    ns = [level_substeps(k) for k in range(24)]
+    assert ns[:9] == [1, 2, 3, 4, 6, 8, 12, 16, 24] and ns[23] == 4096
+    assert all(2 * ns[k] == ns[k + 2] for k in range(1, 22))
+    q1 = 4
+    for level in range(12):
+        for norm in (1.0001, 1.7, 5.06, 5.07, 30.0, 1e3, 1e9):
+            new = next_level(level, norm, q1)
+            pred = norm * (ns[level] / ns[new]) ** q1
+            assert new > level and new - level <= MAX_JUMP
+            assert pred <= 1.0 + 1e-12 or new - level == MAX_JUMP, (level, norm, new)
+            if new - level > 1:          # the next coarser one would not have done
+                assert norm * (ns[level] / ns[new - 1]) ** q1 > 1.0
+        assert next_level(level, np.inf, q1) == next_level(level, np.nan, q1) == level + MAX_JUMP
+        for norm in (0.0, 1e-3, 0.05, 0.2, 0.9):
+            new = coarser_level(level, norm, q1)
+            assert new <= level
+            assert norm * (ns[level] / ns[new]) ** q1 <= COARSEN * (1 + 1e-12) or new == level
+            if new > 0:                  # one more would break the bound
+                assert norm * (ns[level] / ns[new - 1]) ** q1 > COARSEN * (1 - 1e-12)
+    for budget in (1, 2, 5, 4096, 1 << 22):
+        top = finest_level(budget)
+        assert level_substeps(top) <= budget < level_substeps(top + 1)
 
 
 @pytest.mark.parametrize("rtol", [1e-6, 1e-9])

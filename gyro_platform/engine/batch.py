@@ -27,8 +27,9 @@ so the Python code sees the same memory.
 Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
 Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
 M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The
-step-size controller is the one of ``integrators.base.Controlled`` (levels of ``nsub·2^level``
-substeps per interval, the same acceptance test and level updates) and, for the exponential
+step-size controller is the one of ``integrators.base.Controlled`` (levels of
+``nsub·level_substeps(level)`` substeps per interval, the same acceptance test and the same level
+updates, ``next_level`` and ``coarser_level``) and, for the exponential
 methods, the plan of ``_ETD._plan``: whole grid steps (matrices per (friction regime, level,
 grid step), built on demand, :mod:`.stages`) and a last short etd2 step to the sample time
 (φ-functions by Taylor series; slot (regime, 0, 0) holds A): the results equal the Python
@@ -56,8 +57,8 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import (COARSEN, ETD2, MAX_JUMP, MAX_SWITCHES, piece_substeps, STEP_SLACK, SWITCH_EDGE,
-                          SWITCH_MIN, TAIL_MIN, TAIL_ULP)
+from .integrators import (coarser_level, ETD2, level_substeps, MAX_SWITCHES, next_level, piece_substeps, STEP_SLACK,
+                          SWITCH_EDGE, SWITCH_MIN, TAIL_MIN, TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -340,7 +341,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     io = po + (1 if in_tail else s + (1 if method == EXPRK_D else 0)) * (n + 1)
                     if in_tail:                     # the Taylor series' bound, after A's data
                         a2 = md[do + mi[po + n]]
-                nsub = piece_substeps(hc, h0, level) if piece else 1 << level
+                nsub = piece_substeps(hc, h0, level) if piece else level_substeps(level)
                 h = hc / nsub
                 est = 0.0
                 worst = 0.0
@@ -477,11 +478,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 for m in range(n):
                     yw[m] = yc[m]
                 have_k1 = False
-                if nrm < math.inf:
-                    jump = int(math.ceil(math.log2(nrm) / q1))
-                    new = level + min(MAX_JUMP, max(1, jump))
-                else:
-                    new = level + MAX_JUMP
+                new = next_level(level, nrm, q1)
                 if new > max_level:
                     if level < max_level:
                         new = max_level
@@ -505,9 +502,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 worst_all = worst
             if in_tail:
                 level = main_level
-            while level > 0 and worst * 2.0 ** q1 <= COARSEN and not in_tail:     # as base.coarser_level
-                level -= 1
-                worst *= 2.0 ** q1
+            elif level > 0:
+                level = coarser_level(level, worst, q1)
             if t_end < end:             # the rest of the chunk from the switch
                 t_sw = t_end
                 n_sw += 1
@@ -679,7 +675,7 @@ class Engine:
     def add_matrices(self) -> None:
         """Build the stage matrices the last call asked for (regime, level, grid step)."""
         r, level, hq = int(self.ih[J_NEED_R]), int(self.ih[J_NEED_L]), int(self.ih[J_NEED_H])
-        h = hq * (float(self.fh[H_MAX_STEP]) / GRID) / (1 << level)
+        h = hq * (float(self.fh[H_MAX_STEP]) / GRID) / level_substeps(level)
         sys_ = self.system
         saved = sys_.regime
         sys_.regime = r
