@@ -72,6 +72,12 @@ class ReplayError(Exception):
     """The replay cannot start as asked (no input topic, output exists, topic clash …)."""
 
 
+class RunStopped(Exception):
+    """A run ended between two chunks because its caller asked it to (a Dask worker closing
+    under an interrupted sweep: ``scenes.runner.run_scene``'s ``stop``); what it computed is
+    dropped with the stopped sweep."""
+
+
 class OutputError(Exception):
     """An output cannot be written: refused before the start (read-only or missing folder, a path
     under a file, a folder where a file goes) or failed during the run (disk full, file size

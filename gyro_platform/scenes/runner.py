@@ -26,6 +26,7 @@ the CSV ends on a whole row and ``KeyboardInterrupt`` is raised (``run`` exits 1
 from __future__ import annotations
 
 from pathlib import Path
+import threading
 import time
 from typing import Any, Iterator
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from .schema import Check, load_scene, MotionError, ScenarioError, Scene, scene_info
 from ..bags.reader import InputBag
-from ..errors import BagReadError, SimulationError
+from ..errors import BagReadError, RunStopped, SimulationError
 from ..pipeline.chunked import push_block
 from ..pipeline.gate import TimeGate
 from ..pipeline.grid import new_slots
@@ -155,13 +156,14 @@ def _bag_blocks(scene: Scene, sim: Any, feed: _Feed) -> Iterator[tuple[Any, dict
     feed.counts = dict(pipe.outcomes.items())
 
 
-def run_scene(scene: Scene, out_dir=None):
+def run_scene(scene: Scene, out_dir=None, stop: threading.Event | None = None):
     """Run ``scene`` with the real simulator.
 
     Returns ``(recorder, summary, results)`` where ``results`` is a list of
     ``(check, passed, detail)``. With ``out_dir`` it writes ``outputs.csv`` (as the run goes),
     ``summary.json`` and ``plot.png`` there. A bag goes through :class:`Pipeline` (gate
-    decisions, drops, resets: counts in ``summary['bag']``).
+    decisions, drops, resets: counts in ``summary['bag']``). ``stop``: once set, the run ends
+    at the next chunk (~0.25 s of work) with :class:`~gyro_platform.errors.RunStopped`.
     """
     from ..engine.remote import OutputsAside
     from ..engine.simulator import Simulator
@@ -169,10 +171,10 @@ def run_scene(scene: Scene, out_dir=None):
     wall0 = time.perf_counter()
     samples = None if scene.motion.is_bag else synthetic_samples(scene)    # MotionError: nothing written
     with OutputsAside(scene.params, scene.options):     # a cold cache: the output kernel compiles beside
-        return _run(scene, out_dir, Simulator(params=scene.params, options=scene.options), samples, wall0)
+        return _run(scene, out_dir, Simulator(params=scene.params, options=scene.options), samples, wall0, stop)
 
 
-def _run(scene: Scene, out_dir, sim, samples, wall0: float):
+def _run(scene: Scene, out_dir, sim, samples, wall0: float, stop: threading.Event | None = None):
     """:func:`run_scene` with its simulator made."""
     rec = Recorder()
     feed = _Feed()
@@ -182,6 +184,8 @@ def _run(scene: Scene, out_dir, sim, samples, wall0: float):
               else _synthetic_blocks(scene, samples, sim, feed))
     try:
         while True:
+            if stop is not None and stop.is_set():
+                raise RunStopped(f"scene '{scene.name}': stopped by its caller after {feed.n_in} samples")
             with deferred_signals():             # a signal stops between blocks: whole CSV rows
                 item = next(blocks, None)
                 if item is None:

@@ -104,13 +104,15 @@ def in_dask_worker() -> bool:
 
 def execute_run(task: RunTask) -> dict[str, Any]:
     """Run one task; return its record (never raises). In a local cluster's worker, a kernel
-    compile of the run is abandoned when the worker closes (:mod:`.worker_close`)."""
+    compile of the run is abandoned when the worker closes, and the run itself stops at its next
+    chunk (:mod:`.worker_close`)."""
     stop_at_close: Any = nullcontext()
+    closing = None
     if in_dask_worker():
-        from .worker_close import CLOSING
+        from .worker_close import CLOSING as closing
 
         compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
-        stop_at_close = abandon_compiles_when(CLOSING)
+        stop_at_close = abandon_compiles_when(closing)
     rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
     rec.update({f"param:{k}": v for k, v in task.values.items()})
     cpu0, wall0 = time.process_time(), time.perf_counter()
@@ -125,7 +127,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
         else:
             try:
                 with stop_at_close:
-                    _, summary, results = run_scene(scene)
+                    _, summary, results = run_scene(scene, stop=closing)
                 rec.update(_figures(summary, results))
             except (SimulationError, MotionError) as e:     # the drawn configuration cannot run
                 rec.update(status="refused", message=f"{type(e).__name__}: {e}")

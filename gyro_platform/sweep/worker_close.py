@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""A local worker's run stops waiting for a kernel compile when its worker closes.
+"""A local worker's run stops, or stops waiting for a compile, when its worker closes.
 
 An interrupted sweep cancels its runs and closes its local cluster: each worker's nanny asks
 its worker to close, waits 4 s, then kills it. A worker whose run compiles its kernels (a cold
@@ -22,7 +22,9 @@ wait for it. :class:`StopCompilesAtClose`, a worker plugin given to the local cl
 its running task); :func:`~gyro_platform.sweep.runs.execute_run` runs its scene inside
 ``physics.jit.abandon_compiles_when(CLOSING)``, so the run's wait for the compile ends at once
 (the run ends with ``CompileAbandoned``: recorded nowhere, the sweep has stopped) and the worker
-closes. Imports ``distributed`` (where a sweep runs), ``signals`` and the standard library only.
+closes. A warm run gets ``CLOSING`` as ``run_scene``'s ``stop`` and ends at its next chunk
+(~0.25 s) with ``RunStopped``, not when its scene is done. Imports ``distributed`` (where a sweep
+runs), ``signals`` and the standard library only.
 """
 from __future__ import annotations
 
