@@ -675,7 +675,7 @@ class Engine:
     def add_matrices(self) -> None:
         """Build the stage matrices the last call asked for (regime, level, grid step)."""
         r, level, hq = int(self.ih[J_NEED_R]), int(self.ih[J_NEED_L]), int(self.ih[J_NEED_H])
-        h = hq * (float(self.fh[H_MAX_STEP]) / GRID) / level_substeps(level)
+        h = hq * (float(self.fh[H_MAX_STEP]) / GRID) / plain(level_substeps)(level)
         sys_ = self.system
         saved = sys_.regime
         sys_.regime = r

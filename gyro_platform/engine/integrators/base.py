@@ -59,7 +59,7 @@ from typing import Any, Callable, Hashable, Protocol
 import numpy as np
 
 from ...errors import SimulationError, ToleranceError
-from ...physics.jit import njit
+from ...physics.jit import njit, plain
 
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
            "level_substeps", "finest_level",
@@ -136,9 +136,11 @@ def coarser_level(level: int, norm: float, q1: int) -> int:
 
 
 def finest_level(max_substeps: int) -> int:
-    """The finest level whose chunk takes at most ``max_substeps`` substeps."""
+    """The finest level whose chunk takes at most ``max_substeps`` substeps (interpreted: an
+    integrator is made before any kernel is loaded, and a cold node must not compile for it)."""
+    substeps = plain(level_substeps)
     level = 0
-    while level_substeps(level + 1) <= max_substeps:
+    while substeps(level + 1) <= max_substeps:
         level += 1
     return level
 
