@@ -25,6 +25,7 @@ the CSV ends on a whole row and ``KeyboardInterrupt`` is raised (``run`` exits 1
 """
 from __future__ import annotations
 
+from contextlib import nullcontext
 from pathlib import Path
 import threading
 import time
@@ -35,6 +36,7 @@ import numpy as np
 from .schema import Check, load_scene, MotionError, ScenarioError, Scene, scene_info
 from ..bags.reader import InputBag
 from ..errors import BagReadError, RunStopped, SimulationError
+from ..physics.jit import abandon_compiles_when
 from ..pipeline.chunked import push_block
 from ..pipeline.gate import TimeGate
 from ..pipeline.grid import new_slots
@@ -163,14 +165,17 @@ def run_scene(scene: Scene, out_dir=None, stop: threading.Event | None = None):
     ``(check, passed, detail)``. With ``out_dir`` it writes ``outputs.csv`` (as the run goes),
     ``summary.json`` and ``plot.png`` there. A bag goes through :class:`Pipeline` (gate
     decisions, drops, resets: counts in ``summary['bag']``). ``stop``: once set, the run ends
-    at the next chunk (~0.25 s of work) with :class:`~gyro_platform.errors.RunStopped`.
+    at the next chunk (~0.25 s of work) with :class:`~gyro_platform.errors.RunStopped`, or a
+    wait for a kernel compile ends at once with ``CompileAbandoned``
+    (``physics.jit.abandon_compiles_when``).
     """
     from ..engine.remote import OutputsAside
     from ..engine.simulator import Simulator
 
     wall0 = time.perf_counter()
     samples = None if scene.motion.is_bag else synthetic_samples(scene)    # MotionError: nothing written
-    with OutputsAside(scene.params, scene.options):     # a cold cache: the output kernel compiles beside
+    with (nullcontext() if stop is None else abandon_compiles_when(stop)), \
+            OutputsAside(scene.params, scene.options):     # a cold cache: the output kernel compiles beside
         return _run(scene, out_dir, Simulator(params=scene.params, options=scene.options), samples, wall0, stop)
 
 

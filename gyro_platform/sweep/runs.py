@@ -29,7 +29,6 @@ estimate, the CPU and wall time of the run.
 """
 from __future__ import annotations
 
-from contextlib import nullcontext
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
@@ -39,7 +38,7 @@ from typing import Any
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..errors import BagReadError, ReplayError, SimulationError
-from ..physics.jit import abandon_compiles_when, compile_notices
+from ..physics.jit import compile_notices
 from ..scenes.runner import run_scene
 from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
@@ -106,13 +105,11 @@ def execute_run(task: RunTask) -> dict[str, Any]:
     """Run one task; return its record (never raises). In a local cluster's worker, a kernel
     compile of the run is abandoned when the worker closes, and the run itself stops at its next
     chunk (:mod:`.worker_close`)."""
-    stop_at_close: Any = nullcontext()
     closing = None
     if in_dask_worker():
         from .worker_close import CLOSING as closing
 
         compile_notices("gyro-platform sweep worker")   # a worker's first run compiles: said on its stderr
-        stop_at_close = abandon_compiles_when(closing)
     rec: dict[str, Any] = {"run": task.run, "status": "ok", "message": "", "bag": task.bag or ""}
     rec.update({f"param:{k}": v for k, v in task.values.items()})
     cpu0, wall0 = time.process_time(), time.perf_counter()
@@ -126,8 +123,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
                        message=str(e))
         else:
             try:
-                with stop_at_close:
-                    _, summary, results = run_scene(scene, stop=closing)
+                _, summary, results = run_scene(scene, stop=closing)
                 rec.update(_figures(summary, results))
             except (SimulationError, MotionError) as e:     # the drawn configuration cannot run
                 rec.update(status="refused", message=f"{type(e).__name__}: {e}")
