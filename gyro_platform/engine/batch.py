@@ -24,25 +24,23 @@ arrays and the sample; the kernel rebuilds its views from the offset table at th
 system's named arrays (``system.seg``, ``system.P`` …) are rebound to views into ``fb``/``ib``,
 so the Python code sees the same memory.
 
-Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential
-Runge–Kutta methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j
-M_ij f_j``; see ``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The
-step-size controller is the one of ``integrators.base.Controlled`` (levels of
-``nsub·level_substeps(level)`` substeps per interval, the same acceptance test and the same level
-updates, ``next_level`` and ``coarser_level``) and, for the exponential
-methods, the plan of ``_ETD._plan``: whole grid steps (matrices per (friction regime, level,
-grid step), built on demand, :mod:`.stages`) and a last short etd2 step to the sample time
-(φ-functions by Taylor series; slot (regime, 0, 0) holds A): the results equal the Python
-integrators' to round-off and the failures are the same. Compiled RK4 on a stabilised platform also reuses the
-last stage across intervals (first same as last: the next interval's input starts where this
-one ends and the right-hand side does not see its slope), one right-hand side fewer per
-interval; the check ``_k1_carried`` makes any change of state or input row recompute it.
-RK4 with the mount friction on also ends a piece of a chunk at the friction's next kink (predicted
-from K[0], ``physics.switching``) and goes on with the rest of the chunk; once per piece, a kink
-found looking back from the piece's end shortens it to end there (redone, one rejection); a piece
-takes substeps as long as its chunk's level's (``integrators.piece_substeps``): the plan of
-``Controlled._advance``/``_chunk`` with ``locates_switches``. A sample is committed (state, time,
-input, counters) only when its interval succeeded; otherwise everything, ``seg`` too, is as before.
+Methods: explicit RK4 (embedded third-order estimate, FSAL), and explicit exponential Runge–Kutta
+methods (``etd2``, ``etd4``) given their stage matrices ``M_i`` (``U_i = y + Σ_j M_ij f_j``; see
+``integrators.exponential``; estimate ``y1 − U_last``, etd2: the defect). The step-size controller
+is the one of ``integrators.base.Controlled`` (levels of ``nsub·level_substeps(level)`` substeps per
+interval, the same acceptance test and the same level rules) and, for the exponential methods, the
+plan of ``_ETD._plan``: whole grid steps (matrices per (friction regime, level, grid step), built on
+demand, :mod:`.stages`) and a last short etd2 step to the sample time (φ-functions by Taylor series;
+slot (regime, 0, 0) holds A): the results equal the Python integrators' to round-off and the
+failures are the same. Compiled RK4 on a stabilised platform also reuses the last stage across
+intervals (first same as last: the next interval's input starts where this one ends and the
+right-hand side does not see its slope), one right-hand side fewer per interval; the check
+``_k1_carried`` makes any change of state or input row recompute it. RK4 with the mount friction on
+also ends a piece of a chunk at the friction's next kink (predicted from K[0],
+``physics.switching``) and goes on with the rest of the chunk, as ``Controlled._advance``/``_chunk``
+with ``locates_switches`` (the kink found looking back, ``piece_substeps``, ``held_level``,
+``is_micro_step``). A sample is committed (state, time, input, counters) only when its interval
+succeeded; otherwise everything, ``seg`` too, is as before.
 """
 from __future__ import annotations
 
@@ -57,8 +55,8 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import (coarser_level, ETD2, level_substeps, MAX_SWITCHES, next_level, piece_substeps, STEP_SLACK,
-                          SWITCH_EDGE, SWITCH_MIN, TAIL_MIN, TAIL_ULP)
+from .integrators import (coarser_level, ETD2, held_level, is_micro_step, level_substeps, MAX_SWITCHES, next_level,
+                          piece_substeps, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN, TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -276,6 +274,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         have_k1 = _k1_carried(ih, yk, y, tr, wr, fr, n) if method == RK4 else False
         ih[J_K1] = 0                          # K[0] is overwritten from here on
         main_level = level
+        chunk_level = level         # the level a chunk began at (integrators.held_level)
         chunk = 0
         n_sw = 0                    # pieces of this chunk ended at a switch so far
         t_sw = 0.0                  # where the rest of the chunk starts (n_sw > 0)
@@ -309,6 +308,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             if n_sw > 0:
                 hc = end - t_sw
                 tc = t_sw
+            else:
+                chunk_level = level
             can_pass = False
             if locate and n_sw < MAX_SWITCHES:
                 can_pass = True
@@ -325,6 +326,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 yc[m] = yw[m]
             piece = can_pass                # a piece of the chunk: substeps as long as the level's
             a2 = 0.0                        # (set in the tail)
+            rk_retry = False                # an Euler attempt (is_micro_step) missed: its RK4 step
             while True:
                 if method != RK4:
                     key = 2 * ((r * nlev + (0 if in_tail else level)) * (GRID + 1) + hqc)
@@ -343,6 +345,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         a2 = md[do + mi[po + n]]
                 nsub = piece_substeps(hc, h0, level) if piece else level_substeps(level)
                 h = hc / nsub
+                eul = method == RK4 and not rk_retry and is_micro_step(nsub, h, max_step)
+                rk_retry = False
+                sse = 1 if eul else ss      # Euler: f(t, y), then y1 = y + h f and f(t + h, y1)
                 est = 0.0
                 worst = 0.0
                 bad = False
@@ -352,16 +357,19 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 for sub in range(nsub):
                     t = tc + sub * h
                     # one call site of the right-hand side: stage j evaluates f at U_j
-                    for j in range(ss + 1):
+                    for j in range(sse + 1):
                         if j == 0:
                             if have_k1:
                                 continue
                             for m in range(n):
                                 U[m] = yw[m]
-                        elif j == ss:
+                        elif j == sse:
                             if meth == EXPRK:
                                 break
-                            if meth == RK4:
+                            if eul:
+                                for m in range(n):
+                                    y1[m] = yw[m] + h * K[0, m]
+                            elif meth == RK4:
                                 for m in range(n):
                                     y1[m] = yw[m] + h / 6.0 * (K[0, m] + 2.0 * K[1, m] + 2.0 * K[2, m] + K[3, m])
                             elif expo is None:  # (not reached: RK4)
@@ -397,8 +405,8 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                             status |= ST_NONFINITE
                             break
                         nrhs += 1
-                        tj = h if j == ss or (in_tail and j == 1) else c[j] * h
-                        status |= model_rhs(gen, t + tj, U, k5 if j == ss else K[j], fid, I,
+                        tj = h if j == sse or (in_tail and j == 1) else c[j] * h
+                        status |= model_rhs(gen, t + tj, U, k5 if j == sse else K[j], fid, I,
                                             P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd, J, fo, Mm,
                                             cc, tau_ext, fbb, chol, F, a, Q, RR, V, W)
                     if status & (ST_LOCK | ST_NOT_PD):
@@ -418,6 +426,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         for m in range(n):
                             U[m] = y1[m] - Ul[m]
                         csr_mv(mi, po, arow, io, md, do, U, AU)
+                    if eul:                 # Euler's estimate h/2 (k5 − k1) as RK4's h/6 (K3 − k5)
+                        for m in range(n):
+                            K[3, m] = 4.0 * k5[m] - 3.0 * K[0, m]
                     # error estimate and its weighted RMS norm
                     acc = 0.0
                     emax = 0.0
@@ -457,6 +468,10 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     ih[J_NRHS] += nrhs
                     ih[J_JOUT] = jo
                     return status & (ST_LOCK | ST_NOT_PD)   # as the Python controller: level not updated
+                if eul and bad:             # the Euler estimate over the tolerance: RK4 from the same k1
+                    rk_retry = True
+                    have_k1 = True
+                    continue
                 if (can_pass and (not bad or t_bad == tc + (nsub - 1) * h) and nrm < math.inf
                         and not status & ST_NONFINITE):
                     # a kink inside the piece (judged from its end: y1, k5)? redo it to end there
@@ -503,7 +518,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
             if in_tail:
                 level = main_level
             elif level > 0:
-                level = coarser_level(level, worst, q1)
+                level = held_level(coarser_level(level, worst, q1), chunk_level, t_end < end, n_sw)
             if t_end < end:             # the rest of the chunk from the switch
                 t_sw = t_end
                 n_sw += 1
@@ -627,15 +642,13 @@ class Engine:
         self.tr, self.wr, self.fr = views[F_TR], views[F_WR], views[F_FR]
         self.segsave = views[F_SEGSAVE]
         self.table = iviews[I_TABLE]
-        self.mi = np.zeros(1, np.int64)
-        self.md = np.zeros(1)
+        self.mi, self.md = np.zeros(1, np.int64), np.zeros(1)
         self.method = method
         ih, fh = self.ih, self.fh
         ih[J_METHOD] = -1 if method is None else method
         ih[J_FID] = system.fid
         ih[J_Q1] = stepper.q1 if stepper is not None else 4
-        ih[J_MAX_LEVEL] = max_level
-        ih[J_NLEV] = nlev
+        ih[J_MAX_LEVEL], ih[J_NLEV] = max_level, nlev
         #: the kernels' compile-time switches (block_kernel): None rules the code out
         self.gen = None if plain(takes_linear_path)(system.fid == 1, iviews[I_I]) else 0
         self.expo = None if method == RK4 else 0
@@ -684,8 +697,7 @@ class Engine:
         finally:
             sys_.regime = saved
         key = 2 * ((r * int(self.ih[J_NLEV]) + level) * (GRID + 1) + hq)
-        self.table[key] = self.mi.size
-        self.table[key + 1] = self.md.size
+        self.table[key], self.table[key + 1] = self.mi.size, self.md.size
         self.mi = np.concatenate([self.mi, ptr.reshape(-1), idx])
         self.md = np.concatenate([self.md, dat])
 
@@ -697,6 +709,4 @@ class Engine:
         keep = self.ih[[J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_NLEV]].copy()
         self.ih[:] = 0
         self.ih[[J_METHOD, J_FID, J_Q1, J_MAX_LEVEL, J_NLEV]] = keep
-        self.tr[:] = 0.0
-        self.wr[:] = 0.0
-        self.fr[:] = 0.0
+        self.tr[:] = self.wr[:] = self.fr[:] = 0.0

@@ -17,8 +17,9 @@
 ``rk4``: classic RK4 with an embedded third-order estimate (the FSAL stage f(t+h, y1):
 ``err = h/6 (k4 − k5)``). Explicit: at h·ω > 2.8 it must substep; it damps nutation by
 ≈ (hω)⁶/72 per step, which the tolerance bounds. It ends its steps at the kinks the system
-predicts (``locates_switches``: the support friction's regime changes). (DOP853 and RK45 are scipy's:
-:mod:`.scipy_methods`.)
+predicts (``locates_switches``: the support friction's regime changes); a one-substep attempt
+shorter than ``MICRO_STEP``·max_step is tried as an Euler step first (``base.is_micro_step``).
+(DOP853 and RK45 are scipy's: :mod:`.scipy_methods`.)
 """
 from __future__ import annotations
 
@@ -26,7 +27,10 @@ import math
 
 import numpy as np
 
-from .base import Controlled, is_rejected
+from .base import Controlled, is_micro_step, is_rejected
+from ...physics.jit import plain
+
+_is_micro_step = plain(is_micro_step)
 
 __all__ = ["RK4"]
 
@@ -44,6 +48,14 @@ class RK4(Controlled):
         y = y0.copy()
         k1 = np.array(rhs(t0, y), dtype=float)
         nrhs, worst, est = 1, 0.0, 0.0
+        if _is_micro_step(nsub, h, self.max_step):        # Euler first (see is_micro_step)
+            y1 = y + h * k1
+            k5 = np.array(rhs(t0 + h, y1), dtype=float)
+            nrhs += 1
+            err = h / 6.0 * ((4.0 * k5 - 3.0 * k1) - k5)      # h/2 (k5 − k1), as the kernel forms it
+            nrm, est_e, _ = self._judge(err, y, y1, 0.0, 0.0)
+            if nrm <= 1.0:
+                return y1, nrm, est_e, nrhs, t0
         for i in range(nsub):
             t = t0 + i * h
             k2 = rhs(t + hh, y + hh * k1)
