@@ -210,9 +210,11 @@ class ColdStart:
         self.rc: int | None = None           # the compile process's exit status, once it ended
         self.switched = 0                    # simulators now on the compiled kernels
         atexit.register(self.close)
-        notice(f"the simulation kernels of this configuration are not compiled yet: answering from "
-               f"their interpreted form (the same outputs, ~1-3 ms a sample) while they compile in the "
-               f"background (pid {self.compiler.pid}); the node switches to them when they are ready")
+        # (the phrase every command's compile notice has, before the background compile's own)
+        notice(f"the simulation kernels of this configuration are not compiled yet: compiling the simulation "
+               f"kernels in the background (pid {self.compiler.pid}) and answering meanwhile from their "
+               f"interpreted form (the same outputs, ~1-3 ms a sample); the node switches to them when they "
+               f"are ready")
 
     def simulator(self, params: Any, options: Any) -> Any:
         """A simulator of ``params``/``options``: a :class:`WarmingSimulator` of this
