@@ -94,13 +94,14 @@ def rot_axis(n, th, out):
 
 
 @njit(cache=True, inline="always")
-def _joint_rotation_at(jt, axis, i, th, R):
-    """``R[i]`` = R_pc of body i's joint of type ``jt``: Rot(n_i, th) for ``REVOLUTE``, else the
-    identity. Indexes ``axis`` and ``R`` in place: no view a body, no call a joint (with the
-    shared formula, the full model's right-hand side ~1.45 µs in the stepping kernel, was
-    1.5–2.7; the same results bit for bit; performance history, session 38)."""
+def _joint_rotation_at(jt, axis, i, q, qi, R):
+    """``R[i]`` = R_pc of body i's joint of type ``jt``: Rot(n_i, q[qi]) for ``REVOLUTE``, else
+    the identity (``q`` is then not read: ``qi`` is -1 there). Indexes ``axis`` and ``R`` in
+    place: no view a body, no call a joint (with the shared formula, the full model's right-hand
+    side ~1.45 µs in the stepping kernel, was 1.5–2.7; the same results bit for bit; performance
+    history, session 38)."""
     if jt == REVOLUTE:
-        r = _rotation(axis[i, 0], axis[i, 1], axis[i, 2], th)
+        r = _rotation(axis[i, 0], axis[i, 1], axis[i, 2], q[qi])
         for k in range(9):
             R[i, k // 3, k % 3] = r[k]
     else:
@@ -135,7 +136,7 @@ def _mat_vec3_at(R, i, v, p):
 def _body_rotation_rate(jtype, axis, qidx, vidx, q, v, i, p, R, w):
     """Body ``i`` with parent ``p``: ``R[i] = R_p,i`` and its rate ``w[i] = R[i]ᵀ w[p] + q̇_i n_i``
     (rad/s, body axes)."""
-    _joint_rotation_at(jtype[i], axis, i, q[qidx[i]] if jtype[i] == REVOLUTE else 0.0, R)
+    _joint_rotation_at(jtype[i], axis, i, q, qidx[i], R)
     rate = v[vidx[i]]
     t0, t1, t2 = _matT_vec3_at(R, i, w, p)
     w[i, 0] = t0 + rate * axis[i, 0]
