@@ -313,27 +313,54 @@ def test_hard_table_refuses_an_unknown_case(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_roughness_bench_writes_the_cost_of_vibration_and_how_far_it_holds(tmp_path, capsys):
-    """``bench roughness --quick``: three tolerances, smooth beside vibrating (right-hand sides,
-    steps, rejections, delivered error against the reference), and the grid of vibration amplitudes
-    and frequencies; a vibration of 0.03 rad/s costs (almost) nothing more at any frequency, and
-    every error stays below the asked rtol in rad."""
+def test_roughness_bench_writes_the_cost_of_vibration_at_equal_accuracy_and_how_far_it_holds(tmp_path, capsys):
+    """``bench roughness --quick``: a sweep of tolerances, smooth beside vibrating (right-hand sides,
+    steps, rejections, delivered error against the reference); three rows compare the inputs at the
+    smooth input's delivered error (the vibrating work interpolated on its own sweep), and the grid
+    of vibration amplitudes and frequencies; a vibration of 0.03 rad/s costs (almost) nothing more
+    at any frequency, and every error stays below the asked rtol in rad."""
     import json
+
+    from gyro_platform.bench.roughness import cost_at_error, RTOLS, SWEEP
 
     out = tmp_path / "bench"
     assert cli.main(["bench", "roughness", "--quick", "--out", str(out)]) == 0
     doc = json.loads((out / "roughness.json").read_text())
-    rows, cells = doc["rows"], doc["meta"]["grid"]
-    assert [r["rtol"] for r in rows] == [1e-4, 1e-6, 1e-8]
+    rows, cells, sweep = doc["rows"], doc["meta"]["grid"], doc["meta"]["sweep"]
+    assert [r["rtol"] for r in rows] == list(RTOLS) and set(RTOLS) <= set(SWEEP)
+    assert [p["rtol"] for p in sweep["smooth"]] == [p["rtol"] for p in sweep["vibrating"]] == list(SWEEP)
+    for key in ("smooth", "vibrating"):                  # tighter tolerances cost more and deliver more
+        rhs, err = ([p[f] for p in sweep[key]] for f in ("rhs", "error"))
+        assert rhs[-1] > 2.0 * rhs[0] and err[-1] < 1e-3 * err[0]
+        assert all(0 < p["error"] < p["rtol"] for p in sweep[key])
+    curve = [(p["rhs"], p["error"]) for p in sweep["vibrating"]]
     for r in rows:
         assert 0 < r["smooth_error"] < r["rtol"] and 0 < r["vibrating_error"] < r["rtol"]
-        assert r["ratio"] == pytest.approx(r["vibrating_rhs"] / r["smooth_rhs"])
+        assert r["ratio"] == pytest.approx(cost_at_error(curve, r["smooth_error"]) / r["smooth_rhs"])
+        i = next(i for i, (_, e) in enumerate(curve) if e <= r["smooth_error"])   # the work lies in its bracket
+        assert curve[max(i - 1, 0)][0] * (1 - 1e-12) <= r["vibrating_rhs_equal"] <= curve[i][0] * (1 + 1e-12)
     assert len(cells) == 16
     assert all(c["ratio"] <= 1.2 for c in cells if c["amplitude"] == 0.03)
     text = capsys.readouterr().out
-    assert "vibrating ÷ smooth" in text and "How far it holds" in text
+    assert "at equal accuracy" in text and "How far it holds" in text
     md = (out / "roughness.md").read_text().splitlines()
     assert sum(line.startswith("|---") for line in md) == 2 and (out / "roughness.png").stat().st_size > 0
+
+
+def test_work_at_an_error_is_read_off_the_sweep_between_its_bracketing_points():
+    """``cost_at_error``: the loosest point's work where it already delivers, log-log between the two
+    points around the target (exact on a power law), nan where the sweep never gets there."""
+    import math
+
+    from gyro_platform.bench.roughness import cost_at_error
+
+    law = [(c, 1e-3 * c ** -4.0) for c in (3.0, 5.0, 9.0, 20.0)]      # error ∝ work⁻⁴, as RK4's
+    for c in (3.7, 6.0, 15.0):
+        assert cost_at_error(law, 1e-3 * c ** -4.0) == pytest.approx(c, rel=1e-12)
+    assert cost_at_error(law, 1.0) == 3.0                              # the loosest point is enough
+    assert math.isnan(cost_at_error(law, 1e-3 * 21.0 ** -4.0))       # beyond the tightest point
+    assert cost_at_error([(3.0, 5e-7), (3.1, 5e-7), (4.2, 7e-11)], 1e-10) == pytest.approx(
+        math.exp(math.log(3.1) + math.log(5e-7 / 1e-10) / math.log(5e-7 / 7e-11) * math.log(4.2 / 3.1)))
 
 
 def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_report(tmp_path, capsys):
@@ -366,8 +393,10 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
          "us_per_sample": 60.0, "extra": {"whole_command_rtf": 110.0, "new_process_rtf": 330.0}},
         {"name": "node_median", "what": "node (median)", "status": "ok", "rtf": None, "target": "node_median",
          "us_per_sample": 12.5, "extra": {}}]})
-    put("roughness", {"rows": [{"rtol": 1e-6, "integrator": "auto:rk4", "ratio": 1.34, "smooth_error": 7e-11,
-                                "vibrating_error": 2e-10}]})
+    put("roughness", {"rows": [{"rtol": 1e-6, "integrator": "auto:rk4", "ratio": 1.34, "smooth_rhs": 4.0,
+                                "vibrating_rhs": 5.0, "smooth_error": 7e-11, "vibrating_error": 2e-10},
+                               {"rtol": 1e-8, "integrator": "auto:rk4", "ratio": None, "smooth_rhs": 9.0,
+                                "vibrating_rhs": 14.0, "smooth_error": 6e-12, "vibrating_error": 1e-11}]})
     put("peer", {"scenes": [{"scene": "ship", "comparison": [{"error_level": 1e-11, "ratio_kernel": 1.6,
                                                               "ratio_consumer": 1.1}]}]}, age=3600)
     rows = headline(tmp_path, since=t0)
@@ -378,7 +407,10 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
         "node: cold ÷ warm": True,                                                   # ×2.5
         "replay 1 kHz: real-time ×; replay ÷ its I/O floor": [False, True],
         "replay husky: real-time ×": True, "node (median)": False,
-        "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample, rtol 1e-06 (auto:rk4)": True}
+        "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample at equal delivered accuracy, smooth at rtol "
+        "1e-06 (auto:rk4)": True,
+        "vibrating ÷ smooth 1 kHz IMU, right-hand sides per sample at equal delivered accuracy, smooth at rtol "
+        "1e-08 (auto:rk4)": False}                                            # not reached: no ratio, ✗
     assert not any("MuJoCo" in f for f in got)                            # the peer report is older than the run
     text = (tmp_path / "headline.md").read_text()
     assert ("| run default: cold ÷ warm; after the set-up step ÷ warm | ×15.0 (60.0 s / 4.00 s, its CPU 100 s "
@@ -387,4 +419,6 @@ def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_
             "| ✗; ✓ |") in text
     assert "| replay husky: real-time × | ×520 (new process: prints ×330, whole command ×110) | ≥ ×300 | ✓ |" in text
     assert "| node (median) | 12.5 µs | ≤ 10 µs | ✗ |" in text
+    assert "| ×1.34 (at the same rtol ×1.25, errors 7.0e-11 / 2.0e-10 rad) | ≤ ×1.5 | ✓ |" in text
+    assert "| not reached in the sweep (at the same rtol ×1.56, errors 6.0e-12 / 1.0e-11 rad) | ≤ ×1.5 | ✗ |" in text
     assert text in capsys.readouterr().out

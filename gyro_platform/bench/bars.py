@@ -51,6 +51,6 @@ BARS: dict[str, Bar] = {
     "replay_husky": Bar(True, 300.0),           # real-time factor of the husky replay
     "node_median": Bar(False, 10.0, " µs"),     # NodeCore.on_message per 1 kHz Imu message
     "node_p99": Bar(False, 50.0, " µs"),
-    "roughness": Bar(False, 1.5),               # rhs per sample, vibrating ÷ smooth 1 kHz IMU
+    "roughness": Bar(False, 1.5),               # rhs per sample at equal accuracy, vibrating ÷ smooth 1 kHz IMU
     "peer": Bar(True, 10.0),                    # MuJoCo ÷ kernel CPU at equal accuracy
 }
