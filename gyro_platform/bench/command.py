@@ -22,8 +22,9 @@ their ratio;
 
 ``consumer`` (:mod:`.consumer`): replay, scene run and node figures beside the compiled kernel;
 ``roughness`` (:mod:`.roughness`): right-hand sides per sample and delivered error on a smooth and
-a vibrating 1 kHz IMU over a sweep of tolerances, compared at equal delivered accuracy; ``peer`` (:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs
-``pip install '.[bench]'``; skipped with a note without it);
+a vibrating 1 kHz IMU over a sweep of tolerances, compared at equal delivered accuracy; ``peer``
+(:mod:`.peer_mujoco`): the same carried platform in MuJoCo at equal accuracy (needs ``pip install
+'.[bench]'``; skipped with a note without it);
 
 ``accuracy`` (:mod:`.accuracy`): work-precision study; ``hard`` (:mod:`.hard`): the hard-case
 table, exit code 1 if any cell is WRONG; ``effects`` and ``hotpath`` (:mod:`.hotpath`): per-sample

@@ -39,8 +39,9 @@ exponential ones cut whole steps of a grid and end the interval with a short las
 ``_tail``, controlled alike from level 0). A method that ``locates_switches`` (rk4) also ends a
 chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
 regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
-chunk; once per piece, a kink it finds looking back from the piece's end (``switch_passed``)
-shortens the piece to end there (redone: one rejection). The pieces of a chunk cut at a kink do
+chunk; up to ``LOOKBACKS`` times a piece, a kink it finds looking back from the piece's end
+(``switch_passed``) shortens the piece to end just before it (:func:`shortened_piece`; redone: one
+rejection). The pieces of a chunk cut at a kink do
 not coarsen the level below the chunk's, nor does its end up to ``HOLD_KINKS`` kinks
 (:func:`held_level`). A piece takes substeps no longer than its chunk's level's
 (:func:`piece_substeps`), not the level's whole number of its own; RK4 tries a one-substep
@@ -68,7 +69,8 @@ from ...physics.jit import njit, plain
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
            "level_substeps", "finest_level",
            "is_rejected", "piece_substeps", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN",
-           "MAX_SWITCHES", "SWITCH_EDGE", "MICRO_STEP", "is_micro_step", "HOLD_KINKS", "held_level"]
+           "MAX_SWITCHES", "SWITCH_EDGE", "MICRO_STEP", "is_micro_step", "HOLD_KINKS", "held_level", "LOOKBACKS",
+           "LOOKBACK_AIM", "shortened_piece"]
 
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 #: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
@@ -165,6 +167,14 @@ MAX_SWITCHES = 8
 #: a kink found looking back from a step's end within this fraction of the step from its start
 #: is the one the step starts at (the backward look is linear: not exact that far back)
 SWITCH_EDGE = 1e-3
+#: a kink found looking back from a piece's end was judged from a state that passed it, and a
+#: step that ends past a kink by δ is off by ~(h/6)·δ·(the friction's slope × rel̇)/J, linear in δ
+#: *and* in the step (the last stage samples the other side: 26 ns past it, a 0.93 ms step was 26×
+#: the tolerance off while its estimate read 4.8). So the redone piece aims LOOKBACK_AIM·d before
+#: the end (before the kink by a quarter of the distance found, :func:`shortened_piece`), and a
+#: piece is looked back from up to LOOKBACKS times
+LOOKBACK_AIM = 1.25
+LOOKBACKS = 2
 #: a piece up to (1 + PIECE_SLACK) level substeps long takes that many (rounding of its ends)
 PIECE_SLACK = 1e-6
 #: the end of a chunk cut at up to HOLD_KINKS kinks keeps the level the chunk began at (:func:`held_level`)
@@ -348,22 +358,23 @@ class Controlled(Integrator):
         ``level_substeps(level)`` substeps (a piece of a chunk ``hg`` s long: :func:`piece_substeps`), redone
         finer until accepted: (y1, norm, est, n_rhs, level, rejected, hc, nsub). Raises the
         refusal beyond the budget. ``passed`` (switch location):
-        the system's ``switch_passed``; once per chunk, a kink it finds inside the chunk (judged
-        from the end of its last substep) shortens the chunk to end there, redone at the same
-        level (one rejection)."""
+        the system's ``switch_passed``; up to ``LOOKBACKS`` times, a kink it finds inside the chunk
+        (judged from the end of its last substep) shortens the chunk to end just before it
+        (:func:`shortened_piece`), redone at the same level (one rejection)."""
         nrhs = rejected = 0
+        looks = 0 if passed is None else LOOKBACKS
         while True:
             nsub = level_substeps(level) if hg is None else piece_substeps(hc, hg, level)
             h = hc / nsub
             y1, norm, est, n, t_bad = step(system, tc, y, nsub, h)
             nrhs += n
-            if passed is not None and norm < math.inf and (norm <= 1.0 or t_bad == tc + (nsub - 1) * h):
+            if looks and norm < math.inf and (norm <= 1.0 or t_bad == tc + (nsub - 1) * h):
                 d = passed(tc + hc, y1, system.rhs(tc + hc, y1), SWITCH_MIN * self.max_step,
                            hc - max(SWITCH_EDGE * hc, 4 * SWITCH_MIN * self.max_step))
                 nrhs += 1
                 if d > 0.0:
-                    hc -= d
-                    passed = None
+                    hc = shortened_piece(hc, d)
+                    looks -= 1
                     rejected += 1
                     continue
             if norm <= 1.0:
@@ -467,6 +478,15 @@ def is_micro_step(nsub: int, h: float, max_step: float) -> bool:
     1e-8, each 1 right-hand side instead of 4 (the Euler step's f(t+h, y1) is the next step's
     first stage), with the same delivered error. (One rule for both controllers.)"""
     return nsub == 1 and h < MICRO_STEP * max_step
+
+
+@njit(cache=True, inline="always")
+def shortened_piece(hc: float, d: float) -> float:
+    """The new length (s) of a piece ``hc`` s long that passed a kink ``d`` s before its end
+    (``switch_passed``): it ends before the kink by (LOOKBACK_AIM − 1)·d, and by no more than half
+    the way from its start to the kink (the Python controller and the compiled kernel alike)."""
+    s = hc - d
+    return s - min((LOOKBACK_AIM - 1.0) * d, 0.5 * s)
 
 
 def is_rejected(norm: float) -> bool:
