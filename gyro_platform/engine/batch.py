@@ -55,9 +55,8 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import (coarser_level, ETD2, held_level, is_micro_step, level_substeps, LOOKBACKS, MAX_SWITCHES,
-                          next_level, piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
-                          TAIL_ULP)
+from .integrators import (coarser_level, ETD2, held_level, is_micro_step, level_substeps, MAX_SWITCHES, next_level,
+                          piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN, TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -311,9 +310,9 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 tc = t_sw
             else:
                 chunk_level = level
-            n_pass = 0                      # look-backs left for this piece (Controlled._chunk)
+            can_pass = False
             if locate and n_sw < MAX_SWITCHES:
-                n_pass = LOOKBACKS
+                can_pass = True
                 if not have_k1:
                     if model_rhs(gen, tc, yw, K[0], fid, I, P, seg, mats, axis, inertia, rhost, raxis, R, wb, wd,
                                  J, fo, Mm, cc, tau_ext, fbb, chol, F, a, Q, RR, V, W) == 0:
@@ -325,7 +324,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                         hc = t_end - tc
             for m in range(n):
                 yc[m] = yw[m]
-            piece = n_pass > 0              # a piece of the chunk: substeps as long as the level's
+            piece = can_pass                # a piece of the chunk: substeps as long as the level's
             a2 = 0.0                        # (set in the tail)
             rk_retry = False                # an Euler attempt (is_micro_step) missed: its RK4 step
             while True:
@@ -473,7 +472,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     rk_retry = True
                     have_k1 = True
                     continue
-                if (n_pass > 0 and (not bad or t_bad == tc + (nsub - 1) * h) and nrm < math.inf
+                if (can_pass and (not bad or t_bad == tc + (nsub - 1) * h) and nrm < math.inf
                         and not status & ST_NONFINITE):
                     # a kink inside the piece (judged from its end: y1, k5)? redo it to end just before
                     d = support_switch_passed(tc + hc, y1, k5, I, P, seg, h_min,
@@ -481,7 +480,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                     if d > 0.0:
                         hc = shortened_piece(hc, d)
                         t_end = tc + hc
-                        n_pass -= 1
+                        can_pass = False
                         nrej += 1
                         for m in range(n):
                             yw[m] = yc[m]

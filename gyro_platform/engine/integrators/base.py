@@ -39,12 +39,11 @@ exponential ones cut whole steps of a grid and end the interval with a short las
 ``_tail``, controlled alike from level 0). A method that ``locates_switches`` (rk4) also ends a
 chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
 regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
-chunk; up to ``LOOKBACKS`` times a piece, a kink it finds looking back from the piece's end
-(``switch_passed``) shortens the piece to end just before it (:func:`shortened_piece`; redone: one
-rejection). The pieces of a chunk cut at a kink do
-not coarsen the level below the chunk's, nor does its end up to ``HOLD_KINKS`` kinks
-(:func:`held_level`). A piece takes substeps no longer than its chunk's level's
-(:func:`piece_substeps`), not the level's whole number of its own; RK4 tries a one-substep
+chunk; once per piece, a kink it finds looking back from the piece's end (``switch_passed``)
+shortens the piece to end just before it (:func:`shortened_piece`; redone: one rejection). The
+pieces of a chunk cut at a kink do not coarsen the level below the chunk's, nor does its end up to
+``HOLD_KINKS`` kinks (:func:`held_level`). A piece takes substeps no longer than its chunk's
+level's (:func:`piece_substeps`), not the level's whole number of its own; RK4 tries a one-substep
 attempt shorter than ``MICRO_STEP``·max_step as an Euler step first (:func:`is_micro_step`).
 A step across a kink is only first-order accurate, so a vibrating input otherwise costs 3–8× the
 substeps of a smooth one. The compiled batch loop (:mod:`gyro_platform.engine.batch`) runs the
@@ -69,8 +68,8 @@ from ...physics.jit import njit, plain
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
            "level_substeps", "finest_level",
            "is_rejected", "piece_substeps", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN",
-           "MAX_SWITCHES", "SWITCH_EDGE", "MICRO_STEP", "is_micro_step", "HOLD_KINKS", "held_level", "LOOKBACKS",
-           "LOOKBACK_AIM", "shortened_piece"]
+           "MAX_SWITCHES", "SWITCH_EDGE", "MICRO_STEP", "is_micro_step", "HOLD_KINKS", "held_level", "LOOKBACK_AIM",
+           "shortened_piece"]
 
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
 #: default budget: no step shorter than max_step / MAX_SUBSTEPS (0.24 µs at 1 ms)
@@ -171,10 +170,9 @@ SWITCH_EDGE = 1e-3
 #: step that ends past a kink by δ is off by ~(h/6)·δ·(the friction's slope × rel̇)/J, linear in δ
 #: *and* in the step (the last stage samples the other side: 26 ns past it, a 0.93 ms step was 26×
 #: the tolerance off while its estimate read 4.8). So the redone piece aims LOOKBACK_AIM·d before
-#: the end (before the kink by a quarter of the distance found, :func:`shortened_piece`), and a
-#: piece is looked back from up to LOOKBACKS times
+#: the end (before the kink by a quarter of the distance found, :func:`shortened_piece`; 1.1 left
+#: 1.7e-11 rad where 1.25 and 1.5 leave 1.4e-11 on the vibrating 1 kHz IMU at rtol 1e-6)
 LOOKBACK_AIM = 1.25
-LOOKBACKS = 2
 #: a piece up to (1 + PIECE_SLACK) level substeps long takes that many (rounding of its ends)
 PIECE_SLACK = 1e-6
 #: the end of a chunk cut at up to HOLD_KINKS kinks keeps the level the chunk began at (:func:`held_level`)
@@ -358,23 +356,22 @@ class Controlled(Integrator):
         ``level_substeps(level)`` substeps (a piece of a chunk ``hg`` s long: :func:`piece_substeps`), redone
         finer until accepted: (y1, norm, est, n_rhs, level, rejected, hc, nsub). Raises the
         refusal beyond the budget. ``passed`` (switch location):
-        the system's ``switch_passed``; up to ``LOOKBACKS`` times, a kink it finds inside the chunk
-        (judged from the end of its last substep) shortens the chunk to end just before it
+        the system's ``switch_passed``; once per chunk, a kink it finds inside the chunk (judged
+        from the end of its last substep) shortens the chunk to end just before it
         (:func:`shortened_piece`), redone at the same level (one rejection)."""
         nrhs = rejected = 0
-        looks = 0 if passed is None else LOOKBACKS
         while True:
             nsub = level_substeps(level) if hg is None else piece_substeps(hc, hg, level)
             h = hc / nsub
             y1, norm, est, n, t_bad = step(system, tc, y, nsub, h)
             nrhs += n
-            if looks and norm < math.inf and (norm <= 1.0 or t_bad == tc + (nsub - 1) * h):
+            if passed is not None and norm < math.inf and (norm <= 1.0 or t_bad == tc + (nsub - 1) * h):
                 d = passed(tc + hc, y1, system.rhs(tc + hc, y1), SWITCH_MIN * self.max_step,
                            hc - max(SWITCH_EDGE * hc, 4 * SWITCH_MIN * self.max_step))
                 nrhs += 1
                 if d > 0.0:
                     hc = shortened_piece(hc, d)
-                    looks -= 1
+                    passed = None
                     rejected += 1
                     continue
             if norm <= 1.0:
