@@ -24,7 +24,7 @@ the right-hand sides of a smooth input). A step that *ends* at the kink is smoot
 ``support_switch_time`` predicts the next such time from the state and its derivative at the
 start of a step; the step integrators (compiled RK4, ``integrators.rk.RK4``) end a chunk there.
 ``support_switch_passed`` looks back from the end of a step for a kink the prediction missed
-(the step is then redone to end there).
+(the step is then redone to end just before it: ``integrators.shortened_piece``).
 Within one input interval the vehicle rate is linear in time, so rel is linear up to the
 platform's own acceleration change and the rotation of R_PB: the prediction misses the kink by
 nanoseconds over a short step (the integrators ignore a switch closer than ``SWITCH_MIN``·max_step

@@ -159,8 +159,9 @@ def finest_level(max_substeps: int) -> int:
 STEP_SLACK = 0.1
 #: switch location (``Controlled.locates_switches``): a predicted kink closer than
 #: ``SWITCH_MIN``·max_step to either end of a chunk piece is not split off (the step ends there
-#: anyway, or the kink was just passed: its error is that distance × the jump, ~0.1 rad/s²), and at
-#: most ``MAX_SWITCHES`` kinks end pieces of one chunk (a rate hovering at ±ε: the substeps take over)
+#: anyway, or the kink was just passed: its error is ~(h/6)·that distance·the jump of the friction's
+#: slope, the rest of the vibrating IMU's error at rtol ≤ 1e-8, session 40), and at most
+#: ``MAX_SWITCHES`` kinks end pieces of one chunk (a rate hovering at ±ε: the substeps take over)
 SWITCH_MIN = 1e-6
 MAX_SWITCHES = 8
 #: a kink found looking back from a step's end within this fraction of the step from its start
