@@ -55,8 +55,9 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       I_I, I_RHOST, I_TABLE, iview1, iview2, J_DONE, J_FID, J_HAS_F, J_JOUT, J_K1, J_LEVEL, J_MAX_LEVEL,
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
-from .integrators import (coarser_level, ETD2, held_level, is_micro_step, level_substeps, MAX_SWITCHES, next_level,
-                          piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN, TAIL_ULP)
+from .integrators import (aimed_switch, coarser_level, ETD2, held_level, is_micro_step, level_substeps, MAX_SWITCHES,
+                          next_level, piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
+                          TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -321,6 +322,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 if have_k1:
                     t_end = support_switch_time(tc, yw, K[0], I, P, seg, end, h_min)
                     if t_end < end:
+                        t_end = aimed_switch(tc, t_end, max_step)
                         hc = t_end - tc
             for m in range(n):
                 yc[m] = yw[m]

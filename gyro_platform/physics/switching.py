@@ -22,14 +22,15 @@ first-order accurate: the error controller then cuts the interval into many smal
 the right-hand sides of a smooth input). A step that *ends* at the kink is smooth on each side.
 
 ``support_switch_time`` predicts the next such time from the state and its derivative at the
-start of a step; the step integrators (compiled RK4, ``integrators.rk.RK4``) end a chunk there.
+start of a step; the step integrators (compiled RK4, ``integrators.rk.RK4``) end a piece a little
+short of it and land on it with a micro step (``integrators.aimed_switch``).
 ``support_switch_passed`` looks back from the end of a step for a kink the prediction missed
 (the step is then redone to end just before it: ``integrators.shortened_piece``).
 Within one input interval the vehicle rate is linear in time, so rel is linear up to the
-platform's own acceleration change and the rotation of R_PB: the prediction misses the kink by
-nanoseconds over a short step (the integrators ignore a switch closer than ``SWITCH_MIN``·max_step
-to a chunk's ends). Frames: platform axes for Ω and rel, vehicle axes for ω_B. May import the
-physics room's kernels only.
+platform's own acceleration change and the rotation of R_PB: the prediction misses the kink by up
+to ~1e-4 of its reach, and by ~1e-15 s over the micro step (the integrators ignore a switch closer
+than ``SWITCH_MIN``·max_step to a piece's ends). Frames: platform axes for Ω and rel, vehicle axes
+for ω_B. May import the physics room's kernels only.
 """
 from __future__ import annotations
 

@@ -40,16 +40,18 @@ exponential ones cut whole steps of a grid and end the interval with a short las
 chunk's piece at the next kink the system predicts (``switch_time``: the support friction's
 regime change, :mod:`gyro_platform.physics.switching`) and goes on from there with the rest of the
 chunk; once per piece, a kink it finds looking back from the piece's end (``switch_passed``)
-shortens the piece to end just before it (:func:`shortened_piece`; redone: one rejection). The
-pieces of a chunk cut at a kink do not coarsen the level below the chunk's, nor does its end up to
-``HOLD_KINKS`` kinks (:func:`held_level`). A piece takes substeps no longer than its chunk's
-level's (:func:`piece_substeps`), not the level's whole number of its own; RK4 tries a one-substep
-attempt shorter than ``MICRO_STEP``·max_step as an Euler step first (:func:`is_micro_step`).
+shortens the piece to end just before it (:func:`shortened_piece`; redone: one rejection). A
+piece to a predicted kink ends a little short of it and a micro step lands on it
+(:func:`aimed_switch`). The pieces of a chunk cut at a kink do not coarsen the level below the
+chunk's, nor does its end up to ``HOLD_KINKS`` pieces (:func:`held_level`). A piece takes
+substeps no longer than its chunk's level's (:func:`piece_substeps`), not the level's whole number
+of its own; RK4 tries a one-substep attempt shorter than ``MICRO_STEP``·max_step as an Euler step
+first (:func:`is_micro_step`).
 A step across a kink is only first-order accurate, so a vibrating input otherwise costs 3–8× the
 substeps of a smooth one. The compiled batch loop (:mod:`gyro_platform.engine.batch`) runs the
 same controller: it calls :func:`next_level`, :func:`coarser_level`, :func:`held_level`,
-:func:`level_substeps`, :func:`piece_substeps` and :func:`is_micro_step`, the rules this
-controller calls.
+:func:`level_substeps`, :func:`piece_substeps`, :func:`aimed_switch` and :func:`is_micro_step`, the
+rules this controller calls.
 
 Non-finite results are never returned: ``SimulationError``.
 """
@@ -68,7 +70,8 @@ from ...physics.jit import njit, plain
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "error_norm", "next_level", "coarser_level",
            "level_substeps", "finest_level",
            "is_rejected", "piece_substeps", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN",
-           "MAX_SWITCHES", "SWITCH_EDGE", "MICRO_STEP", "is_micro_step", "HOLD_KINKS", "held_level", "LOOKBACK_AIM",
+           "MAX_SWITCHES", "SWITCH_EDGE", "SWITCH_AIM", "aimed_switch", "MICRO_STEP", "is_micro_step", "HOLD_KINKS",
+           "held_level", "LOOKBACK_AIM",
            "shortened_piece"]
 
 _CACHE_SIZE = 64          # (key, h) entries kept per integrator; h takes few values per run
@@ -158,12 +161,15 @@ def finest_level(max_substeps: int) -> int:
 #: error estimate). The exponential methods keep their grid (``_ETD._plan``).
 STEP_SLACK = 0.1
 #: switch location (``Controlled.locates_switches``): a predicted kink closer than
-#: ``SWITCH_MIN``·max_step to either end of a chunk piece is not split off (the step ends there
-#: anyway, or the kink was just passed: its error is ~(h/6)·that distance·the jump of the friction's
-#: slope, the rest of the vibrating IMU's error at rtol ≤ 1e-8, session 40), and at most
-#: ``MAX_SWITCHES`` kinks end pieces of one chunk (a rate hovering at ±ε: the substeps take over)
-SWITCH_MIN = 1e-6
-MAX_SWITCHES = 8
+#: ``SWITCH_MIN``·max_step (1e-14 s at 1 ms) to either end of a chunk piece is not split off, and at
+#: most ``MAX_SWITCHES`` pieces of one chunk end at kinks (a rate hovering at ±ε: the substeps take
+#: over). A step that starts or ends δ from a kink it does not end at is off by ~(h/6)·δ·(the jump
+#: of the friction's slope × rel̇)/J, linear in δ and in the step: δ = 0.18 ns left a 1 ms chunk
+#: 35× the tolerance off at rtol 1e-8 with an estimate of 0.45 (session 41; SWITCH_MIN was 1e-6,
+#: and the vibrating 1 kHz IMU delivered 4.3e-12 rad where the smooth one delivered 2.3e-13; now
+#: 1.7e-13). A kink is ended at by two pieces (:func:`aimed_switch`), so a chunk holds 8.
+SWITCH_MIN = 1e-11
+MAX_SWITCHES = 16
 #: a kink found looking back from a step's end within this fraction of the step from its start
 #: is the one the step starts at (the backward look is linear: not exact that far back)
 SWITCH_EDGE = 1e-3
@@ -174,10 +180,16 @@ SWITCH_EDGE = 1e-3
 #: the end (before the kink by a quarter of the distance found, :func:`shortened_piece`; 1.1 left
 #: 1.7e-11 rad where 1.25 and 1.5 leave 1.4e-11 on the vibrating 1 kHz IMU at rtol 1e-6)
 LOOKBACK_AIM = 1.25
+#: a piece to a predicted kink more than MICRO_STEP·max_step away ends SWITCH_AIM of the way short
+#: of it (:func:`aimed_switch`), and the next piece, a micro step, lands on it: the first-order
+#: prediction is late by up to ~1e-4 of its reach (0.1 µs over 0.99 ms), and a piece that ends
+#: past the kink costs a look-back and a redo
+SWITCH_AIM = 1e-4
 #: a piece up to (1 + PIECE_SLACK) level substeps long takes that many (rounding of its ends)
 PIECE_SLACK = 1e-6
-#: the end of a chunk cut at up to HOLD_KINKS kinks keeps the level the chunk began at (:func:`held_level`)
-HOLD_KINKS = 4
+#: the end of a chunk cut into up to HOLD_KINKS pieces at kinks (two a kink, :func:`aimed_switch`)
+#: keeps the level the chunk began at (:func:`held_level`)
+HOLD_KINKS = 8
 #: a one-substep attempt shorter than MICRO_STEP·max_step is first tried as an Euler step
 #: (:func:`is_micro_step`)
 MICRO_STEP = 1e-4
@@ -403,6 +415,8 @@ class Controlled(Integrator):
                 passed = None
                 if switch is not None and n_sw < MAX_SWITCHES:
                     ts = switch(tc, y, system.rhs(tc, y), end, h_min)
+                    if ts < end:
+                        ts = aimed_switch(tc, ts, self.max_step)
                     nrhs += 1
                     passed = system.switch_passed
                 hp = hc if ts >= end else ts - tc
@@ -452,7 +466,7 @@ def piece_substeps(hp: float, hg: float, level: int) -> int:
 def held_level(level: int, chunk_level: int, cut: bool, n_cut: int) -> int:
     """The level after a piece of a chunk that began at ``chunk_level``, ``level`` being what
     :func:`coarser_level` made of the piece's error: not below ``chunk_level`` where the piece
-    ended at a kink (``cut``) or ended a chunk cut at 1 … ``HOLD_KINKS`` kinks (``n_cut``). A
+    ended at a kink (``cut``) or ended a chunk cut into 1 … ``HOLD_KINKS`` pieces (``n_cut``). A
     piece's error does not speak for its level: a piece is shorter than its level's substeps,
     and the motion changes at the kink. At rtol 1e-8 the vibrating 1 kHz input's piece after a
     friction reversal went on at the level a short piece before it had coarsened to, and was
@@ -485,6 +499,17 @@ def shortened_piece(hc: float, d: float) -> float:
     the way from its start to the kink (the Python controller and the compiled kernel alike)."""
     s = hc - d
     return s - min((LOOKBACK_AIM - 1.0) * d, 0.5 * s)
+
+
+@njit(cache=True, inline="always")
+def aimed_switch(tc: float, ts: float, max_step: float) -> float:
+    """Where a piece from ``tc`` to a kink predicted at ``ts`` (s) ends: SWITCH_AIM·(ts − tc) short
+    of it when it is more than MICRO_STEP·max_step away, so that a late prediction does not end
+    it past the kink; the next prediction, from there, lands on it. (Both controllers.)"""
+    reach = ts - tc
+    if reach > MICRO_STEP * max_step:
+        return ts - SWITCH_AIM * reach
+    return ts
 
 
 def is_rejected(norm: float) -> bool:
