@@ -363,6 +363,18 @@ def test_work_at_an_error_is_read_off_the_sweep_between_its_bracketing_points():
         math.exp(math.log(3.1) + math.log(5e-7 / 1e-10) / math.log(5e-7 / 7e-11) * math.log(4.2 / 3.1)))
 
 
+def test_a_roughness_row_the_vibrating_sweep_never_reaches_reads_not_reached():
+    """The Markdown table names a row whose equal-accuracy work is nan (the vibrating input never
+    delivered the smooth one's error) as not reached and ✗, not ×nan; a reached row keeps its ratio."""
+    from gyro_platform.bench.roughness import RoughRow, table
+
+    rows = [RoughRow(1e-8, "auto:rk4", 9.4, 13.2, 2.3, 3.4, 400, 147, 2.3e-13, 4.3e-12),
+            RoughRow(1e-6, "auto:rk4", 4.0, 5.0, 1.0, 1.4, 69, 96, 1.3e-11, 1.4e-11, 5.2)]
+    lines = table(rows, 10.0).splitlines()
+    assert "13.20 / not reached | ✗ | ×1.40" in lines[-2] and "nan" not in lines[-2]
+    assert "5.00 / 5.20 | ×1.30 | ×1.25" in lines[-1]
+
+
 def test_headline_holds_this_runs_figures_to_their_bars_and_leaves_out_an_older_report(tmp_path, capsys):
     """The headline of ``gyro-platform bench``: each figure of the four section reports as a ratio
     beside its bar (✓/✗ computed, not copied), and a report older than the run (a section the

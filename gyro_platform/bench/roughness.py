@@ -185,8 +185,10 @@ def table(rows: list[RoughRow], duration: float) -> str:
              "| steps/sample smooth / vibrating | rejected smooth / vibrating | error smooth / vibrating, rad |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
+        reached = not math.isnan(r.vibrating_rhs_equal)      # else the vibrating sweep never got there
+        equal, ratio = (f"{r.vibrating_rhs_equal:.2f}", f"×{r.ratio:.2f}") if reached else ("not reached", "✗")
         lines.append(f"| {r.rtol:g} | {r.integrator} | {r.smooth_rhs:.2f} | {r.vibrating_rhs:.2f} / "
-                     f"{r.vibrating_rhs_equal:.2f} | ×{r.ratio:.2f} | ×{r.same_rtol_ratio:.2f} | "
+                     f"{equal} | {ratio} | ×{r.same_rtol_ratio:.2f} | "
                      f"{r.smooth_steps:.2f} / {r.vibrating_steps:.2f} | {r.smooth_rejected} / {r.vibrating_rejected} | "
                      f"{r.smooth_error:.1e} / {r.vibrating_error:.1e} |")
     return "\n".join(lines) + "\n"
