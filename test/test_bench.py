@@ -318,7 +318,8 @@ def test_roughness_bench_writes_the_cost_of_vibration_at_equal_accuracy_and_how_
     steps, rejections, delivered error against the reference); three rows compare the inputs at the
     smooth input's delivered error (the vibrating work interpolated on its own sweep), and the grid
     of vibration amplitudes and frequencies; a vibration of 0.03 rad/s costs (almost) nothing more
-    at any frequency, and every error stays below the asked rtol in rad."""
+    at any frequency, and every error stays below the asked rtol in rad; a parked vehicle (kinks
+    every sample) costs more than the road at every row and is held to the same."""
     import json
 
     from gyro_platform.bench.roughness import cost_at_error, RTOLS, SWEEP
@@ -343,8 +344,11 @@ def test_roughness_bench_writes_the_cost_of_vibration_at_equal_accuracy_and_how_
     assert all(c["ratio"] <= 1.2 for c in cells if c["amplitude"] == 0.03)
     text = capsys.readouterr().out
     assert "at equal accuracy" in text and "How far it holds" in text
+    still = doc["meta"]["parked"]               # the parked vehicle: kinks every sample, dearer
+    assert [r["rtol"] for r in still] == list(RTOLS) and "A parked vehicle" in text
+    assert all(0 < r["parked_error"] < r["rtol"] and r["same_rtol_ratio"] > 1.5 for r in still)
     md = (out / "roughness.md").read_text().splitlines()
-    assert sum(line.startswith("|---") for line in md) == 2 and (out / "roughness.png").stat().st_size > 0
+    assert sum(line.startswith("|---") for line in md) == 3 and (out / "roughness.png").stat().st_size > 0
 
 
 def test_work_at_an_error_is_read_off_the_sweep_between_its_bracketing_points():

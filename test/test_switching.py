@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyro_platform.bench.roughness import REFERENCE, run_surface, surfaces
+from gyro_platform.bench.roughness import parked, REFERENCE, run_surface, surfaces
 from gyro_platform.engine.buffers import J_LEVEL
 from gyro_platform.engine.inputs import RateSample
 from gyro_platform.engine.integrators import (COARSEN, coarser_level, error_norm, finest_level, level_substeps,
@@ -82,16 +82,20 @@ def test_a_piece_redone_after_it_passed_a_kink_ends_before_the_kink():
     assert shortened_piece(1e-3, 0.9e-3) == pytest.approx(0.05e-3, rel=1e-12)
 
 
-@pytest.mark.parametrize("rtol", [1e-6, 1e-8])
-def test_each_interval_of_a_vibrating_vehicle_is_within_the_tolerance_it_was_accepted_at(rtol):
-    """The true local error of every 1 ms interval on 0.6 s of the vibrating 1 kHz IMU (RK4 at
-    ``rtol`` from the reference's state at the interval's start, against the reference at its
-    end, in the controller's weighted RMS norm) is within the tolerance. A step that starts or ends
-    δ from a kink is off by ~(h/6)·δ·(the friction's slope jump), linear in the step: when a
-    redone piece ended where the look-back put the kink (26 ns past it), an interval here was 9.9×
-    the tolerance at rtol 1e-6 (at 8 ms: true 9.4×, its estimate 0.54); when kinks closer than
-    1 ns to a piece's end were let be (``SWITCH_MIN`` 1e-6), 15× at rtol 1e-8 (at 236 ms)."""
-    imu = surfaces(0.6)["vibrating"]
+@pytest.mark.parametrize("vehicle, rtol", [("vibrating", 1e-6), ("vibrating", 1e-8), ("parked", 1e-8)])
+def test_each_interval_of_a_rough_input_is_within_the_tolerance_it_was_accepted_at(vehicle, rtol):
+    """The true local error of every 1 ms interval on 0.6 s of the vibrating 1 kHz IMU, and of the
+    same IMU on a parked vehicle (kinks every sample: its relative rates hover about the
+    friction's zone), RK4 at ``rtol`` from the reference's state at the interval's start, against
+    the reference at its end, in the controller's weighted RMS norm, is within the tolerance. A
+    step that starts or ends δ from a kink is off by ~(h/6)·δ·(the friction's slope jump), linear
+    in the step: when a redone piece ended where the look-back put the kink (26 ns past it), an
+    interval here was 9.9× the tolerance at rtol 1e-6 (at 8 ms: true 9.4×, its estimate 0.54);
+    when kinks closer than 1 ns to a piece's end were let be (``SWITCH_MIN`` 1e-6), 15× at rtol
+    1e-8 (at 236 ms); parked, when a chunk's pieces were capped at 16 (``MAX_SWITCHES``) and the
+    rest stepped over its kinks, 1.5× (at 284 ms; 9.1e-10 rad delivered over 10 s at rtol 1e-6
+    where 32 deliver 3.7e-12)."""
+    imu = surfaces(0.6)["vibrating"] if vehicle == "vibrating" else parked(0.6)
     ref = Simulator(NAV1, ModelOptions.make("stabilised", integrator="rk4", rtol=1e-12, atol=1e-15, max_step=1e-4,
                                             max_substeps=1 << 16))
     sim = Simulator(NAV1, ModelOptions.make("stabilised", integrator="rk4", rtol=rtol, atol=rtol * 1e-3,
@@ -154,6 +158,40 @@ def test_a_vibrating_vehicle_costs_at_most_two_fifths_more_than_a_smooth_one_at_
         err[name] = float(np.abs(ang - ref).max())
     assert rhs["vibrating"] <= 1.4 * rhs["smooth"], rhs
     assert max(err.values()) <= 1e-9, err
+
+
+def test_a_rejected_piece_is_redone_with_more_substeps_of_its_own():
+    """``next_piece_level``: a 50 µs piece of a 1 ms chunk rejected at one substep with norm 2.83
+    goes straight to the first level that gives it two (level 8, 24 substeps a chunk; the chunk's
+    rule, ``next_level``, asks for level 1, where the piece still takes one); for a whole chunk the
+    two rules agree. On a parked vehicle at rtol 1e-8 (RK4, the Python controller) no attempt after
+    an error rejection takes the substeps of the attempt rejected (before: 7–9 identical redos)."""
+    from gyro_platform.engine.integrators import next_piece_level
+
+    hp, hg = 49.749e-6, 1e-3
+    assert next_level(0, 2.83, 5) == 1 and piece_substeps(hp, hg, 1) == 1
+    assert next_piece_level(0, 2.83, 5, hp, hg, 1) == 8
+    assert piece_substeps(hp, hg, 7) == 1 and piece_substeps(hp, hg, 8) == 2
+    for level in (0, 2, 5):
+        for norm in (1.01, 2.0, 40.0, 1e6, np.inf):
+            assert next_piece_level(level, norm, 5, hg, hg, level_substeps(level)) == next_level(level, norm, 5)
+    imu = parked(0.1)
+    opt = ModelOptions.make("stabilised", "linear", integrator="rk4", rtol=1e-8, atol=1e-11)
+    sim = Simulator(options=opt, compiled=False)
+    attempts = []
+    step = sim.integrator._substeps
+
+    def spy(system, t0, y0, nsub, h):
+        out = step(system, t0, y0, nsub, h)
+        attempts.append((t0, nsub * h, nsub, out[1]))
+        return out
+    sim.integrator._substeps = spy
+    for i in range(len(imu.t)):
+        sim.push(RateSample(float(imu.t[i]), imu.omega[i].copy(), imu.force[i].copy()))
+    redos = [(a, b) for a, b in zip(attempts, attempts[1:])
+             if not a[3] <= 1.0 and b[0] == a[0] and abs(b[1] - a[1]) <= 1e-12 * a[1]]   # the same piece again
+    assert len(redos) > 10                                          # the parked input has rejections
+    assert all(b[2] > a[2] for a, b in redos), [(a[2], b[2]) for a, b in redos if b[2] <= a[2]][:5]
 
 
 def test_a_piece_takes_the_fewest_substeps_no_longer_than_its_levels():

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..engine.hardcases import engine_vibration
 from ..messages import jazzy_typestore
-from ..scenes.motions import RandomMotion
+from ..scenes.motions import G, RandomMotion
 
 __all__ = ["VehicleImu", "vehicle_imu", "write_imu_bag", "cached_imu_bag", "husky_bag", "short_copy",
            "cache_dir", "IMU_TOPIC", "HUSKY_SCENE"]
@@ -57,13 +57,15 @@ class VehicleImu:
 
 
 def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: float = 0.0,
-                vibration: bool = False) -> VehicleImu:
+                vibration: bool = False, parked: bool = False) -> VehicleImu:
     """A ground vehicle on a rough road: band-limited roll/pitch (RMS 2°/1.5°, 0.2–3 Hz), heading
     changes (RMS 25°, 0.005–0.2 Hz), body accelerations (RMS 0.8/0.4/0.5 m/s² x/y/z, 0.05–2 Hz) on
     top of gravity, plus a MEMS-grade gyro (white noise 0.005 °/s/√Hz, bias 0.05 °/s) and
     accelerometer (100 µg/√Hz, bias 5 mg). ``jitter`` > 0: sample times moved by up to
     ±jitter periods (uniform), as a driver's header stamps are (the samples are those times').
-    ``vibration``: plus a 37 Hz engine vibration of 0.3 rad/s (``engine.hardcases.engine_vibration``)."""
+    ``vibration``: plus a 37 Hz engine vibration of 0.3 rad/s (``engine.hardcases.engine_vibration``).
+    ``parked``: the same sensor on the vehicle at rest, level (its noise and bias on zero rates and
+    on gravity's reaction, 0, 0, +g in body axes)."""
     road = RandomMotion(seed, angle_rms=(math.radians(2.0), math.radians(1.5), 0.0), band=(0.2, 3.0))
     heading = RandomMotion(seed + 1, angle_rms=(0.0, 0.0, math.radians(25.0)), band=(0.005, 0.2))
     t, w_road, f = road.arrays(duration, rate)      # f: gravity's reaction in body axes
@@ -79,6 +81,9 @@ def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: f
     ph = rng.uniform(0, 2 * math.pi, (3, n))
     amp = np.array([0.8, 0.4, 0.5])[:, None] * math.sqrt(2.0 / n)
     f = f + (amp[:, :, None] * np.sin(fr[:, :, None] * t[None, None, :] + ph[:, :, None])).sum(axis=1).T
+    if parked:
+        w = np.zeros_like(w)
+        f = np.tile([0.0, 0.0, G], (t.size, 1))
     sq = math.sqrt(rate)
     w = w + math.radians(0.05) * rng.standard_normal(3) + math.radians(0.005) * sq * rng.standard_normal(w.shape)
     f = f + 5e-3 * 9.80665 * rng.standard_normal(3) + 100e-6 * 9.80665 * sq * rng.standard_normal(f.shape)

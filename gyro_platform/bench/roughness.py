@@ -26,9 +26,12 @@ against a tight reference (RK4 at rtol 1e-12, steps ≤ 0.1 ms). The table's row
 input's delivered error (``cost_at_error``, log-log between the two sweep points around it) ÷ the
 smooth input's (the bar holds this ratio), beside the plain ratio at the same rtol. Then how far
 that holds: the same-rtol ratio at rtol 1e-6 for vibrations of 0.03–3 rad/s (x axis; y ⅔, z ⅓ of
-it at twice the frequency) at 12–300 Hz (``GRID``). Counts, not times: they do not depend on the
-machine. Writes ``roughness.json`` (the sweep and the grid under ``meta``), ``roughness.md`` and
-``roughness.png`` (work against delivered error, the whole sweep).
+it at twice the frequency) at 12–300 Hz (``GRID``). Last, the same IMU on a parked vehicle
+(:func:`parked`: noise and bias only, the relative rates hovering about the friction's zone, so
+kinks every sample), compared with the smooth input the same way (``parked_rows``; no bar). Counts,
+not times: they do not depend on the machine. Writes ``roughness.json`` (the sweep, the grid and the
+parked rows under ``meta``), ``roughness.md`` and ``roughness.png`` (work against delivered error,
+the whole sweep).
 """
 from __future__ import annotations
 
@@ -46,7 +49,8 @@ from ..engine.simulator import Simulator
 from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
 
-__all__ = ["roughness", "RoughRow", "surfaces", "run_surface", "cost_at_error", "RTOLS", "SWEEP", "GRID", "grid"]
+__all__ = ["roughness", "RoughRow", "surfaces", "parked", "run_surface", "cost_at_error", "RTOLS", "SWEEP", "GRID",
+           "grid", "parked_rows"]
 
 RTOLS = (1e-4, 1e-6, 1e-8)
 #: the tolerances swept for the work-precision curves: 1e-4 … 1e-10 in half decades (holds ``RTOLS``)
@@ -110,6 +114,13 @@ def surfaces(duration: float) -> dict[str, VehicleImu]:
             "vibrating": VehicleImu(imu.t, imu.omega + engine_vibration(imu.t, noise=False), imu.force)}
 
 
+def parked(duration: float) -> VehicleImu:
+    """The same IMU on the vehicle at rest (:func:`.bags.vehicle_imu` ``parked``: its noise and bias
+    only): the mount axes' relative rates hover about zero, inside ±2.8e-3 rad/s a sample, and
+    cross the friction's ±ε zone several times a sample."""
+    return vehicle_imu(duration, 1000.0, parked=True)
+
+
 def run_surface(imu: VehicleImu, integrator: str, rtol: float, atol: float, max_step: float = 1e-3,
                 max_substeps: int = 4096, params: PlatformParams = NAV1) -> tuple[np.ndarray, dict]:
     """(angles (N, 8): gimbal angles and drift angle at 100 Hz, rad; the simulator's stats)."""
@@ -123,7 +134,7 @@ def run_surface(imu: VehicleImu, integrator: str, rtol: float, atol: float, max_
 def roughness(out_dir: Path, quick: bool = False) -> list[RoughRow]:
     """Run, print the table, write the report (see module doc)."""
     duration = 2.0 if quick else 10.0
-    inputs = surfaces(duration)
+    inputs = {**surfaces(duration), "parked": parked(duration)}
     ref = {k: run_surface(imu, REFERENCE[0], REFERENCE[1], REFERENCE[2], REFERENCE[3], REFERENCE[4])[0]
            for k, imu in inputs.items()}
     sweep: dict[str, list[dict]] = {k: [] for k in inputs}
@@ -141,10 +152,41 @@ def roughness(out_dir: Path, quick: bool = False) -> list[RoughRow]:
         rows.append(RoughRow(rtol, s["integrator"], s["rhs"], v["rhs"], s["steps"], v["steps"], s["rejected"],
                              v["rejected"], s["error"], v["error"], cost_at_error(vib_curve, s["error"])))
     cells = grid(inputs["smooth"], rows[1].smooth_rhs)
-    write_report("roughness", rows, table(rows, duration) + "\n" + grid_table(cells), out_dir,
-                 lambda rows, path: plot(rows, sweep, path), duration_s=duration, reference=list(REFERENCE[:4]),
-                 sweep=sweep, grid=cells)
+    still = parked_rows(sweep)
+    write_report("roughness", rows, table(rows, duration) + "\n" + grid_table(cells) + "\n" + parked_table(still),
+                 out_dir, lambda rows, path: plot(rows, sweep, path), duration_s=duration,
+                 reference=list(REFERENCE[:4]), sweep=sweep, grid=cells, parked=still)
     return rows
+
+
+def parked_rows(sweep: dict[str, list[dict]]) -> list[dict]:
+    """The parked input against the smooth one at ``RTOLS``: its work, error, and its work at the
+    smooth input's error (``cost_at_error`` on its sweep; nan where it never gets there)."""
+    curve = [(p["rhs"], p["error"]) for p in sweep["parked"]]
+    out = []
+    for rtol in RTOLS:
+        s, p = (next(q for q in sweep[k] if q["rtol"] == rtol) for k in ("smooth", "parked"))
+        equal = cost_at_error(curve, s["error"])
+        out.append({"rtol": rtol, "smooth_rhs": s["rhs"], "parked_rhs": p["rhs"], "parked_rhs_equal": equal,
+                    "ratio": equal / s["rhs"], "same_rtol_ratio": p["rhs"] / s["rhs"], "smooth_error": s["error"],
+                    "parked_error": p["error"], "parked_rejected": p["rejected"]})
+    return out
+
+
+def parked_table(rows: list[dict]) -> str:
+    """The parked vehicle's rows as Markdown (not held to a bar: issue 31's is the vibrating input's)."""
+    lines = ["A parked vehicle (the same IMU at rest: its noise and bias only, the relative rates hovering "
+             "about the friction's ±ε zone): right-hand sides per sample ÷ the smooth input's", "",
+             "| rtol | rhs/sample smooth | rhs/sample parked, same rtol / same error | at equal accuracy "
+             "| at the same rtol | rejected parked | error smooth / parked, rad |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        reached = not math.isnan(r["parked_rhs_equal"])
+        equal, ratio = (f"{r['parked_rhs_equal']:.2f}", f"×{r['ratio']:.2f}") if reached else ("not reached", "—")
+        lines.append(f"| {r['rtol']:g} | {r['smooth_rhs']:.2f} | {r['parked_rhs']:.2f} / {equal} | {ratio} | "
+                     f"×{r['same_rtol_ratio']:.2f} | {r['parked_rejected']} | {r['smooth_error']:.1e} / "
+                     f"{r['parked_error']:.1e} |")
+    return "\n".join(lines) + "\n"
 
 
 def grid(imu: VehicleImu, smooth_rhs: float, rtol: float = 1e-6) -> list[dict]:
@@ -203,7 +245,7 @@ def plot(rows: list[RoughRow], sweep: dict[str, list[dict]], path: Path) -> None
 
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     marked = {r.rtol for r in rows}
-    for key, style in (("smooth", "o-"), ("vibrating", "s--")):
+    for key, style in (("smooth", "o-"), ("vibrating", "s--"), ("parked", "^:")):
         pts = sweep[key]
         ax.loglog([max(p["error"], 1e-16) for p in pts], [p["rhs"] for p in pts], style, ms=4, label=key)
         for p in pts:

@@ -56,8 +56,8 @@ from .buffers import (F_A, F_AU, F_AXIS, F_C, F_CC, F_CHOL, F_F, F_FB, F_FO, F_F
                       J_METHOD, J_NEED_H, J_NEED_L, J_NEED_R, J_NLEV, J_NRHS, J_NSAMP, J_NSTEPS, J_Q1, J_REJ, N_FH,
                       N_IH, pack, SLOT_W, SYSTEM_F)
 from .integrators import (aimed_switch, coarser_level, ETD2, held_level, is_micro_step, level_substeps, MAX_SWITCHES,
-                          next_level, piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE, SWITCH_MIN, TAIL_MIN,
-                          TAIL_ULP)
+                          next_level, next_piece_level, piece_substeps, shortened_piece, STEP_SLACK, SWITCH_EDGE,
+                          SWITCH_MIN, TAIL_MIN, TAIL_ULP)
 from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
@@ -495,7 +495,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
                 for m in range(n):
                     yw[m] = yc[m]
                 have_k1 = False
-                new = next_level(level, nrm, q1)
+                new = next_piece_level(level, nrm, q1, hc, h0, nsub) if piece else next_level(level, nrm, q1)
                 if new > max_level:
                     if level < max_level:
                         new = max_level

@@ -37,9 +37,9 @@ methods share. Imports only ``errors`` and ``physics.jit`` (and numpy, scipy, nu
 from .auto import (Auto, AUTO_ETD4_BELOW, AUTO_FALLBACK, auto_method, AUTO_RESCUE, AUTO_RK4_LIMIT,
                    AUTO_RK4_MAX_RTOL, AUTO_RK4_MIN_RTOL, AUTO_STICKY)
 from .base import (aimed_switch, COARSEN, coarser_level, Controlled, error_norm, finest_level, held_level, HOLD_KINKS,
-                   Integrator, is_micro_step, level_substeps, LOOKBACK_AIM, MAX_JUMP, MAX_SUBSTEPS, MAX_SWITCHES,
-                   MICRO_STEP, next_level, OdeSystem, piece_substeps, shortened_piece, STEP_SLACK, StepStats,
-                   SWITCH_AIM, SWITCH_EDGE, SWITCH_MIN)
+                   Integrator, is_micro_step, level_substeps, LOOKBACK_AIM, MAX_JUMP, MAX_PIECE_JUMP, MAX_SUBSTEPS,
+                   MAX_SWITCHES, MICRO_STEP, next_level, next_piece_level, OdeSystem, piece_substeps, shortened_piece,
+                   STEP_SLACK, StepStats, SWITCH_AIM, SWITCH_EDGE, SWITCH_MIN)
 from .exponential import ETD2, ETD4, ExpRosenbrock, TAIL_MIN, TAIL_ULP, taylor_bound, TAYLOR_MAX, TAYLOR_TOL
 from .implicit import ImplicitMidpoint
 from .jacobian import fd_jacobian, jacobian_of
@@ -50,7 +50,7 @@ from .scipy_methods import DOP853, Radau, RK45
 __all__ = ["OdeSystem", "StepStats", "Integrator", "Controlled", "make_integrator", "INTEGRATORS",
            "INTEGRATOR_CHOICES", "error_norm", "MAX_SUBSTEPS", "COARSEN", "MAX_JUMP", "STEP_SLACK", "SWITCH_MIN",
            "MAX_SWITCHES", "SWITCH_EDGE", "SWITCH_AIM", "aimed_switch", "LOOKBACK_AIM", "shortened_piece",
-           "piece_substeps",
+           "piece_substeps", "next_piece_level", "MAX_PIECE_JUMP",
            "is_micro_step", "MICRO_STEP", "held_level", "HOLD_KINKS",
            "level_substeps", "next_level", "coarser_level",
            "finest_level", "Auto",
