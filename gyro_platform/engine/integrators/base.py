@@ -45,13 +45,14 @@ piece to a predicted kink ends a little short of it and a micro step lands on it
 (:func:`aimed_switch`). The pieces of a chunk cut at a kink do not coarsen the level below the
 chunk's, nor does its end up to ``HOLD_KINKS`` pieces (:func:`held_level`). A piece takes
 substeps no longer than its chunk's level's (:func:`piece_substeps`), not the level's whole number
-of its own; RK4 tries a one-substep attempt shorter than ``MICRO_STEP``·max_step as an Euler step
-first (:func:`is_micro_step`).
+of its own, and a rejected one goes to the level that gives it more (:func:`next_piece_level`);
+RK4 tries a one-substep attempt shorter than ``MICRO_STEP``·max_step as an Euler step first
+(:func:`is_micro_step`).
 A step across a kink is only first-order accurate, so a vibrating input otherwise costs 3–8× the
 substeps of a smooth one. The compiled batch loop (:mod:`gyro_platform.engine.batch`) runs the
 same controller: it calls :func:`next_level`, :func:`coarser_level`, :func:`held_level`,
-:func:`level_substeps`, :func:`piece_substeps`, :func:`aimed_switch` and :func:`is_micro_step`, the
-rules this controller calls.
+:func:`level_substeps`, :func:`piece_substeps`, :func:`next_piece_level`, :func:`aimed_switch` and
+:func:`is_micro_step`, the rules this controller calls.
 
 Non-finite results are never returned: ``SimulationError``.
 """
