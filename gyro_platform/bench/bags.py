@@ -81,7 +81,7 @@ def vehicle_imu(duration: float, rate: float = 1000.0, seed: int = 12, jitter: f
     ph = rng.uniform(0, 2 * math.pi, (3, n))
     amp = np.array([0.8, 0.4, 0.5])[:, None] * math.sqrt(2.0 / n)
     f = f + (amp[:, :, None] * np.sin(fr[:, :, None] * t[None, None, :] + ph[:, :, None])).sum(axis=1).T
-    if parked:
+    if parked:           # (the motion above is still drawn: the noise below is the road input's)
         w = np.zeros_like(w)
         f = np.tile([0.0, 0.0, G], (t.size, 1))
     sq = math.sqrt(rate)

@@ -50,7 +50,7 @@ from ..physics.options import DEFAULT_EFFECTS, ModelOptions
 from ..physics.params import NAV1, PlatformParams
 
 __all__ = ["roughness", "RoughRow", "surfaces", "parked", "run_surface", "cost_at_error", "RTOLS", "SWEEP", "GRID",
-           "grid", "parked_rows"]
+           "grid", "compared", "parked_rows"]
 
 RTOLS = (1e-4, 1e-6, 1e-8)
 #: the tolerances swept for the work-precision curves: 1e-4 … 1e-10 in half decades (holds ``RTOLS``)
@@ -145,12 +145,9 @@ def roughness(out_dir: Path, quick: bool = False) -> list[RoughRow]:
             sweep[k].append({"rtol": rtol, "rhs": st["n_rhs"] / n, "steps": st["n_steps"] / n,
                              "rejected": st["n_rejected"], "error": float(np.abs(ang - ref[k]).max()),
                              "integrator": st["integrator"]})
-    vib_curve = [(p["rhs"], p["error"]) for p in sweep["vibrating"]]
-    rows = []
-    for rtol in RTOLS:
-        s, v = (next(p for p in sweep[k] if p["rtol"] == rtol) for k in ("smooth", "vibrating"))
-        rows.append(RoughRow(rtol, s["integrator"], s["rhs"], v["rhs"], s["steps"], v["steps"], s["rejected"],
-                             v["rejected"], s["error"], v["error"], cost_at_error(vib_curve, s["error"])))
+    rows = [RoughRow(rtol, s["integrator"], s["rhs"], v["rhs"], s["steps"], v["steps"], s["rejected"],
+                     v["rejected"], s["error"], v["error"], equal)
+            for rtol, s, v, equal in compared(sweep, "vibrating")]
     cells = grid(inputs["smooth"], rows[1].smooth_rhs)
     still = parked_rows(sweep)
     write_report("roughness", rows, table(rows, duration) + "\n" + grid_table(cells) + "\n" + parked_table(still),
@@ -159,18 +156,30 @@ def roughness(out_dir: Path, quick: bool = False) -> list[RoughRow]:
     return rows
 
 
-def parked_rows(sweep: dict[str, list[dict]]) -> list[dict]:
-    """The parked input against the smooth one at ``RTOLS``: its work, error, and its work at the
-    smooth input's error (``cost_at_error`` on its sweep; nan where it never gets there)."""
-    curve = [(p["rhs"], p["error"]) for p in sweep["parked"]]
+def compared(sweep: dict[str, list[dict]], other: str) -> list[tuple[float, dict, dict, float]]:
+    """(rtol, the smooth input's sweep point, ``other``'s, ``other``'s work at the smooth input's
+    error: ``cost_at_error`` on its sweep, nan where it never gets there) at each of ``RTOLS``."""
+    curve = [(p["rhs"], p["error"]) for p in sweep[other]]
     out = []
     for rtol in RTOLS:
-        s, p = (next(q for q in sweep[k] if q["rtol"] == rtol) for k in ("smooth", "parked"))
-        equal = cost_at_error(curve, s["error"])
-        out.append({"rtol": rtol, "smooth_rhs": s["rhs"], "parked_rhs": p["rhs"], "parked_rhs_equal": equal,
-                    "ratio": equal / s["rhs"], "same_rtol_ratio": p["rhs"] / s["rhs"], "smooth_error": s["error"],
-                    "parked_error": p["error"], "parked_rejected": p["rejected"]})
+        s, o = (next(q for q in sweep[k] if q["rtol"] == rtol) for k in ("smooth", other))
+        out.append((rtol, s, o, cost_at_error(curve, s["error"])))
     return out
+
+
+def parked_rows(sweep: dict[str, list[dict]]) -> list[dict]:
+    """The parked input against the smooth one at ``RTOLS`` (:func:`compared`): its work, error, and
+    its work at the smooth input's error."""
+    return [{"rtol": rtol, "smooth_rhs": s["rhs"], "parked_rhs": p["rhs"], "parked_rhs_equal": equal,
+             "ratio": equal / s["rhs"], "same_rtol_ratio": p["rhs"] / s["rhs"], "smooth_error": s["error"],
+             "parked_error": p["error"], "parked_rejected": p["rejected"]}
+            for rtol, s, p, equal in compared(sweep, "parked")]
+
+
+def _equal_cells(work: float, ratio: float, missing: str) -> tuple[str, str]:
+    """The table's "same error" work and its ratio, or "not reached" and ``missing`` where the
+    sweep never delivered the smooth input's error (``work`` nan)."""
+    return (f"{work:.2f}", f"×{ratio:.2f}") if not math.isnan(work) else ("not reached", missing)
 
 
 def parked_table(rows: list[dict]) -> str:
@@ -181,8 +190,7 @@ def parked_table(rows: list[dict]) -> str:
              "| at the same rtol | rejected parked | error smooth / parked, rad |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
-        reached = not math.isnan(r["parked_rhs_equal"])
-        equal, ratio = (f"{r['parked_rhs_equal']:.2f}", f"×{r['ratio']:.2f}") if reached else ("not reached", "—")
+        equal, ratio = _equal_cells(r["parked_rhs_equal"], r["ratio"], "—")
         lines.append(f"| {r['rtol']:g} | {r['smooth_rhs']:.2f} | {r['parked_rhs']:.2f} / {equal} | {ratio} | "
                      f"×{r['same_rtol_ratio']:.2f} | {r['parked_rejected']} | {r['smooth_error']:.1e} / "
                      f"{r['parked_error']:.1e} |")
@@ -227,8 +235,7 @@ def table(rows: list[RoughRow], duration: float) -> str:
              "| steps/sample smooth / vibrating | rejected smooth / vibrating | error smooth / vibrating, rad |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        reached = not math.isnan(r.vibrating_rhs_equal)      # else the vibrating sweep never got there
-        equal, ratio = (f"{r.vibrating_rhs_equal:.2f}", f"×{r.ratio:.2f}") if reached else ("not reached", "✗")
+        equal, ratio = _equal_cells(r.vibrating_rhs_equal, r.ratio, "✗")
         lines.append(f"| {r.rtol:g} | {r.integrator} | {r.smooth_rhs:.2f} | {r.vibrating_rhs:.2f} / "
                      f"{equal} | {ratio} | ×{r.same_rtol_ratio:.2f} | "
                      f"{r.smooth_steps:.2f} / {r.vibrating_steps:.2f} | {r.smooth_rejected} / {r.vibrating_rejected} | "
