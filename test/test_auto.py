@@ -114,8 +114,11 @@ def test_the_registry_builds_the_chain():
     assert a.primary.name == "rk4"          # substeps for the fastest mode: the others refuse the changes
     a = make_integrator("auto", rtol=1e-10, atol=1e-13, fastest_rate=3000.0)
     assert a.primary.name == "etd4"                   # RK4 would not resolve the fastest mode
-    a = make_integrator("auto", rtol=1e-6, atol=1e-9, fastest_rate=3000.0, switches=True)
-    assert a.primary.name == "etd2"                   # at rtol 1e-6 etd2 copes with the changes
+    for rtol in (1e-4, 1e-6):
+        a = make_integrator("auto", rtol=rtol, atol=rtol * 1e-3, fastest_rate=3000.0, switches=True)
+        assert a.primary.name == "rk4"               # etd2 steps over the changes blind (test_switching)
+        a = make_integrator("auto", rtol=rtol, atol=rtol * 1e-3, fastest_rate=100.0, switches=True)
+        assert a.primary.name == "rk4"
 
 
 @pytest.mark.parametrize("mode, effects, switches", [
