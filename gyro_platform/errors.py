@@ -117,8 +117,8 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DATA, EXIT_WRITE = 0, 1, 2, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143          # 128 + SIGINT, 128 + SIGTERM
 EXIT_CODES: dict[int, str] = {
     EXIT_OK: "success",
-    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, the simulation failed, "
-                 "or the transport could not start",
+    EXIT_FAILED: "ran but failed: an expectation failed or was not evaluable, the simulation failed or "
+                 "went through gimbal lock ill-conditioned, or the transport could not start",
     EXIT_USAGE: "bad argument or path, refused before anything is written (unknown flag, value out of "
                 "range, missing file, not a bag/scene, invalid scene, unwritable output path, a run "
                 "beyond the memory/step bounds)",

@@ -17,7 +17,8 @@
 Holds the input sample (``inputs.RateSample``), the output record (``outputs.Outputs``), the
 integrators behind one contract with error control (the ``integrators`` package), the compiled batch
 stepping (``batch``), the ``Simulator`` (state, ``push``/``push_many``, outputs), the
-catalogue of hard cases (``hardcases``), one BLAS thread per process (``blas``) and a cold start's
-simulator (``remote``: the interpreted kernels in a helper process until the compiled ones are made). May import
+catalogue of hard cases (``hardcases``), how far a run near gimbal lock holds
+(``conditioning``), one BLAS thread per process (``blas``) and a cold start's simulator
+(``remote``: the interpreted kernels in a helper process until the compiled ones are made). May import
 ``physics``, ``errors`` and ``signals``.
 """

@@ -49,6 +49,7 @@ from .config import NodeConfig
 from .overload import InputLoss
 from .parameters import ConfigError, SPECS
 from .. import messages as msgs
+from ..engine.conditioning import GIMBAL_LOCK_WARN
 from ..engine.outputs import C_QUAT, C_ROTOR, outputs_of_row
 from ..errors import SimulationError
 from ..messages import MessageTypes, Reading
@@ -58,8 +59,6 @@ from ..pipeline.grid import grid_index
 from ..pipeline.stream import Pipeline
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
-#: gimbal-lock proximity: WARN when min |cos| of the inner gimbal angles falls below this
-GIMBAL_LOCK_WARN = 0.1
 #: real-time margin (1 − callback time / input period) below which diagnostics WARN
 MARGIN_WARN = 0.2
 #: input frame_ids counted by name in the diagnostics (more are counted together as 'other')

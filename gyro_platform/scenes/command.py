@@ -61,8 +61,9 @@ def _error(message: str) -> None:
 
 
 def run(args) -> int:
-    """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable,
-    2 bad scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
+    """``gyro-platform run``: exit 0 all expectations pass, 1 one fails or is not evaluable, or
+    the run went through gimbal lock and a tighter check run disagrees (ill-conditioned), 2 bad
+    scene, argument or bag path, 3 damaged bag (the readable part is run and written)."""
     try:
         scene = load_scene(args.scene)
         if args.duration is not None:
@@ -124,4 +125,9 @@ def run(args) -> int:
         print(f"{n_na} of {len(results)} expectation(s) NOT EVALUABLE")
     if n_fail:
         print(f"{n_fail} of {len(results)} expectation(s) FAILED")
-    return EXIT_FAILED if n_fail or n_na else EXIT_OK
+    ill = summary.get("gimbal_lock_check", {}).get("ill_conditioned")
+    if ill:
+        _error(f"scene '{scene.name}': ill-conditioned: the outputs from t = "
+               f"{summary['gimbal_lock_check']['t_beyond']:.6g} s are not held to the asked tolerance "
+               "(gimbal lock, see the warning above)")
+    return EXIT_FAILED if n_fail or n_na or ill else EXIT_OK

@@ -35,6 +35,7 @@ import numpy as np
 
 from .schema import Check, load_scene, MotionError, ScenarioError, Scene, scene_info
 from ..bags.reader import InputBag
+from ..engine.conditioning import check_tolerance, compare, lock_margin, LockCheck, LockMargin
 from ..errors import BagReadError, RunStopped, SimulationError
 from ..physics.jit import abandon_compiles_when
 from ..pipeline.chunked import push_block
@@ -214,12 +215,42 @@ def _run(scene: Scene, out_dir, sim, samples, wall0: float, stop: threading.Even
             snap = feed.gate.snapshot()
             hint = ": " + no_sample_hint(snap["dropped_by_reason"], snap["received"])
         raise ScenarioError(f"scene '{scene.name}': the motion gave no usable samples{hint}")
+    lock = lock_margin(rec.t, rec.gimbal_angles)
+    check = _lock_check(scene, samples, rec, lock, stop) if samples is not None and lock and lock.near else None
     wall = time.perf_counter() - wall0
-    return rec, *_finish(scene, sim, rec, feed, out, wall)
+    return rec, *_finish(scene, sim, rec, feed, out, wall, lock, check)
 
 
-def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None, wall: float):
-    """Summary, expectations and the files after the CSV: ``(summary, results)``."""
+def _lock_check(scene: Scene, samples: tuple[np.ndarray, ...], rec: Recorder, lock: LockMargin,
+                stop: threading.Event | None) -> LockCheck:
+    """The run came near gimbal lock: the same samples again at a tolerance ``CHECK_TIGHTER``
+    times tighter, its gimbal angles at the same instants against the run's
+    (``engine.conditioning``). A check run that stops early (refused) is compared as far as it got."""
+    from ..engine.simulator import Simulator
+
+    rtol, atol = check_tolerance(scene.options.rtol, scene.options.atol)
+    sim = Simulator(params=scene.params, options=scene.options.with_(rtol=rtol, atol=atol))
+    blocks = _synthetic_blocks(scene, samples, sim, _Feed())
+    angles = []
+    try:
+        for block, _ in blocks:
+            if stop is not None and stop.is_set():
+                raise RunStopped(f"scene '{scene.name}': stopped by its caller during its gimbal-lock check")
+            angles.append(np.array(block.gimbal_angles))
+    except SimulationError as e:
+        done = getattr(e, "block", None)
+        if done is not None and len(done):
+            angles.append(np.array(done.gimbal_angles))
+    finally:
+        blocks.close()
+    got = np.concatenate(angles) if angles else np.zeros((0, 5))
+    return compare(lock, rec.t, rec.gimbal_angles, got, scene.options.rtol, scene.options.atol)
+
+
+def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None, wall: float,
+            lock: LockMargin | None = None, check: LockCheck | None = None):
+    """Summary, expectations and the files after the CSV: ``(summary, results)``. ``lock``,
+    ``check``: the run's closest approach to gimbal lock and its check run (None: not near)."""
     error = feed.error
     summary = rec.summary(fit_start=scene.fit_start, mounting=scene.params.mounting)
     summary = {"scene": scene.name, **summary, "n_samples": feed.n_in,
@@ -241,6 +272,13 @@ def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None
     if error is not None:
         warnings.append(f"bag damaged, results cover its readable part: {error}")
         summary["error"] = error
+    if check is not None:
+        summary["gimbal_lock_check"] = check.as_dict()
+        warnings.append(check.sentence())
+    elif lock is not None and lock.near:          # a bag scene: its input is not read twice
+        warnings.append(f"{lock.joint} came within {lock.degrees:.3g}° of gimbal lock at t = {lock.t:.6g} s: "
+                        "a motion through it amplifies errors beyond the asked tolerance (not checked: "
+                        "a bag scene is run once)")
     summary["warnings"] = warnings
     results = evaluate(scene, summary)
     if out is not None:
