@@ -321,3 +321,40 @@ def test_the_scheduler_gone_mid_sweep_is_one_error_and_the_finished_records_stay
     assert 1 <= len(recs) < 6 and all(r["status"] == "ok" for r in recs.values()), recs
     assert f"to do the {6 - len(recs)} left" in lines[0]
     assert sorted(r["run"] for r in pq.read_table(out / "results.parquet").to_pylist()) == sorted(recs)
+
+
+def test_a_damaged_bag_of_a_fleet_is_failed_input_and_a_short_one_says_so(tmp_path):
+    """A fleet over three MCAP bags: an intact 30 s one, the same cut at half its bytes (its
+    readable part runs, as ``run`` does, but the figures cover a fragment: ``failed_input``, not
+    ``ok`` with a 15 s drift in the budget), and an intact 10 s one (``ok``, its message says it
+    ends before the scene's 30 s)."""
+    from test_cli import bag_scene, small_bag
+
+    bags = tmp_path / "fleet"
+    bags.mkdir()
+    whole = small_bag(bags / "whole", seconds=30.0, rate=400.0, storage="mcap")
+    small_bag(bags / "short", seconds=10.0, rate=400.0, storage="mcap")
+    cut = bags / "cut"
+    cut.mkdir()
+    data = next(whole.glob("*.mcap")).read_bytes()
+    (cut / "cut.mcap").write_bytes(data[:len(data) // 2])
+    scene = bag_scene(tmp_path, whole, duration=30.0)
+    spec = load_sweep(_spec(tmp_path, f"scene: {scene}\nduration: 30\nbags: [{bags}]\n"))
+    res = run_sweep(spec, tmp_path / "out", workers=1)
+    by = {Path(r["bag"]).stem: r for r in res.records}
+    assert by["whole"]["status"] == "ok" and by["whole"]["message"] == ""
+    assert by["cut"]["status"] == "failed_input" and "damaged" in by["cut"]["message"]
+    assert 0 < by["cut"]["sim_duration_s"] < 29.0                  # its readable part ran
+    assert by["short"]["status"] == "ok" and "before the scene's duration" in by["short"]["message"]
+
+
+def test_a_sweep_without_one_result_exits_1_in_one_line(tmp_path, capsys):
+    """Every drawn configuration refused: the records are there, the budget has no data, and the
+    command says so (it exited 0)."""
+    spec = _spec(tmp_path, "scene: default\nduration: 1\nruns: 2\nseed: 1\n"
+                           'vary: {"rotor_C[0]": {dist: normal, mean: 2.0e-5, std: 1.0e-4}}\n')
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(spec), "--out", str(out), "--workers", "1", "--no-plots"]) == cli.EXIT_FAILED
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+    assert len(err) == 1 and "none of the 2 runs gave a result" in err[0], err
+    assert json.loads((out / "summary.json").read_text())["status_counts"] == {"refused": 2}

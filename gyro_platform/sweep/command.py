@@ -23,7 +23,8 @@ worker host's first run loads them instead of compiling. Every finished run is w
 command again runs only what is missing.
 
 Exit codes: 0 every run has a record (``ok``, ``refused`` or ``failed_input``: see
-``summary.json``); 1 some runs ``failed`` or were ``lost`` (run again to retry them), the
+``summary.json``) and at least one is ``ok``; 1 no run is ``ok`` (the budget has no data), some
+runs ``failed`` or were ``lost`` (run again to retry them), the
 scheduler went away during the sweep (one line; the finished records and the table stay), or
 the local cluster could not start; 2 a bad sweep file, flag or output folder, another sweep
 writing into the same folder now (``OUT/.lock``), or a ``--scheduler`` that cannot be reached
@@ -319,4 +320,8 @@ def run(args) -> int:
         print(f"gyro-platform sweep: {res.stop}; {res.executed} run(s) finished now, run the same command to go on",
               file=sys.stderr)
         return EXIT_TERMINATED if res.stop == "terminated" else EXIT_INTERRUPTED
+    if res.records and not res.counts.get("ok"):
+        print(f"{prog}: none of the {len(res.records)} runs gave a result (see summary.json): "
+              "the budget has no data", file=sys.stderr)
+        return EXIT_RUNS_FAILED
     return EXIT_RUNS_FAILED if res.counts.get("failed", 0) + res.counts.get("lost", 0) else EXIT_OK

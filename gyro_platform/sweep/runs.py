@@ -88,6 +88,20 @@ def _figures(summary: dict[str, Any], results: list) -> dict[str, Any]:
     return f
 
 
+def _verdict(summary: dict[str, Any]) -> dict[str, Any]:
+    """A finished run's status and message from its summary: ``failed_input`` for a damaged bag
+    (the figures cover its readable part), ``refused`` for a run through gimbal lock that its
+    check run contradicts (``engine.conditioning``), else ``ok``; the run's warnings (a bag that
+    ends before the duration, a near approach to lock …) as the message."""
+    warnings = "; ".join(summary.get("warnings", []))
+    if summary.get("error"):
+        return {"status": "failed_input", "message": f"bag damaged, the figures cover its readable part: "
+                                                     f"{summary['error']}"}
+    if summary.get("gimbal_lock_check", {}).get("ill_conditioned"):
+        return {"status": "refused", "message": f"ill-conditioned: {warnings}"}
+    return {"status": "ok", "message": warnings}
+
+
 def in_dask_worker() -> bool:
     """This code runs in a Dask worker (``distributed`` imported and a worker found)."""
     if "distributed" not in sys.modules:
@@ -124,7 +138,7 @@ def execute_run(task: RunTask) -> dict[str, Any]:
         else:
             try:
                 _, summary, results = run_scene(scene, stop=closing)
-                rec.update(_figures(summary, results))
+                rec.update(_figures(summary, results), **_verdict(summary))
             except (SimulationError, MotionError) as e:     # the drawn configuration cannot run
                 rec.update(status="refused", message=f"{type(e).__name__}: {e}")
             except (ScenarioError, BagReadError, ReplayError, OSError) as e:
