@@ -36,6 +36,7 @@ import argparse
 import gc
 import importlib
 import os
+import signal
 import sys
 from typing import NoReturn
 
@@ -218,11 +219,16 @@ def platform_node() -> int:
     per core first (~50 ms of the node's start here, and idle threads on a many-core computer).
     The collector is off while the node's modules load and it warms up, as for a command line
     (:func:`main`); it is on again once the start-up's objects are frozen
-    (``ros.warmup.freeze_startup_objects``)."""
+    (``ros.warmup.freeze_startup_objects``). Ctrl-C while the modules load ends it quietly
+    (exit 0), as it does later."""
     gc.disable()
-    from .engine.blas import limit_blas_threads
-    limit_blas_threads()
-    from .ros.node import main as node_main
+    try:
+        from .engine.blas import limit_blas_threads
+        limit_blas_threads()
+        from .ros.node import main as node_main
+    except KeyboardInterrupt:   # Ctrl-C while numba and rclpy load (~1 s): a stop like any later one
+        signal.signal(signal.SIGINT, signal.SIG_IGN)        # ros2 launch's second SIGINT
+        return 0
     return node_main()
 
 

@@ -30,11 +30,15 @@ with ``use_sim_time:=true``. What is started is computed by ``gyro_platform.ros.
 """
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from gyro_platform.ros.launch_setup import ARGUMENTS, plan
+
+
+class LaunchNotStarted(RuntimeError):
+    """Bad launch arguments or parameters: nothing started (launch exits 1, one ERROR line)."""
 
 
 def _nodes(context, *args, **kwargs):
@@ -43,8 +47,10 @@ def _nodes(context, *args, **kwargs):
     default_params = get_package_share_directory("gyro_platform") + "/config/platform.yaml"
     try:
         p = plan(values, default_params)
-    except ValueError as e:            # LaunchArgumentError / ConfigError: one line, no traceback
-        return [LogInfo(msg=f"gyro_platform: not started: {e}")]
+    except ValueError as e:            # LaunchArgumentError / ConfigError
+        # launch logs an exception raised here as one ERROR line (its traceback at debug level)
+        # and exits 1: an including bringup fails visibly instead of running without the platform
+        raise LaunchNotStarted(f"gyro_platform: not started: {e}") from None
     actions = [Node(package="gyro_platform", executable="platform_node", name="gyro_platform_node",
                     namespace=p.namespace, parameters=p.node_parameters, arguments=["--ros-args", *p.ros_arguments],
                     output="screen", emulate_tty=True)]

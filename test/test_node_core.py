@@ -169,6 +169,55 @@ def test_sensor_mounting_rotates_the_input_into_the_vehicle_frame():
     assert core.gate.snapshot()["dropped_by_reason"] == {"unknown_frame": 1}
 
 
+def test_a_namespaced_robots_prefixed_frames_take_their_mountings():
+    """With ``frame_prefix`` robot1/ (what the launch file sets for namespace robot1) the drivers
+    stamp robot1/imu_link and robot1/base_link: the mounting of imu_link applies, base_link is
+    the vehicle frame; unprefixed names still work. Before, both were taken as base_link (the
+    rotation dropped) and, with unknown_frame reject, dropped."""
+    core = make_core(mode="carried", output_rate=0.0, frame_prefix="robot1/", unknown_frame="reject",
+                     sensor_mountings=["imu_link=0.0,0.0,1.5707963267948966"])
+    for k, frame in enumerate(("robot1/imu_link", "imu_link")):
+        core.on_message(imu(BASE + k * MS, w=(0.5, 0.0, 0.0), frame=frame), BASE + k * MS)
+        np.testing.assert_allclose(core.gate.last.sample.omega, [0.0, 0.5, 0.0], atol=1e-12)   # yaw 90°
+    for k, frame in enumerate(("robot1/base_link", "base_link"), start=2):
+        core.on_message(imu(BASE + k * MS, w=(0.5, 0.0, 0.0), frame=frame), BASE + k * MS)
+        np.testing.assert_allclose(core.gate.last.sample.omega, [0.5, 0.0, 0.0], atol=1e-12)
+    core.on_message(imu(BASE + 4 * MS, frame="robot2/imu_link"), BASE + 4 * MS)
+    assert core.gate.snapshot()["dropped_by_reason"] == {"unknown_frame": 1}
+
+
+def test_unmounted_frames_are_named_up_to_sixteen_and_cut_to_64_characters():
+    """500 frame ids without mounting and one of 100 000 characters: 17 lines, not 501, and a
+    diagnostics value of bounded size (it was 104 390 characters, republished every second)."""
+    core = make_core(output_rate=0.0)
+    frames = ["x" * 100_000] + [f"f{i}" for i in range(500)]
+    for k, frame in enumerate(frames):
+        core.on_message(imu(BASE + k * MS, frame=frame), BASE + k * MS)
+    notices = core.take_notices()
+    assert len(notices) == 17 and "more than 16" in notices[-1] and max(map(len, notices)) < 200
+    snap = core.snapshot(BASE + len(frames) * MS)
+    assert len(snap["frames_taken_as_base_link"]) < 16 * 70 and snap["frames_taken_as_base_link"].endswith("…")
+    assert sum(map(len, snap["input_frames"])) < 17 * 70
+
+
+def test_an_input_slower_than_max_gap_restarts_at_every_sample_and_the_node_warns():
+    """gate.max_gap 5 ms against a 100 Hz input for 21 s: every sample restarts the simulation, which never
+    integrates; the node said OK. Now it WARNs, and the gap restarts are said in a line, at most
+    one per 10 s of receive time (with the count of those not said)."""
+    core = make_core(output_rate=0.0, gate={"max_gap": 0.005})
+    for k in range(2100):
+        core.on_message(imu(BASE + k * 10 * MS), BASE + k * 10 * MS)
+    assert core.resets["gap"] == 2099
+    level, message, _ = statuses(core.diagnostics(BASE + 2099 * 10 * MS))["gyro_platform: node"]
+    assert level == 1 and "restarting repeatedly" in message and "gate.max_gap" in message
+    lines = [n for n in core.take_notices() if "input gap" in n]
+    assert len(lines) == 3 and "more since the last line" in lines[1]
+    steady = make_core(output_rate=0.0)
+    for k in range(300):
+        steady.on_message(imu(BASE + k * 10 * MS), BASE + k * 10 * MS)
+    assert statuses(steady.diagnostics(BASE + 299 * 10 * MS))["gyro_platform: node"][0] == 0
+
+
 def test_unknown_frame_taken_as_identity_is_one_notice_and_a_count_not_a_warning():
     core = make_core(mode="carried", output_rate=0.0)            # unknown_frame: identity (default)
     for k in range(5):

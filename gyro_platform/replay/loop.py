@@ -224,6 +224,7 @@ class _Run:
         self.error: str | None = None
         self.interrupted: str | None = None             # "SIGINT" / "SIGTERM"
         self.identity_frames: list[str] = []
+        self.identity_more = False
         self.diag_topic = msgs.resolve("/diagnostics")
         self._queue: list[tuple] | None = None          # a chunk's outputs and diagnostics to write
         self._writer: Any = None                        # the writer thread of the chunked path
@@ -442,11 +443,20 @@ class _Run:
 
     # ---- shared -------------------------------------------------------------------------------
     def _identity_frame(self, frame: str) -> None:
-        if frame not in self.identity_frames:
-            self.identity_frames.append(frame)
-            print(f"gyro-platform replay: info: frame_id {frame!r} has no --mount; taken as "
-                  f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
-                  file=sys.stderr)
+        """One info line per frame_id without ``--mount`` (16 named, each cut to 64 characters;
+        then one line for the rest: a bag of many frames printed a line each)."""
+        if frame in self.identity_frames or self.identity_more:
+            return
+        if len(self.identity_frames) >= 16:
+            self.identity_more = True
+            print("gyro-platform replay: info: more than 16 frame_ids have no --mount; taken as base_link, "
+                  "counted in the summary, not named further", file=sys.stderr)
+            return
+        self.identity_frames.append(frame)
+        name = frame if len(frame) <= 64 else frame[:63] + "…"
+        print(f"gyro-platform replay: info: frame_id {name!r} has no --mount; taken as "
+              f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
+              file=sys.stderr)
 
     def _diagnostics(self, ts: int, gate: dict | None = None, outcomes: dict | None = None,
                      n_out: int | None = None, last_out: tuple[Any, int] | None = None) -> None:
@@ -513,7 +523,8 @@ class _Run:
                           "stats": self.sim.stats, "errors": self.sim_errors[:20]},
             "config": {"gate": vars(self.cfg.gate), "mounting": self.cfg.mounting.frames(),
                        "unknown_frame": self.cfg.mounting.unknown_frame,
-                       "frames_taken_as_base_link": self.identity_frames},
+                       "frames_taken_as_base_link": [n if len(n) <= 64 else n[:63] + "…" for n in self.identity_frames]
+                       + (["…"] if self.identity_more else [])},
             "warnings": self.warnings(snap),
             "error": self.error,
         }

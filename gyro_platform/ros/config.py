@@ -276,9 +276,20 @@ class NodeConfig:
             raise ConfigError(f"gate.{name}" if f"gate.{name}" in SPECS else "gate", str(e)) from None
 
     def _mounting(self) -> Mounting:
+        """The sensor mountings; with a ``frame_prefix`` (a namespaced robot: its drivers and
+        robot_state_publisher stamp ``robot1/imu_link``) each mounted frame and the vehicle frame
+        also under the prefixed name (they were taken as base_link: the rotation dropped)."""
         try:
-            frames = Mounting.parse_specs(self["sensor_mountings"], self["vehicle_frame"])
-            return Mounting(frames, vehicle_frame=self["vehicle_frame"], unknown_frame=self["unknown_frame"])
+            vehicle = self["vehicle_frame"]
+            frames = Mounting.parse_specs(self["sensor_mountings"], vehicle)
+            prefix = self["frame_prefix"].lstrip("/")
+            if prefix:
+                frames.update({prefix + f: r for f, r in list(frames.items())
+                               if not f.startswith(prefix) and prefix + f not in frames})
+            m = Mounting(frames, vehicle_frame=vehicle, unknown_frame=self["unknown_frame"])
+            if prefix and not vehicle.startswith(prefix):
+                m.add(prefix + vehicle, (0.0, 0.0, 0.0, 1.0))
+            return m
         except ValueError as e:
             raise ConfigError("sensor_mountings", str(e)) from None
 

@@ -65,6 +65,11 @@ MARGIN_WARN = 0.2
 MAX_FRAMES = 16
 #: how long (s of the caller's clock) a rejected sample or an internal error keeps the status raised
 RECENT_S = 10.0
+#: this many restarts within RECENT_S turn the node WARN (an input slower than gate.max_gap
+#: restarts at every sample and never integrates)
+RESTART_STORM = 5
+#: characters of a frame_id kept in a log line or the diagnostics
+MAX_FRAME_NAME = 64
 
 
 # =========================================================================================
@@ -175,6 +180,10 @@ class NodeCore:
         self.published = 0                          # output instants published
         self.internal_errors = 0
         self.identity_frames: set[str] = set()      # input frames without mounting, taken as base_link
+        self.identity_more = False                  # … beyond MAX_FRAMES of them
+        self._restarts_rx: list[int] = []           # receive times of the last RESTART_STORM restarts
+        self._gap_said_rx: int | None = None        # receive time of the last gap restart said in a line
+        self._gaps_unsaid = 0
         self.frames: dict[str, int] = {}            # input frame_id -> samples (MAX_FRAMES names, then 'other')
         self.notices: list[str] = []                # one-time INFO lines for the transport to log
         self.parameter_changes = 0
@@ -270,10 +279,19 @@ class NodeCore:
         self.frames[key] = self.frames.get(key, 0) + 1
 
     def _identity_notice(self, frame: str) -> None:
-        if frame not in self.identity_frames:
-            self.identity_frames.add(frame)
-            self.notices.append(f"input frame '{frame}' has no sensor mounting: taken as "
-                                "base_link (identity); counted as identity_frame in /diagnostics")
+        """First sample of a frame_id without mounting: one line, its name kept (the first
+        ``MAX_FRAMES``, each cut to ``MAX_FRAME_NAME`` characters; more are said once)."""
+        if frame in self.identity_frames:
+            return
+        if len(self.identity_frames) >= MAX_FRAMES:
+            if not self.identity_more:
+                self.identity_more = True
+                self.notices.append(f"more than {MAX_FRAMES} input frames have no sensor mounting: taken as "
+                                    "base_link, counted as identity_frame, not named further")
+            return
+        self.identity_frames.add(frame)
+        self.notices.append(f"input frame '{_cut(frame)}' has no sensor mounting: taken as "
+                            "base_link (identity); counted as identity_frame in /diagnostics")
 
     def _fresh_start(self, reason: str, stamp_ns: int, rx: int | None) -> None:
         """Bookkeeping of a reset the pipeline already applied (simulator reset, grid restarted,
@@ -288,6 +306,17 @@ class NodeCore:
         self.resets[reason] += 1
         self.last_reset_reason = reason
         self._stamp_jump_at = None
+        at = rx if rx is not None else self._last_rx_ns
+        if at is not None:
+            self._restarts_rx = [*self._restarts_rx[-(RESTART_STORM - 1):], at]
+        if reason == "gap":                     # one line, at most one per RECENT_S of receive time
+            if at is None or self._gap_said_rx is None or at - self._gap_said_rx > RECENT_S * NS:
+                more = f" ({self._gaps_unsaid} more since the last line)" if self._gaps_unsaid else ""
+                self.notices.append(f"input gap longer than gate.max_gap ({self.config['gate.max_gap']:g} s): "
+                                    f"simulation restarted{more}")
+                self._gap_said_rx, self._gaps_unsaid = at, 0
+            else:
+                self._gaps_unsaid += 1
         if reason == "jump_back":               # a looped bag: said once per loop, as a clock jump is
             self._stamp_jump_at = stamp_ns
             detail = getattr(getattr(self.gate, "last", None), "detail", "") or "time jumped back"
@@ -418,8 +447,9 @@ class NodeCore:
             "accepted": g["accepted"],
             "dropped": g["dropped"],
             "dropped_by_reason": g["dropped_by_reason"],
-            "input_frames": dict(self.frames),
-            "frames_taken_as_base_link": ", ".join(sorted(self.identity_frames)),
+            "input_frames": {_cut(k): v for k, v in self.frames.items()},
+            "frames_taken_as_base_link": ", ".join([*map(_cut, sorted(self.identity_frames)),
+                                                    *(["…"] if self.identity_more else [])]),
             "stamp_anomalies": stamp_anomalies,
             "input_lost": self.loss.total,
             "input_lost_transport": self.loss.transport,
@@ -489,11 +519,20 @@ class NodeCore:
         if recent(self.loss.last_rx_ns):
             return 1, (f"input overload: samples lost (transport {self.loss.transport}, stamp gaps "
                        f"{self.loss.stamp_gaps}); the node or its transport is slower than the input")
+        if len(self._restarts_rx) == RESTART_STORM and recent(self._restarts_rx[0]):
+            return 1, (f"simulation restarting repeatedly ({RESTART_STORM} restarts within {RECENT_S:g} s, the last "
+                       f"for {self.last_reset_reason}): is the input slower than gate.max_gap "
+                       f"({self.config['gate.max_gap']:g} s)?")
         if recent(self._last_rejected_rx):
             return 1, "simulator rejected or restarted a sample recently"
         if margin is not None and margin < MARGIN_WARN:
             return 1, f"thin real-time margin ({margin:.2f})"
         return 0, "ok"
+
+
+def _cut(frame: str) -> str:
+    """A frame_id for a log line or the diagnostics: at most ``MAX_FRAME_NAME`` characters."""
+    return frame if len(frame) <= MAX_FRAME_NAME else frame[:MAX_FRAME_NAME - 1] + "…"
 
 
 __all__ = ["NodeCore", "DIAGNOSTICS_TOPIC", "GIMBAL_LOCK_WARN", "MARGIN_WARN", "RECENT_S"]

@@ -296,12 +296,25 @@ def _interrupt_once() -> None:
         pass
 
 
+def rcl_reason(e: BaseException) -> str:
+    """rcl's error text in one line, without the C source locations it appends (``, at ./src/…``)."""
+    text = " ".join(str(e).split())
+    return text.split(", at ./")[0].split(" at ./src/")[0]
+
+
 def main(args: list[str] | None = None) -> int:
     """``ros2 run gyro_platform platform_node [--ros-args …]``: spin until Ctrl-C (exit 0); exit 2
-    with one line on stderr when the parameters are invalid."""
+    with one line on stderr when the parameters are invalid, or when rcl cannot read its
+    arguments (a params file it cannot find or parse, a malformed ``-p``)."""
     compile_notices(NODE_NAME)          # kernels compiling before "ready": said on stderr (physics.jit)
     _interrupt_once()            # before rclpy.init: rclpy's handler calls it after its own
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except KeyboardInterrupt:
+        return 0
+    except Exception as e:  # noqa: BLE001 - rcl's RCLError: a params file it cannot parse or find, a bad -p
+        print(f"{NODE_NAME}: cannot start: {rcl_reason(e)}", file=sys.stderr)
+        return 2
     node = None
     code = 0
     try:
