@@ -32,8 +32,9 @@ def check_grid_rate(rate: float | None, name: str, zero_ok: bool = True) -> None
     if rate is None or (zero_ok and rate == 0):
         return
     if not (math.isfinite(rate) and 0 < rate <= MAX_GRID_RATE):
-        every = " (0 = every sample)" if zero_ok else ""
-        raise ValueError(f"{name} {rate!r}: must be a finite rate in (0, {MAX_GRID_RATE:g}] Hz{every}")
+        what = f"0 (every sample) or a finite rate in (0, {MAX_GRID_RATE:g}] Hz" if zero_ok else \
+            f"a finite rate in (0, {MAX_GRID_RATE:g}] Hz"
+        raise ValueError(f"{name} {rate!r}: must be {what}")
 
 
 def grid_index(t_ns: int, origin_ns: int, rate: float) -> int:

@@ -257,18 +257,21 @@ class PlatformNode(Node):
                 node.level = node.WARN
         arr.status.append(transport_status(self.core.types, values))
         self._diag_pub.publish(arr)
-        self._log_clock_state("waiting" if waiting else ("running" if self._clock_state else ""))
+        self._log_clock_state("waiting" if waiting else (("running" if sim else "system") if self._clock_state else ""))
 
     def _log_clock_state(self, state: str) -> None:
-        """One line when the node starts waiting for /clock, one when it comes."""
+        """One line when the node starts waiting for /clock, one when it comes, one when
+        ``use_sim_time`` is set false meanwhile."""
         if state == self._clock_state or not state:
             return
         if state == "waiting":
             self.get_logger().warning(
                 "use_sim_time is true and no /clock is published: waiting for /clock (inputs are taken on their "
                 "header stamps; receive times and the /diagnostics stamp stay 0 until it comes)")
-        else:
+        elif state == "running":
             self.get_logger().info("/clock received: the node clock runs on sim time")
+        else:
+            self.get_logger().info("use_sim_time is false: the node clock runs on system time")
         self._clock_state = state
 
 
