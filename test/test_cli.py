@@ -594,7 +594,7 @@ def test_every_plot_panel_has_title_units_and_legend_and_the_title_fits(scene):
 
 
 @pytest.mark.parametrize("args,words", [
-    (["--output-rate", "-1"], "--output-rate -1.0: must be a finite rate"),
+    (["--output-rate", "-1"], "--output-rate -1.0: must be 0 (every sample) or a finite rate"),
     (["--output-rate", "inf"], "argument --output-rate: expected a finite number, got inf"),
     (["--diagnostics-rate", "inf"], "argument --diagnostics-rate: expected a finite number, got inf"),
     (["--diagnostics-rate", "0"], "--diagnostics-rate 0.0"),
@@ -634,7 +634,7 @@ def test_namespaces_that_are_valid_pass():
 
 # ---- issue 17: values refused up front, no usable input, exit codes -----------------------------
 @pytest.mark.parametrize("args,words", [
-    (["--output-rate", "-5"], "--output-rate -5.0: must be a finite rate"),
+    (["--output-rate", "-5"], "--output-rate -5.0: must be 0 (every sample) or a finite rate"),
     (["--output-rate", "nan"], "argument --output-rate: expected a finite number, got nan"),
     (["--diagnostics-rate", "nan"], "argument --diagnostics-rate: expected a finite number, got nan"),
     (["--max-gap", "inf"], "argument --max-gap: expected a finite number, got inf"),
