@@ -275,13 +275,19 @@ def test_full_disk_during_replay_is_exit_4_with_one_line(big, tmp_path, storage)
     assert any(w in lines[0] for w in ("too large", "full", "I/O")), lines[0]
 
 
-def test_full_disk_during_replay_leaves_the_written_part_readable(big, tmp_path):
+def test_full_disk_during_replay_leaves_the_written_part_readable_and_the_summary(big, tmp_path):
+    """The bag closed with what it held, and the summary of what was simulated written beside it
+    (the limit is the bag's size; the summary is small): it was lost with the exit 4."""
     out = tmp_path / "o"
     proc = start_replay(big["bags"]["sqlite3"], out, big["scene"], "--output-rate", "0",
                         preexec=_fsize_limit(1 << 20))
     proc.communicate(timeout=900)
+    assert proc.returncode == cli.EXIT_WRITE
     assert (out / "metadata.yaml").is_file()
     assert sum(read_bag(out).values()) > 0
+    summary = json.loads((tmp_path / "o.summary.json").read_text())
+    assert summary["write_error"] and summary["error"].startswith("cannot write the output")
+    assert summary["counts"]["accepted"] > 0 and summary["files"]["summary"]
 
 
 def test_full_disk_during_run_is_exit_4(tmp_path):

@@ -202,6 +202,9 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_USAGE
         raise
     print_results(summary, args.out)
+    if summary.get("write_error"):      # the bag closed with what it held; the summary written if it could be
+        error(f"cannot write the output: {summary['write_error']}; what was written is closed")
+        return EXIT_WRITE
     no_output = not_usable(summary)
     if no_output and not summary["error"]:
         error(no_output)

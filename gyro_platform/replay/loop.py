@@ -41,7 +41,7 @@ from .. import messages as msgs
 from ..bags.reader import InputBag
 from ..bags.writer import OutputBag
 from ..engine.outputs import OutputBlock
-from ..errors import BagReadError, ReplayError, SimulationError
+from ..errors import BagReadError, OutputError, ReplayError, SimulationError
 from ..messages import MessageTypes, Mounting
 from ..messages.encode import encode_outputs
 from ..messages.typedefs import core_typestore
@@ -148,6 +148,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
                 run.loop()
             except KeyboardInterrupt as e:  # setting up the output, or held while its last chunk was written
                 run.stopped(e)
+            except OutputError as e:        # the output bag failed mid-run (disk full): the bag is closed
+                run.write_failed(e)         # with what it holds, the summary of what was simulated written
             finally:
                 if out is not None:
                     with deferred_signals():   # a signal now would cut the index + metadata: held until closed
@@ -178,8 +180,17 @@ def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, cpu: float, 
         summary["output"]["skipped_topics"] = run.out.skipped
     summary["files"] = {"bag": str(out_bag), "summary": str(summary_path), "plot": None}
     if plot:
-        summary["files"]["plot"], summary["recorder"] = run.plot(plot_path)
-    write_json(summary_path, summary)
+        try:
+            summary["files"]["plot"], summary["recorder"] = run.plot(plot_path)
+        except OSError:
+            if run.write_error is None:
+                raise                            # (after a failed bag: the same disk refused it)
+    try:
+        write_json(summary_path, summary)
+    except OSError:
+        if run.write_error is None:
+            raise
+        summary["files"]["summary"] = None
     return summary
 
 
@@ -222,6 +233,7 @@ class _Run:
         self.last_ts: int | None = None
         self.last_out: tuple[Any, int] | None = None     # (OutputBlock, index) or (Outputs, -1)
         self.error: str | None = None
+        self.write_error: str | None = None
         self.interrupted: str | None = None             # "SIGINT" / "SIGTERM"
         self.identity_frames: list[str] = []
         self.identity_more = False
@@ -273,6 +285,12 @@ class _Run:
             finally:
                 if self._writer is not None:
                     self._writer.shutdown()
+
+    def write_failed(self, e: OutputError) -> None:
+        """The output bag could not be written (disk full, file size limit): the run ends here;
+        the summary's ``error`` and ``write_error`` say why (``replay`` exits 4)."""
+        self.write_error = str(e)
+        self.error = f"cannot write the output: {e}"
 
     def stopped(self, e: KeyboardInterrupt) -> None:
         """A Ctrl-C (KeyboardInterrupt) or SIGTERM (``errors.Terminated``) stopped the run: the
@@ -527,6 +545,7 @@ class _Run:
                        + (["…"] if self.identity_more else [])},
             "warnings": self.warnings(snap),
             "error": self.error,
+            "write_error": self.write_error,
         }
 
     def warnings(self, snap: dict[str, Any]) -> list[str]:
