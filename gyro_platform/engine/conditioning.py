@@ -71,6 +71,12 @@ class LockMargin:
         """How far from ±90° the closest inner gimbal came, degrees."""
         return math.degrees(math.asin(min(1.0, self.margin)))
 
+    def phrase(self) -> str:
+        """Where and how close, for a warning."""
+        if self.margin == 0:
+            return f"{self.joint} went through gimbal lock (±90°) by t = {self.t:.6g} s"
+        return f"{self.joint} came within {self.degrees:.3g}° of gimbal lock at t = {self.t:.6g} s"
+
 
 @dataclass(frozen=True)
 class LockCheck:
@@ -99,9 +105,7 @@ class LockCheck:
 
     def sentence(self) -> str:
         """One line for the run's warnings."""
-        lk = self.lock
-        near = (f"{lk.joint} went through gimbal lock (±90°) by t = {lk.t:.6g} s" if lk.margin == 0
-                else f"{lk.joint} came within {lk.degrees:.3g}° of gimbal lock at t = {lk.t:.6g} s")
+        near = self.lock.phrase()
         if self.ill_conditioned:
             return (f"{near}; a check run at rtol {self.check_rtol:g} differs by up to {self.difference:.3g} rad, "
                     f"beyond {self.bound:.3g} rad from t = {self.t_beyond:.6g} s: the motion through the lock "

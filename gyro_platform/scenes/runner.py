@@ -276,9 +276,8 @@ def _finish(scene: Scene, sim: Any, rec: Recorder, feed: _Feed, out: Path | None
         summary["gimbal_lock_check"] = check.as_dict()
         warnings.append(check.sentence())
     elif lock is not None and lock.near:          # a bag scene: its input is not read twice
-        warnings.append(f"{lock.joint} came within {lock.degrees:.3g}° of gimbal lock at t = {lock.t:.6g} s: "
-                        "a motion through it amplifies errors beyond the asked tolerance (not checked: "
-                        "a bag scene is run once)")
+        warnings.append(f"{lock.phrase()}: a motion through it can amplify errors beyond the asked tolerance "
+                        "(not checked: a bag scene is run once)")
     summary["warnings"] = warnings
     results = evaluate(scene, summary)
     if out is not None:

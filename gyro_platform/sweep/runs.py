@@ -39,6 +39,7 @@ from typing import Any
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 from ..errors import BagReadError, ReplayError, SimulationError
 from ..physics.jit import compile_notices
+from ..reports.summary import UNSTEADY_VEHICLE_NOTE
 from ..scenes.runner import run_scene
 from ..scenes.schema import MotionError, ScenarioError, scene_from_dict
 
@@ -93,7 +94,7 @@ def _verdict(summary: dict[str, Any]) -> dict[str, Any]:
     (the figures cover its readable part), ``refused`` for a run through gimbal lock that its
     check run contradicts (``engine.conditioning``), else ``ok``; the run's warnings (a bag that
     ends before the duration, a near approach to lock …) as the message."""
-    warnings = "; ".join(summary.get("warnings", []))
+    warnings = "; ".join(w for w in summary.get("warnings", []) if w != UNSTEADY_VEHICLE_NOTE)   # (a note)
     if summary.get("error"):
         return {"status": "failed_input", "message": f"bag damaged, the figures cover its readable part: "
                                                      f"{summary['error']}"}
