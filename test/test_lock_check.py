@@ -81,7 +81,9 @@ def test_the_check_is_held_to_a_thousand_tolerances_of_the_run():
     b[2, 2] += 0.2 * bound
     c = compare(lock, t, a, b, 1e-6, 1e-9)
     assert c.ill_conditioned and c.t_beyond == 1.0 and c.difference == pytest.approx(1.1 * bound)
-    assert compare(lock, t, a, b[:1], 1e-6, 1e-9).difference == 0.0       # a check run that stopped at once
+    short = compare(lock, t, a, b[:1], 1e-6, 1e-9)                       # a check run that stopped at once
+    assert short.difference == 0.0 and short.checked_to == 0.0 and "stopped early" in short.sentence()
+    assert c.checked_to is None
 
 
 def test_a_run_tumbling_through_gimbal_lock_is_flagged_where_its_error_is_beyond_the_bound(tmp_path):

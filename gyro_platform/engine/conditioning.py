@@ -83,7 +83,8 @@ class LockCheck:
     """A run near gimbal lock against its check run at ``check_rtol``/``check_atol``: the
     largest gimbal-angle difference ``difference`` (rad) over the recorded instants, the
     ``bound`` it is held to (rad), the first instant ``t_beyond`` (s) where the difference
-    exceeds it (None: nowhere), and the approach ``lock``."""
+    exceeds it (None: nowhere), the approach ``lock``, and ``checked_to`` (s): the last instant
+    compared when the check run stopped early (refused), else None."""
 
     lock: LockMargin
     check_rtol: float
@@ -91,6 +92,7 @@ class LockCheck:
     difference: float
     bound: float
     t_beyond: float | None
+    checked_to: float | None = None
 
     @property
     def ill_conditioned(self) -> bool:
@@ -106,6 +108,8 @@ class LockCheck:
     def sentence(self) -> str:
         """One line for the run's warnings."""
         near = self.lock.phrase()
+        if self.checked_to is not None:
+            near += f" (its check run stopped early: compared up to t = {self.checked_to:.6g} s)"
         if self.ill_conditioned:
             return (f"{near}; a check run at rtol {self.check_rtol:g} differs by up to {self.difference:.3g} rad, "
                     f"beyond {self.bound:.3g} rad from t = {self.t_beyond:.6g} s: the motion through the lock "
@@ -143,5 +147,6 @@ def compare(lock: LockMargin, t: np.ndarray, angles: np.ndarray, check_angles: n
     bound = ILL_CONDITIONED * (atol + rtol * scale)
     beyond = np.flatnonzero(d > bound)
     crtol, catol = check_tolerance(rtol, atol)
+    short = None if n == len(angles) else (float(t[n - 1]) if n else float("nan"))
     return LockCheck(lock, crtol, catol, float(d.max()) if n else 0.0, bound,
-                     float(t[beyond[0]]) if beyond.size else None)
+                     float(t[beyond[0]]) if beyond.size else None, short)
