@@ -352,3 +352,27 @@ def test_local_workers_log_into_the_sweeps_folder_not_the_terminal(tmp_path, to_
     else:
         assert "Traceback" in proc.stderr and "made up" in proc.stderr
         assert logged_records(log, start) == 0 and logged_records(log) == 1
+
+
+def test_a_varied_parameter_no_effect_of_the_scene_evaluates_is_said(tmp_path, capsys):
+    """The default scene has no mass_unbalance effect: varying ``unbalance`` changes nothing (the
+    drift of every run is the nominal one), so the sweep says so in one warning line and in its
+    summary; ``bias_torque`` (an effect of that scene) gets no warning."""
+    from gyro_platform import cli
+    from gyro_platform.physics.options import EFFECTS, PARAM_EFFECTS
+    from gyro_platform.physics.params import PlatformParams
+
+    assert all(e in EFFECTS for need in PARAM_EFFECTS.values() for e in need)
+    assert set(PARAM_EFFECTS) <= {f.name for f in __import__("dataclasses").fields(PlatformParams)}
+    text = ("scene: default\nduration: 1\nruns: 2\nvary:\n"
+            "  unbalance: {dist: list, values: [1.0e-8, 1.0e-6]}\n"
+            '  "bias_torque[4]": {dist: fixed, value: 1.0e-7}\n')
+    spec = load_sweep(_write(tmp_path, text))
+    assert len(spec.warnings) == 1 and "vary.unbalance" in spec.warnings[0] and "mass_unbalance" in spec.warnings[0]
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(_write(tmp_path, text)), "--out", str(out), "--workers", "1", "--no-plots"]) == 0
+    err = capsys.readouterr().err
+    assert sum("warning: " in ln and "vary.unbalance" in ln for ln in err.splitlines()) == 1, err
+    assert json.loads((out / "summary.json").read_text())["warnings"] == list(spec.warnings)
+    table = _table(out)
+    assert table[0]["drift_rate_z_deg_per_h"] == table[1]["drift_rate_z_deg_per_h"]     # unused indeed

@@ -42,6 +42,20 @@ EFFECTS: dict[str, str] = {
 #: effects that need the vehicle specific force in the input
 NEEDS_SPECIFIC_FORCE = frozenset({"mass_unbalance", "anisoelastic"})
 STABILISED_ONLY = frozenset({"support_friction", "servo"})
+#: the effects that evaluate a ``PlatformParams`` field (any of them); the fields not named here
+#: (inertias, rotor speeds, mounting) are used whatever the effects
+PARAM_EFFECTS: dict[str, frozenset[str]] = {
+    **dict.fromkeys(("spring",), frozenset({"gimbal_springs"})),
+    **dict.fromkeys(("damper",), frozenset({"gimbal_dampers"})),
+    **dict.fromkeys(("gimbal_coulomb", "gimbal_viscous_friction", "friction_rate_eps"), frozenset({"gimbal_friction"})),
+    **dict.fromkeys(("bias_torque",), frozenset({"bias_torque"})),
+    **dict.fromkeys(("support_viscous", "support_coulomb", "support_rate_eps"), frozenset({"support_friction"})),
+    **dict.fromkeys(("servo_kp", "servo_kd", "servo_ki", "servo_limit"), frozenset({"servo"})),
+    **dict.fromkeys(("gyro_mass",), frozenset({"mass_unbalance", "anisoelastic"})),
+    **dict.fromkeys(("unbalance",), frozenset({"mass_unbalance"})),
+    **dict.fromkeys(("anisoelastic",), frozenset({"anisoelastic"})),
+    **dict.fromkeys(("latitude", "earth_rate"), frozenset({"earth_rate"})),
+}
 
 DEFAULT_EFFECTS = {
     "carried": frozenset({"rotor_gyroscopic", "coriolis", "vehicle_angular_acceleration"}),

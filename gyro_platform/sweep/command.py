@@ -230,7 +230,8 @@ def _finish_locked(spec: SweepSpec, out: Path, res: SweepResult, plots: bool) ->
                "records": len(res.records), "status_counts": res.counts, "executed_now": res.executed,
                "skipped_finished": res.skipped, "records_beyond_runs": res.beyond,
                "interrupted": res.interrupted, "wall_s": res.wall_s, "damaged_records_redone": res.damaged,
-               "drift_budget": budget_stats(res.records), "table": [str(parquet), str(csv)]}
+               "drift_budget": budget_stats(res.records), "table": [str(parquet), str(csv)],
+               "warnings": list(spec.warnings)}
     if plots and any(r["status"] == "ok" for r in res.records):
         summary["plot"] = str(plot_budget(res.records, out / "budget.png",
                                           f"{spec.source.name}: {spec.kind.replace('_', ' ')}, "
@@ -286,6 +287,8 @@ def run(args) -> int:
     except OutputError as e:
         print(f"{prog}: {e}", file=sys.stderr)
         return EXIT_USAGE
+    for w in spec.warnings:          # a varied parameter no effect of the scene evaluates
+        print(f"gyro-platform sweep: warning: {w}", file=sys.stderr)
     with StopSignals("gyro-platform sweep"):      # SIGTERM: the same orderly stop as Ctrl-C
         try:
             client = connect_scheduler(args.scheduler) if args.scheduler else None   # before any write

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from .runs import RunTask
+from ..physics.options import PARAM_EFFECTS
 from ..physics.params import PlatformParams
 from ..scenes.scene_yaml import as_float, load_yaml, SceneYAMLError
 from ..scenes.schema import find_scene, fit_window_too_short, ScenarioError, scene_from_dict
@@ -107,6 +108,7 @@ class SweepSpec:
     runs: int
     vary: tuple[Variation, ...]
     bags: tuple[Path, ...]
+    warnings: tuple[str, ...] = ()      # varied parameters the scene's effects leave unused
 
     @property
     def kind(self) -> str:
@@ -319,12 +321,26 @@ def load_sweep(path) -> SweepSpec:
         trial = copy.deepcopy(scene)
         trial["motion"] = {**trial["motion"], "path": str(bags[0])}
     try:  # the scene must accept the sweep's values (each run is still checked on its own)
-        scene_from_dict(trial, source=f"{scene_path.name} in {path.name}", base_dir=scene_path.resolve().parent,
-                        default_name=scene_path.stem)
+        checked = scene_from_dict(trial, source=f"{scene_path.name} in {path.name}",
+                                  base_dir=scene_path.resolve().parent, default_name=scene_path.stem)
     except ScenarioError as e:
         raise SweepSpecError(f"{src}: {e}") from None
     scene.setdefault("name", scene_path.stem)
-    return SweepSpec(source=path, scene_path=scene_path, scene=scene, seed=seed, runs=runs, vary=vary, bags=bags)
+    return SweepSpec(source=path, scene_path=scene_path, scene=scene, seed=seed, runs=runs, vary=vary, bags=bags,
+                     warnings=unused_variations(vary, checked.options.effects, src))
 
 
-__all__ = ["SweepSpec", "SweepSpecError", "Variation", "load_sweep", "apply_value", "DISTRIBUTIONS"]
+def unused_variations(vary: tuple[Variation, ...], effects: frozenset[str], src: str) -> tuple[str, ...]:
+    """One line per varied platform parameter that no effect of the scene evaluates
+    (``physics.options.PARAM_EFFECTS``): its draws would change nothing and still fill the table."""
+    out = []
+    for v in vary:
+        need = PARAM_EFFECTS.get(v.path[-1]) if v.path[0] == "params" else None
+        if need and not need & effects:
+            out.append(f"{src}: vary.{v.key}: the scene's effects leave it unused ({' or '.join(sorted(need))} "
+                       "is off): its draws change nothing")
+    return tuple(out)
+
+
+__all__ = ["SweepSpec", "SweepSpecError", "Variation", "load_sweep", "apply_value", "unused_variations",
+           "DISTRIBUTIONS"]
