@@ -655,3 +655,19 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     code = cli.main(["replay", str(bag), "--out", str(tmp_path / "o3"), "--mount", "imu=1,2", "--quiet"])
     assert code == cli.EXIT_USAGE == 2
     assert "mounting" in capsys.readouterr().err
+
+
+def test_many_unmounted_frames_are_named_up_to_sixteen_and_cut(tmp_path, capsys):
+    """40 frame_ids without ``--mount``, one of 100 000 characters: 16 info lines and one for the
+    rest (a bag of many frames printed a line each), the summary's list cut the same way
+    (``messages.frame_label``); every sample is still taken as base_link and integrated."""
+    frames = ["x" * 100_000] + [f"f{i}" for i in range(39)]
+    items = [(T0 + k * S // 100, imu_msg(T0 + k * S // 100, (0.0, 0.0, 0.01), frame=frames[k % 40]))
+             for k in range(200)]
+    bag = write_bag(tmp_path / "frames", items)
+    summary = rp.replay(bag, tmp_path / "out", rp.ReplayConfig(progress=False, plot=False))
+    info = [ln for ln in capsys.readouterr().err.splitlines() if "has no --mount" in ln or "more than 16" in ln]
+    assert len(info) == 17 and "more than 16" in info[-1] and max(map(len, info)) < 250
+    taken = summary["config"]["frames_taken_as_base_link"]
+    assert len(taken) == 17 and taken[-1] == "…" and len(taken[0]) == 64
+    assert summary["counts"]["accepted"] == 200

@@ -26,7 +26,8 @@ and ``errors``.
 """
 from .diagnostics import diagnostic_array, flatten, key_values, TRANSPORT_STATUS, transport_status
 from .inputs import as_rotation, message_kind, Mounting, Reading, reading_from_msg, Rejected, type_name, Vec3
-from .names import (bearing_topic, DIAGNOSTIC_ARRAY, HARDWARE_ID, header, IMU, INPUT_TYPES, jazzy_typestore,
+from .names import (bearing_topic, DIAGNOSTIC_ARRAY, frame_label, FRAME_NAME_CHARS, FRAMES_NAMED, HARDWARE_ID,
+                    header, IMU, INPUT_TYPES, jazzy_typestore,
                     JOINT_STATE, MessageTypes, output_topics, PLATFORM_FRAME, QUATERNION_STAMPED, REFERENCE_FRAME,
                     resolve, stamp_ns, TOPICS, TopicSpec, TWIST, TWIST_STAMPED, VECTOR3_STAMPED, VEHICLE_FRAME,
                     WRENCH_STAMPED)
@@ -37,7 +38,8 @@ from .outputs import (bearing_wrenches, drift_angle, drift_rate, joint_columns, 
 
 __all__ = ["diagnostic_array", "flatten", "key_values", "TRANSPORT_STATUS", "transport_status", "as_rotation",
            "message_kind", "Mounting", "Reading", "reading_from_msg", "Rejected", "type_name", "Vec3", "bearing_topic",
-           "DIAGNOSTIC_ARRAY", "HARDWARE_ID", "header", "IMU", "INPUT_TYPES", "jazzy_typestore", "JOINT_STATE",
+           "DIAGNOSTIC_ARRAY", "frame_label", "FRAME_NAME_CHARS", "FRAMES_NAMED", "HARDWARE_ID", "header", "IMU",
+           "INPUT_TYPES", "jazzy_typestore", "JOINT_STATE",
            "MessageTypes", "output_topics", "PLATFORM_FRAME", "QUATERNION_STAMPED", "REFERENCE_FRAME", "resolve",
            "stamp_ns", "TOPICS", "TopicSpec", "TWIST", "TWIST_STAMPED", "VECTOR3_STAMPED", "VEHICLE_FRAME",
            "WRENCH_STAMPED", "bearing_wrenches", "drift_angle", "drift_rate", "joint_columns", "joint_positions",

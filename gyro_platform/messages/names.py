@@ -67,6 +67,16 @@ VEHICLE_FRAME = "base_link"
 #: frame of drift angle and drift rate
 PLATFORM_FRAME = "platform"
 HARDWARE_ID = "gyro_platform"
+#: input frame_ids named one by one in log lines, summaries and diagnostics (more are counted
+#: together), each cut to ``FRAME_NAME_CHARS`` characters (``frame_label``)
+FRAMES_NAMED = 16
+FRAME_NAME_CHARS = 64
+
+
+def frame_label(frame: str) -> str:
+    """An input frame_id as a log line, a summary or the diagnostics names it: at most
+    ``FRAME_NAME_CHARS`` characters (a 100 000-character frame_id made a 104 kB diagnostics value)."""
+    return frame if len(frame) <= FRAME_NAME_CHARS else frame[:FRAME_NAME_CHARS - 1] + "…"
 
 
 class TopicSpec(NamedTuple):

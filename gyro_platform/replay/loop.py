@@ -461,18 +461,18 @@ class _Run:
 
     # ---- shared -------------------------------------------------------------------------------
     def _identity_frame(self, frame: str) -> None:
-        """One info line per frame_id without ``--mount`` (16 named, each cut to 64 characters;
-        then one line for the rest: a bag of many frames printed a line each)."""
+        """One info line per frame_id without ``--mount`` (``messages.FRAMES_NAMED`` named, each
+        cut by ``messages.frame_label``; then one line for the rest: a bag of many frames printed
+        a line each)."""
         if frame in self.identity_frames or self.identity_more:
             return
-        if len(self.identity_frames) >= 16:
+        if len(self.identity_frames) >= msgs.FRAMES_NAMED:
             self.identity_more = True
-            print("gyro-platform replay: info: more than 16 frame_ids have no --mount; taken as base_link, "
-                  "counted in the summary, not named further", file=sys.stderr)
+            print(f"gyro-platform replay: info: more than {msgs.FRAMES_NAMED} frame_ids have no --mount; taken as "
+                  "base_link, counted in the summary, not named further", file=sys.stderr)
             return
         self.identity_frames.append(frame)
-        name = frame if len(frame) <= 64 else frame[:63] + "…"
-        print(f"gyro-platform replay: info: frame_id {name!r} has no --mount; taken as "
+        print(f"gyro-platform replay: info: frame_id {msgs.frame_label(frame)!r} has no --mount; taken as "
               f"base_link, counted in the summary (--unknown-frame reject drops such samples)",
               file=sys.stderr)
 
@@ -541,8 +541,8 @@ class _Run:
                           "stats": self.sim.stats, "errors": self.sim_errors[:20]},
             "config": {"gate": vars(self.cfg.gate), "mounting": self.cfg.mounting.frames(),
                        "unknown_frame": self.cfg.mounting.unknown_frame,
-                       "frames_taken_as_base_link": [n if len(n) <= 64 else n[:63] + "…" for n in self.identity_frames]
-                       + (["…"] if self.identity_more else [])},
+                       "frames_taken_as_base_link": [*map(msgs.frame_label, self.identity_frames),
+                                                     *(["…"] if self.identity_more else [])]},
             "warnings": self.warnings(snap),
             "error": self.error,
             "write_error": self.write_error,

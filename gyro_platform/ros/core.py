@@ -62,14 +62,12 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 #: real-time margin (1 − callback time / input period) below which diagnostics WARN
 MARGIN_WARN = 0.2
 #: input frame_ids counted by name in the diagnostics (more are counted together as 'other')
-MAX_FRAMES = 16
+MAX_FRAMES = msgs.FRAMES_NAMED
 #: how long (s of the caller's clock) a rejected sample or an internal error keeps the status raised
 RECENT_S = 10.0
 #: this many restarts within RECENT_S turn the node WARN (an input slower than gate.max_gap
 #: restarts at every sample and never integrates)
 RESTART_STORM = 5
-#: characters of a frame_id kept in a log line or the diagnostics
-MAX_FRAME_NAME = 64
 
 
 # =========================================================================================
@@ -280,7 +278,7 @@ class NodeCore:
 
     def _identity_notice(self, frame: str) -> None:
         """First sample of a frame_id without mounting: one line, its name kept (the first
-        ``MAX_FRAMES``, each cut to ``MAX_FRAME_NAME`` characters; more are said once)."""
+        ``MAX_FRAMES``, each cut by ``messages.frame_label``; more are said once)."""
         if frame in self.identity_frames:
             return
         if len(self.identity_frames) >= MAX_FRAMES:
@@ -290,7 +288,7 @@ class NodeCore:
                                     "base_link, counted as identity_frame, not named further")
             return
         self.identity_frames.add(frame)
-        self.notices.append(f"input frame '{_cut(frame)}' has no sensor mounting: taken as "
+        self.notices.append(f"input frame '{msgs.frame_label(frame)}' has no sensor mounting: taken as "
                             "base_link (identity); counted as identity_frame in /diagnostics")
 
     def _fresh_start(self, reason: str, stamp_ns: int, rx: int | None) -> None:
@@ -447,8 +445,8 @@ class NodeCore:
             "accepted": g["accepted"],
             "dropped": g["dropped"],
             "dropped_by_reason": g["dropped_by_reason"],
-            "input_frames": {_cut(k): v for k, v in self.frames.items()},
-            "frames_taken_as_base_link": ", ".join([*map(_cut, sorted(self.identity_frames)),
+            "input_frames": {msgs.frame_label(k): v for k, v in self.frames.items()},
+            "frames_taken_as_base_link": ", ".join([*map(msgs.frame_label, sorted(self.identity_frames)),
                                                     *(["…"] if self.identity_more else [])]),
             "stamp_anomalies": stamp_anomalies,
             "input_lost": self.loss.total,
@@ -528,11 +526,6 @@ class NodeCore:
         if margin is not None and margin < MARGIN_WARN:
             return 1, f"thin real-time margin ({margin:.2f})"
         return 0, "ok"
-
-
-def _cut(frame: str) -> str:
-    """A frame_id for a log line or the diagnostics: at most ``MAX_FRAME_NAME`` characters."""
-    return frame if len(frame) <= MAX_FRAME_NAME else frame[:MAX_FRAME_NAME - 1] + "…"
 
 
 __all__ = ["NodeCore", "DIAGNOSTICS_TOPIC", "GIMBAL_LOCK_WARN", "MARGIN_WARN", "RECENT_S"]
