@@ -126,3 +126,19 @@ def test_a_run_far_from_lock_is_not_checked():
     rec, summary, _ = run_scene(scene_from_dict(_swung(0.3)))
     assert lock_margin(rec.t, rec.gimbal_angles).margin > GIMBAL_LOCK_WARN
     assert "gimbal_lock_check" not in summary
+
+
+def test_a_refused_check_run_is_compared_instant_for_instant_up_to_where_it_stopped(monkeypatch):
+    """A check run asked more than it can meet (rtol 1e-13, atol 1e-22) refuses before the end:
+    the instants it gave are compared with the run's same instants. Its last chunk's outputs were
+    appended twice (once as the chunk the run generator yields before it re-raises, once from the
+    error), shifting every later instant: 2.1 rad and "ill-conditioned" where the two agree to
+    ~6e-7 rad."""
+    from gyro_platform.scenes import runner
+
+    monkeypatch.setattr(runner, "check_tolerance", lambda rtol, atol: (1e-13, 1e-22))
+    rec, summary, _ = run_scene(scene_from_dict(_swung(1.0)))
+    c = summary["gimbal_lock_check"]
+    assert c["checked_to"] is not None and c["checked_to"] < rec.t[-1]
+    assert not c["ill_conditioned"] and c["difference"] < 1e-5, c
+    assert "stopped early" in next(w for w in summary["warnings"] if "gimbal lock" in w)
