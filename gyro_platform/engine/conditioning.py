@@ -24,8 +24,8 @@ met its local tolerance at every step while a tolerance-sized difference at the 
 
 :func:`lock_margin` finds the closest approach (``Outputs.status['gimbal_lock_margin']``, the
 smallest ``|cos β|``, from the recorded angles); :func:`compare` judges a run against its check
-run. Pure functions on arrays: the caller (``scenes.runner``) makes the check run. Imports numpy
-and ``engine.outputs`` only.
+run. Pure functions on arrays: the caller (``scenes.runner``) makes the check run. Imports numpy,
+``engine.outputs`` and ``physics.options`` only.
 """
 from __future__ import annotations
 
@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from .outputs import GIMBAL_NAMES
+from ..physics.options import RTOL_MIN
 
 __all__ = ["GIMBAL_LOCK_WARN", "INNER", "CHECK_TIGHTER", "ILL_CONDITIONED", "LockMargin", "LockCheck",
            "lock_margin", "check_tolerance", "compare"]
@@ -44,7 +45,7 @@ __all__ = ["GIMBAL_LOCK_WARN", "INNER", "CHECK_TIGHTER", "ILL_CONDITIONED", "Loc
 GIMBAL_LOCK_WARN = 0.1
 #: the inner gimbals, by index into ``GIMBAL_NAMES``
 INNER = tuple(i for i, n in enumerate(GIMBAL_NAMES) if n.startswith("beta"))
-#: the check run asks rtol and atol this many times tighter (rtol ≥ 1e-13)
+#: the check run asks rtol and atol this many times tighter (rtol ≥ ``RTOL_MIN``)
 CHECK_TIGHTER = 100.0
 #: the run is ill-conditioned where the check run's gimbal angles differ from its own by more
 #: than this many of its tolerances, ``atol + rtol·max(1, max |angle|)`` (rad): a stable run
@@ -132,8 +133,8 @@ def lock_margin(t: np.ndarray, gimbal_angles: np.ndarray) -> LockMargin | None:
 
 
 def check_tolerance(rtol: float, atol: float) -> tuple[float, float]:
-    """(rtol, atol) of the check run: ``CHECK_TIGHTER`` times tighter, rtol not below 1e-13."""
-    return max(rtol / CHECK_TIGHTER, 1e-13), atol / CHECK_TIGHTER
+    """(rtol, atol) of the check run: ``CHECK_TIGHTER`` times tighter, rtol not below ``RTOL_MIN``."""
+    return max(rtol / CHECK_TIGHTER, RTOL_MIN), atol / CHECK_TIGHTER
 
 
 def compare(lock: LockMargin, t: np.ndarray, angles: np.ndarray, check_angles: np.ndarray,
@@ -142,11 +143,10 @@ def compare(lock: LockMargin, t: np.ndarray, angles: np.ndarray, check_angles: n
     against ``check_angles`` of its check run at the same instants (fewer: the check run
     stopped early, compared where both exist)."""
     n = min(len(angles), len(check_angles))
-    d = np.abs(np.asarray(angles[:n]) - np.asarray(check_angles[:n])).max(axis=1) if n else np.zeros(0)
-    scale = max(1.0, float(np.abs(angles[:n]).max())) if n else 1.0
-    bound = ILL_CONDITIONED * (atol + rtol * scale)
+    a = np.asarray(angles, dtype=float)[:n]
+    d = np.abs(a - np.asarray(check_angles, dtype=float)[:n]).max(axis=1, initial=0.0)
+    bound = ILL_CONDITIONED * (atol + rtol * max(1.0, float(np.abs(a).max(initial=0.0))))
     beyond = np.flatnonzero(d > bound)
-    crtol, catol = check_tolerance(rtol, atol)
     short = None if n == len(angles) else (float(t[n - 1]) if n else float("nan"))
-    return LockCheck(lock, crtol, catol, float(d.max()) if n else 0.0, bound,
+    return LockCheck(lock, *check_tolerance(rtol, atol), float(d.max(initial=0.0)), bound,
                      float(t[beyond[0]]) if beyond.size else None, short)

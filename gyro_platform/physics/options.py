@@ -45,16 +45,24 @@ STABILISED_ONLY = frozenset({"support_friction", "servo"})
 #: the effects that evaluate a ``PlatformParams`` field (any of them); the fields not named here
 #: (inertias, rotor speeds, mounting) are used whatever the effects
 PARAM_EFFECTS: dict[str, frozenset[str]] = {
-    **dict.fromkeys(("spring",), frozenset({"gimbal_springs"})),
-    **dict.fromkeys(("damper",), frozenset({"gimbal_dampers"})),
-    **dict.fromkeys(("gimbal_coulomb", "gimbal_viscous_friction", "friction_rate_eps"), frozenset({"gimbal_friction"})),
-    **dict.fromkeys(("bias_torque",), frozenset({"bias_torque"})),
-    **dict.fromkeys(("support_viscous", "support_coulomb", "support_rate_eps"), frozenset({"support_friction"})),
-    **dict.fromkeys(("servo_kp", "servo_kd", "servo_ki", "servo_limit"), frozenset({"servo"})),
-    **dict.fromkeys(("gyro_mass",), frozenset({"mass_unbalance", "anisoelastic"})),
-    **dict.fromkeys(("unbalance",), frozenset({"mass_unbalance"})),
-    **dict.fromkeys(("anisoelastic",), frozenset({"anisoelastic"})),
-    **dict.fromkeys(("latitude", "earth_rate"), frozenset({"earth_rate"})),
+    "spring": frozenset({"gimbal_springs"}),
+    "damper": frozenset({"gimbal_dampers"}),
+    "gimbal_coulomb": frozenset({"gimbal_friction"}),
+    "gimbal_viscous_friction": frozenset({"gimbal_friction"}),
+    "friction_rate_eps": frozenset({"gimbal_friction"}),
+    "bias_torque": frozenset({"bias_torque"}),
+    "support_viscous": frozenset({"support_friction"}),
+    "support_coulomb": frozenset({"support_friction"}),
+    "support_rate_eps": frozenset({"support_friction"}),
+    "servo_kp": frozenset({"servo"}),
+    "servo_kd": frozenset({"servo"}),
+    "servo_ki": frozenset({"servo"}),
+    "servo_limit": frozenset({"servo"}),
+    "gyro_mass": frozenset({"mass_unbalance", "anisoelastic"}),
+    "unbalance": frozenset({"mass_unbalance"}),
+    "anisoelastic": frozenset({"anisoelastic"}),
+    "latitude": frozenset({"earth_rate"}),
+    "earth_rate": frozenset({"earth_rate"}),
 }
 
 DEFAULT_EFFECTS = {

@@ -284,7 +284,7 @@ class NodeConfig:
             frames = Mounting.parse_specs(self["sensor_mountings"], vehicle)
             prefix = self["frame_prefix"].lstrip("/")
             if prefix:
-                frames.update({prefix + f: r for f, r in list(frames.items())
+                frames.update({prefix + f: r for f, r in frames.items()
                                if not f.startswith(prefix) and prefix + f not in frames})
             m = Mounting(frames, vehicle_frame=vehicle, unknown_frame=self["unknown_frame"])
             if prefix and not vehicle.startswith(prefix):

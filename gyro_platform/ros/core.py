@@ -40,7 +40,7 @@ lost when the receive times show none — :class:`~gyro_platform.ros.overload.In
 """
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 import time
 from typing import Any, Callable, Mapping
@@ -179,7 +179,7 @@ class NodeCore:
         self.internal_errors = 0
         self.identity_frames: set[str] = set()      # input frames without mounting, taken as base_link
         self.identity_more = False                  # … beyond MAX_FRAMES of them
-        self._restarts_rx: list[int] = []           # receive times of the last RESTART_STORM restarts
+        self._restarts_rx: deque[int] = deque(maxlen=RESTART_STORM)   # receive times of the last restarts
         self._gap_said_rx: int | None = None        # receive time of the last gap restart said in a line
         self._gaps_unsaid = 0
         self.frames: dict[str, int] = {}            # input frame_id -> samples (MAX_FRAMES names, then 'other')
@@ -306,7 +306,7 @@ class NodeCore:
         self._stamp_jump_at = None
         at = rx if rx is not None else self._last_rx_ns
         if at is not None:
-            self._restarts_rx = [*self._restarts_rx[-(RESTART_STORM - 1):], at]
+            self._restarts_rx.append(at)
         if reason == "gap":                     # one line, at most one per RECENT_S of receive time
             if at is None or self._gap_said_rx is None or at - self._gap_said_rx > RECENT_S * NS:
                 more = f" ({self._gaps_unsaid} more since the last line)" if self._gaps_unsaid else ""
