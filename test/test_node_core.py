@@ -108,7 +108,8 @@ def test_stabilised_bias_torque_drift_at_1khz_every_sample_published():
         assert [topic for topic, _ in out] == list(expected_topics)
         for topic, m in out:
             assert m.__msgtype__ == expected_topics[topic]
-            assert stamp_ns(m.header.stamp) == stamp                 # the sample's own time, exact ns
+            head = m.transforms[0].header if topic == "/tf" else m.header
+            assert stamp_ns(head.stamp) == stamp                     # the sample's own time, exact ns
         d = dict(out)
         assert d["drift/angle"].header.frame_id == "platform"
         assert d["bearing/gimbal4/torque"].header.frame_id == "gyro_frame4"
@@ -229,6 +230,37 @@ def test_unknown_frame_taken_as_identity_is_one_notice_and_a_count_not_a_warning
     level, message, values = statuses(diag)["gyro_platform: input"]
     assert level == 0 and "base_link" in message                 # OK, said once; counted below
     assert values["notes.identity_frame"] == "5"
+
+
+@pytest.mark.parametrize("mode", ["stabilised", "carried"])
+def test_tf_puts_platform_reference_where_the_vehicle_attitude_says(mode):
+    """``/tf`` carries ``platform`` → ``platform_reference`` (the frame of ``platform/attitude``),
+    so TF chains base_link → platform (the mount joints or the mounting) → platform_reference:
+    under a constant body rate w (rad/s) for t s that chain is the vehicle's attitude in the
+    reference, ``exp(t w×)`` (the reference is base_link's axes at the first sample; whatever the
+    mounting, here 30° of yaw: the platform starts at its mounting)."""
+    from scipy.spatial.transform import Rotation
+
+    from gyro_platform.ros.urdf import config_model
+
+    mounting = [0.0, 0.0, math.sin(math.pi / 12), math.cos(math.pi / 12)]
+    core = make_core(mode=mode, output_rate=100.0, frame_prefix="r1/", physics={"mounting": mounting})
+    model = config_model(core.config)
+    w = np.array([0.05, -0.02, 0.1]) * 5.0
+    worst = 0.0
+    for k in range(1001):
+        for topic, m in core.on_message(imu(BASE + k * MS, w=w), BASE + k * MS):
+            if topic == "gimbal/joint_states":
+                base_platform = model.link_rotations(dict(zip(m.name, m.position)))["platform"]
+            elif topic == "/tf":
+                (tf,) = m.transforms
+                assert (tf.header.frame_id, tf.child_frame_id) == ("r1/platform", "r1/platform_reference")
+                assert stamp_ns(tf.header.stamp) == BASE + k * MS and tf.transform.translation.x == 0.0
+                r = tf.transform.rotation
+                platform_reference = Rotation.from_quat([r.x, r.y, r.z, r.w])
+                base_reference = base_platform * platform_reference      # reference axes in base_link's
+                worst = max(worst, (base_reference * Rotation.from_rotvec(w * k * 1e-3)).magnitude())
+    assert k == 1000 and worst < 1e-12, worst
 
 
 def test_frame_prefix_is_put_before_every_output_frame():
@@ -608,6 +640,10 @@ def _published(out) -> dict[str, list[float]]:
         elif topic == "platform/attitude":
             q = m.quaternion
             res[topic] = [q.x, q.y, q.z, q.w, stamp_ns(m.header.stamp)]
+        elif topic == "/tf":
+            (t,) = m.transforms
+            r = t.transform.rotation
+            res[topic] = [r.x, r.y, r.z, r.w, stamp_ns(t.header.stamp)]
         else:
             v = m.vector
             res[topic] = [v.x, v.y, v.z, stamp_ns(m.header.stamp)]
@@ -618,7 +654,7 @@ def test_reused_output_messages_equal_freshly_built_ones_at_every_instant():
     """The core refills one set of message objects; at every instant they carry exactly what
     ``messages.output_messages`` builds from the same outputs (also across a live change of
     the effects, and with a frame prefix)."""
-    from gyro_platform.messages import output_messages
+    from gyro_platform.messages import output_messages, reference_tf
 
     core = make_core(output_rate=0.0, frame_prefix="r1/", effects=["rotor_gyroscopic", "coriolis"])
     rng = np.random.default_rng(7)
@@ -628,6 +664,11 @@ def test_reused_output_messages_equal_freshly_built_ones_at_every_instant():
         t = BASE + k * MS
         out = core.on_message(imu(t, rng.normal(scale=0.3, size=3)), t)
         ref = [(topic.lstrip("/"), m) for topic, m in output_messages(core.last_out, TYPES, t)]
+        (tf_topic, tf), out = out[-1], out[:-1]
+        assert tf_topic == "/tf" and tf.transforms[0].header.frame_id == "r1/platform"
+        assert tf.transforms[0].child_frame_id == "r1/platform_reference"
+        fresh_tf = reference_tf(dict(ref)["platform/attitude"], TYPES, "r1/")
+        assert _published([(tf_topic, tf)]) == _published([(tf_topic, fresh_tf)])
         assert [topic for topic, _ in out] == [topic for topic, _ in ref]
         assert _published(out) == _published(ref)
         assert all(m.header.frame_id in ("", "r1/" + r.header.frame_id) for (_, m), (_, r) in zip(out, ref))

@@ -27,10 +27,14 @@ import sys
 import xml.etree.ElementTree as ET
 
 import pytest
+from scipy.spatial.transform import Rotation
 
 import rosenv
 from rosenv import Proc
-from tfcheck import assert_tf_matches_joint_states, tf_pairs
+from tfcheck import assert_tf_matches_joint_states, tf_pairs, vehicle_attitudes
+
+#: TF lookup (target, source): the attitude's frame from base_link, through the mount joints
+REFERENCE = ("platform_reference", "base_link")
 
 pytest.importorskip("cyclonedds", reason="the DDS transport needs the 'cyclonedds' package (pip install .[dds])")
 
@@ -56,8 +60,9 @@ def dds_session(ros):
                 "collect": {"/gimbal/joint_states": "sensor_msgs/msg/JointState",
                             "/drift/rate": "geometry_msgs/msg/Vector3Stamped",
                             "/bearing/rotor11/torque": "geometry_msgs/msg/WrenchStamped",
+                            "/platform/attitude": "geometry_msgs/msg/QuaternionStamped",
                             "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"},
-                "settle": 2.0, "tf": [list(p) for p in tf_pairs(urdf) + fixed]}, domain=domain)
+                "settle": 2.0, "tf": [list(p) for p in tf_pairs(urdf) + fixed + [REFERENCE]]}, domain=domain)
         finally:
             code = proc.stop(signal.SIGINT)
     return report, urdf, fixed, code, proc.output
@@ -82,3 +87,8 @@ def test_tf_and_robot_description_of_the_dds_node_in_a_tf2_buffer(dds_session):
         tf = report["tf"][f"{parent}|{child}"]
         assert "error" not in tf, tf
         assert abs(math.hypot(*tf["rotation"]) - 1.0) < 1e-9
+    # platform_reference (the attitude's frame) through the mount joints: the vehicle's attitude
+    chain = report["tf"]["|".join(REFERENCE)]
+    assert "error" not in chain, chain
+    vehicle = vehicle_attitudes(report, urdf)[round(chain["stamp"], 9)]
+    assert (Rotation.from_quat(chain["rotation"]).inv() * vehicle).magnitude() < 1e-9

@@ -31,9 +31,10 @@ import time
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import rosenv
-from tfcheck import assert_tf_matches_joint_states, moving_joints, stamp, tf_pairs
+from tfcheck import assert_tf_matches_joint_states, moving_joints, stamp, tf_pairs, vehicle_attitudes
 
 BEARINGS = ("support", "gimbal4", "gimbal5", "gimbal7", "gimbal9", "gimbal10", "rotor6", "rotor8", "rotor11")
 #: documented output topics (README, topic table) → (type, frame_id)
@@ -48,6 +49,8 @@ OUTPUTS = {
         "gyro_housing5", "gyro_housing7", "gyro_housing10"))},
 }
 LAUNCH = "ros2 launch gyro_platform platform.launch.py"
+#: TF lookups (target, source) of the attitude's frame: from platform, and through the mount joints
+REFERENCE_TF = [("platform_reference", "platform"), ("platform_reference", "base_link")]
 #: the gimbal axes of the model (spec PHYSICS.md; docs/ros.md): unit A α4 about +y, β5 about +z,
 #: β7 about −z; unit B α9 about +z, β10 about +x (in the parent frames at zero angles)
 GIMBAL_AXES = {"alpha4": (0.0, 1.0, 0.0), "beta5": (0.0, 0.0, 1.0), "beta7": (0.0, 0.0, -1.0),
@@ -94,7 +97,8 @@ def default_launch(ros_ws, tmp_path_factory):
         # first launch: learn the URDF's joints, then look every moving one up in TF
         urdf_report, _, _ = launch_and_probe(ros_ws, domain, "output_rate:=50.0", spec_for(count=20))
         urdf = urdf_report["topics"]["/robot_description"][0]["data"]
-        report, code, out = launch_and_probe(ros_ws, domain, "output_rate:=50.0", spec_for(tf=tf_pairs(urdf)))
+        report, code, out = launch_and_probe(ros_ws, domain, "output_rate:=50.0",
+                                             spec_for(tf=tf_pairs(urdf) + REFERENCE_TF))
     return report, code, out, urdf
 
 
@@ -118,6 +122,29 @@ def test_every_output_topic_is_finite_with_its_frame_and_the_input_stamps(defaul
 def test_tf_of_every_moving_joint_equals_the_joint_state(default_launch):
     report, _, _, urdf = default_launch
     assert_tf_matches_joint_states(report, urdf, "/gimbal/joint_states")
+
+
+def test_platform_reference_is_in_tf_at_the_vehicle_attitude(default_launch):
+    """The frame of /platform/attitude is in TF (the node's /tf: platform → platform_reference):
+    looked up from platform it is the attitude of the same stamp, and from base_link (through
+    robot_state_publisher's mount joints) the vehicle's attitude the outputs give; between two
+    instants that attitude turns by exp(Δt w×) under the probe's constant body rate w."""
+    report, _, _, urdf = default_launch
+    att = {round(stamp(m), 9): m["quaternion"] for m in report["topics"]["/platform/attitude"]}
+    direct, chain = (report["tf"][f"{target}|{source}"] for target, source in REFERENCE_TF)
+    assert "error" not in direct and "error" not in chain, (direct, chain)
+    q = att[round(direct["stamp"], 9)]
+    assert (Rotation.from_quat(direct["rotation"]).inv() * Rotation.from_quat([q["x"], q["y"], q["z"], q["w"]])
+            ).magnitude() < 1e-9
+    assert direct["translation"] == [0.0, 0.0, 0.0]
+    vehicle = vehicle_attitudes(report, urdf)
+    assert (Rotation.from_quat(chain["rotation"]).inv() * vehicle[round(chain["stamp"], 9)]).magnitude() < 1e-9
+    first, last = min(vehicle), max(vehicle)
+    w = np.array(spec_for()["publish"]["w"])
+    assert last - first > 1.0
+    turned = vehicle[first].inv() * vehicle[last]
+    # 1e-7: the stamps are float seconds since 1970 here (~2e-7 s apart), w ~0.1 rad/s
+    assert (turned.inv() * Rotation.from_rotvec(w * (last - first))).magnitude() < 1e-7
 
 
 def test_robot_description_joints_are_the_joint_state_names(default_launch):

@@ -39,6 +39,38 @@ def moving_joints(urdf: str):
     return out
 
 
+def link_rotation(urdf: str, positions: dict, link: str) -> Rotation:
+    """Forward kinematics of the URDF: rotation base → ``link`` (child axes to base axes) with
+    the moving joints at ``positions`` (rad; the fixed ones at their origins)."""
+    parent_joint = {j.find("child").get("link"): j for j in ET.fromstring(urdf).iter("joint")}
+    rot = Rotation.identity()
+    while link in parent_joint:
+        j = parent_joint[link]
+        o = j.find("origin")
+        rpy = [float(x) for x in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+        r = Rotation.from_euler("xyz", rpy)
+        if j.get("type") != "fixed":
+            axis = np.array([float(x) for x in j.find("axis").get("xyz").split()])
+            r = r * Rotation.from_rotvec(positions[j.get("name")] * axis)
+        rot = r * rot
+        link = j.find("parent").get("link")
+    return rot
+
+
+def vehicle_attitudes(report, urdf: str, prefix: str = "") -> dict:
+    """Stamp (s, rounded to ns) → the vehicle's attitude in ``platform_reference`` (base_link axes
+    to reference axes) at every instant with both a JointState and a platform attitude: the
+    attitude times the inverse of base_link → platform (the URDF at the joint positions)."""
+    att = {round(stamp(m), 9): m["quaternion"] for m in report["topics"][f"{prefix}/platform/attitude"]}
+    res = {}
+    for m in report["topics"][f"{prefix}/gimbal/joint_states"]:
+        q = att.get(round(stamp(m), 9))
+        if q is not None:
+            platform = link_rotation(urdf, dict(zip(m["name"], m["position"])), "platform")
+            res[round(stamp(m), 9)] = Rotation.from_quat([q["x"], q["y"], q["z"], q["w"]]) * platform.inv()
+    return res
+
+
 def tf_pairs(urdf: str, prefix: str = ""):
     """(parent, child) frame pairs of the moving joints, with the TF frame prefix."""
     return [(prefix + p, prefix + c) for _, p, c, _, _ in moving_joints(urdf)]

@@ -33,8 +33,8 @@ from .names import (bearing_topic, DIAGNOSTIC_ARRAY, frame_label, FRAME_NAME_CHA
                     WRENCH_STAMPED)
 from .outputs import (bearing_wrenches, drift_angle, drift_rate, joint_columns, joint_positions, joint_state,
                       joint_values_of_row, JointColumns, mount_joint_efforts, OUTPUT_COLUMNS, output_messages,
-                      platform_attitude, ROTOR_JOINT_NAMES, rows_of, STRING, string_message, TF_MESSAGE, tf_message,
-                      vector3, vector3_stamped, wrap_angle)
+                      platform_attitude, reference_tf, ROTOR_JOINT_NAMES, rows_of, STRING, string_message,
+                      TF_MESSAGE, tf_message, TF_TOPIC, vector3, vector3_stamped, wrap_angle)
 
 __all__ = ["diagnostic_array", "flatten", "key_values", "TRANSPORT_STATUS", "transport_status", "as_rotation",
            "message_kind", "Mounting", "Reading", "reading_from_msg", "Rejected", "type_name", "Vec3", "bearing_topic",
@@ -44,5 +44,5 @@ __all__ = ["diagnostic_array", "flatten", "key_values", "TRANSPORT_STATUS", "tra
            "stamp_ns", "TOPICS", "TopicSpec", "TWIST", "TWIST_STAMPED", "VECTOR3_STAMPED", "VEHICLE_FRAME",
            "WRENCH_STAMPED", "bearing_wrenches", "drift_angle", "drift_rate", "joint_columns", "joint_positions",
            "joint_state", "joint_values_of_row", "JointColumns", "mount_joint_efforts", "OUTPUT_COLUMNS",
-           "output_messages", "platform_attitude", "ROTOR_JOINT_NAMES", "rows_of", "STRING", "string_message",
-           "TF_MESSAGE", "tf_message", "vector3", "vector3_stamped", "wrap_angle"]
+           "output_messages", "platform_attitude", "reference_tf", "ROTOR_JOINT_NAMES", "rows_of", "STRING",
+           "string_message", "TF_MESSAGE", "tf_message", "TF_TOPIC", "vector3", "vector3_stamped", "wrap_angle"]

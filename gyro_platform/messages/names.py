@@ -33,6 +33,7 @@ Topics (names relative to the node namespace, except ``/diagnostics``; copy this
 | `/diagnostics` (out) | `diagnostic_msgs/msg/DiagnosticArray` | statuses `gyro_platform: input` (time-base counters by reason, last reason, input rate Hz), `gyro_platform: platform` (`Outputs.status`), `gyro_platform: node` (counters, real-time margin, input lost; WARN on overload) and `gyro_platform: transport` (the transport's counters) — the same names on rclpy and on plain DDS | `""` |
 | `/robot_description` (out, transient local) | `std_msgs/msg/String` | URDF of the platform (`gyro_platform.ros.urdf`), generated from the parameters | - |
 | `/tf`, `/tf_static` (out; DDS transport, under rclpy via robot_state_publisher) | `tf2_msgs/msg/TFMessage` | transforms of every joint of the URDF (`/tf_static`: fixed joints, transient local) | REP-105: `base_link` → platform → gimbals → rotors |
+| `/tf` (out; the node on both transports, with `platform/attitude`) | `tf2_msgs/msg/TFMessage` | `platform` → `platform_reference`: the attitude's conjugate, translation 0 | puts the attitude's frame in the TF tree |
 
 Output stamps are in the input's time base (the sample's header stamp, or its receive time when
 the stamps are not set), see :mod:`gyro_platform.pipeline.gate`.

@@ -209,6 +209,7 @@ def output_messages(out: Outputs, types: MessageTypes, t_ns: int, namespace: str
 
 # ---- TF and robot description (the DDS transport publishes these itself) --------------------
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+TF_TOPIC = "/tf"
 STRING = "std_msgs/msg/String"
 
 
@@ -231,6 +232,23 @@ def tf_message(model: Any, positions: Mapping[str, float], types: MessageTypes, 
             header=header(T, t_ns, frame_prefix + joint.parent), child_frame_id=frame_prefix + joint.child,
             transform=tf))
     return T[TF_MESSAGE](transforms=transforms)
+
+
+def reference_tf(attitude: Any, types: MessageTypes, frame_prefix: str = "") -> Any:
+    """``tf2_msgs/TFMessage`` putting ``platform_reference`` (the frame of ``platform/attitude``)
+    in the TF tree, from an attitude ``QuaternionStamped`` (:func:`platform_attitude`): parent
+    ``platform`` (whose parent is ``base_link`` through the URDF), child ``platform_reference``,
+    both with ``frame_prefix``; rotation the attitude's conjugate (the reference's axes in the
+    platform's), translation 0 m (the model is rotational), the attitude's stamp."""
+    T = types
+    q = attitude.quaternion
+    tf = T["geometry_msgs/msg/Transform"](
+        translation=vector3(T, (0.0, 0.0, 0.0)),
+        rotation=T["geometry_msgs/msg/Quaternion"](x=-q.x, y=-q.y, z=-q.z, w=q.w))
+    head = header(T, 0, frame_prefix + PLATFORM_FRAME)
+    head.stamp = attitude.header.stamp
+    return T[TF_MESSAGE](transforms=[T["geometry_msgs/msg/TransformStamped"](
+        header=head, child_frame_id=frame_prefix + REFERENCE_FRAME, transform=tf)])
 
 
 def string_message(text: str, types: MessageTypes) -> Any:

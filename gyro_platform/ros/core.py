@@ -96,8 +96,9 @@ class OutputMessages:
     prefix), built once and refilled in place at each later instant from the simulator's
     output row (``Simulator.output_row``): the one shared stamp, the Vector3s and the
     quaternion (``messages.OUTPUT_COLUMNS``), the JointState's arrays
-    (``messages.joint_values_of_row``). Names, frames and message objects are not touched
-    again. Rebuilt from scratch when the set of outputs changes (mode, rotor rates)."""
+    (``messages.joint_values_of_row``), and the ``/tf`` of ``platform_reference``
+    (``messages.reference_tf``: the attitude's conjugate). Names, frames and message objects are
+    not touched again. Rebuilt from scratch when the set of outputs changes (mode, rotor rates)."""
 
     def __init__(self, types: MessageTypes, frame_prefix: str = ""):
         self.types, self.prefix = types, frame_prefix
@@ -106,6 +107,7 @@ class OutputMessages:
         self._stamp: Any = None
         self._vectors: list[tuple[Any, int]] = []     # (Vector3, first column of the output row)
         self._quat: Any = None
+        self._ref_rot: Any = None
         self._js: Any = None
 
     def fill(self, row: Any, stabilised: bool, t_ns: int) -> list[tuple[str, Any]]:
@@ -125,6 +127,8 @@ class OutputMessages:
             vec.z = v[c + 2]
         q = self._quat
         q.x, q.y, q.z, q.w = v[C_QUAT:C_QUAT + 4]
+        r = self._ref_rot            # platform → platform_reference: the attitude's conjugate
+        r.x, r.y, r.z, r.w = -q.x, -q.y, -q.z, q.w
         pos, vel, eff = msgs.joint_values_of_row(v, stabilised)
         js, fa = self._js, self.types.float_array
         js.position, js.velocity, js.effort = fa(pos), fa(vel), fa(eff)
@@ -141,10 +145,12 @@ class OutputMessages:
                 m.header.frame_id = self.prefix + m.header.frame_id
             if topic == "platform/attitude":
                 self._quat = m.quaternion
+                tf = msgs.reference_tf(m, self.types, self.prefix)
+                self._ref_rot = tf.transforms[0].transform.rotation
             else:
                 vec = m.wrench.torque if topic.startswith("bearing/") else m.vector
                 self._vectors.append((vec, msgs.OUTPUT_COLUMNS[topic]))
-        self.pairs = pairs
+        self.pairs = pairs + [(msgs.TF_TOPIC, tf)]
 
 
 class NodeCore:
@@ -217,9 +223,11 @@ class NodeCore:
     @staticmethod
     def output_topics(with_diagnostics: bool = False) -> dict[str, str]:
         """Output topic → ROS type, names relative to the node namespace as :meth:`on_message`
-        returns them (``gimbal/joint_states`` …); ``/diagnostics`` (absolute) only if asked."""
-        return {(t if t == DIAGNOSTICS_TOPIC else t.lstrip("/")): typ for t, typ in msgs.output_topics("").items()
-                if with_diagnostics or t != DIAGNOSTICS_TOPIC}
+        returns them (``gimbal/joint_states`` …), and ``/tf`` (absolute: ``platform_reference``
+        in the TF tree); ``/diagnostics`` (absolute) only if asked."""
+        topics = {(t if t == DIAGNOSTICS_TOPIC else t.lstrip("/")): typ for t, typ in msgs.output_topics("").items()
+                  if with_diagnostics or t != DIAGNOSTICS_TOPIC}
+        return {**topics, msgs.TF_TOPIC: msgs.TF_MESSAGE}
 
     # ---- input ----------------------------------------------------------------------
     def on_message(self, msg: Any, receive_ns: int | None) -> list[tuple[str, Any]]:

@@ -31,8 +31,8 @@ so the node joins a ROS 2 graph (``RMW_IMPLEMENTATION=rmw_cyclonedds_cpp``, same
 * **The platform node** (:class:`PlatformDdsNode`): the thin adapter around
   :class:`gyro_platform.ros.core.NodeCore` — inputs in, the core's (topic, message) pairs out,
   ``/diagnostics`` periodically (plus a ``gyro_platform: transport`` status, as the rclpy node),
-  ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (from the URDF of
-  :mod:`gyro_platform.ros.urdf`), ``~/reset``
+  ``/robot_description`` and ``/tf_static`` (latched) and ``/tf`` (the joints, from the URDF of
+  :mod:`gyro_platform.ros.urdf`; ``platform`` → ``platform_reference``, from the core), ``~/reset``
   (``std_msgs/msg/Empty``) instead of the rclpy reset service, wall-clock jumps forwarded to
   the core.
 
@@ -355,11 +355,12 @@ class PlatformDdsNode:
 
         self.stop_event = threading.Event()
         self.input = node.create_subscription(core.input_type, core.input_topic, SENSOR_DATA, count_arrivals=True)
+        from ..messages import TF_TOPIC
         outputs = dict(core.output_topics())
         outputs["/diagnostics"] = DIAGNOSTIC_ARRAY
         #: topic as the core names it (relative to the namespace) → publisher
         self.publishers: dict[str, DdsPublisher] = {
-            name: node.create_publisher(t, name, DEFAULT) for name, t in outputs.items()}
+            name: node.create_publisher(t, name, TF if name == TF_TOPIC else DEFAULT) for name, t in outputs.items()}
         self.reset_sub = (node.create_subscription(self.RESET_TYPE, self.RESET_TOPIC, DEFAULT)
                           if reset_topic else None)
         self.waitset = WaitSet(node.participant)
@@ -434,18 +435,17 @@ class PlatformDdsNode:
         self.model = config_model(self.core.config)
         self.publishers["robot_description"] = self.node.create_publisher(STRING, "robot_description", LATCHED)
         self.publishers["/tf_static"] = self.node.create_publisher(TF_MESSAGE, "/tf_static", LATCHED)
-        self.publishers["/tf"] = self.node.create_publisher(TF_MESSAGE, "/tf", TF)
         self.publishers["robot_description"].publish(string_message(config_urdf(self.core.config), self.core.types))
         static = tf_message(self.model, {}, self.core.types, time.time_ns(), self.frame_prefix, static=True)
         if static.transforms:
             self.publishers["/tf_static"].publish(static)
 
     def _publish_tf(self, joint_state: Any) -> None:
-        from ..messages import stamp_ns, tf_message
+        from ..messages import stamp_ns, tf_message, TF_TOPIC
 
         positions = dict(zip(joint_state.name, (float(x) for x in joint_state.position)))
         msg = tf_message(self.model, positions, self.core.types, stamp_ns(joint_state.header.stamp), self.frame_prefix)
-        self.publishers["/tf"].publish(msg)
+        self.publishers[TF_TOPIC].publish(msg)
         self.published += 1
 
     def _process(self, msg: Any, receive_ns: int) -> None:

@@ -34,9 +34,10 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
   DDS reports neither keep-last overwrites nor publication sequence numbers) is counted by
   ``overload.InputLoss`` and turns ``gyro_platform: node`` WARN;
 * outputs: one publisher per output topic (reliable, keep last 10): ``gimbal/joint_states``,
-  ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``; TF and ``/robot_description``
-  come from ``robot_state_publisher`` (started by the launch file with the URDF of
-  :mod:`gyro_platform.ros.urdf`) fed by ``gimbal/joint_states``;
+  ``drift/angle``, ``drift/rate``, ``bearing/<name>/torque``, and ``/tf`` (keep last 100, as
+  tf2_ros broadcasts) of ``platform`` → ``platform_reference``; the joints' TF and
+  ``/robot_description`` come from ``robot_state_publisher`` (started by the launch file with the
+  URDF of :mod:`gyro_platform.ros.urdf`) fed by ``gimbal/joint_states``;
 * ``/diagnostics``: the core's DiagnosticArray plus ``gyro_platform: transport`` on a steady
   timer (it runs with ``use_sim_time`` and no /clock: then WARN "waiting for /clock", logged
   once) — the same status names as the plain-DDS transport;
@@ -76,12 +77,15 @@ from .config import NodeConfig, parameter_defaults
 from .core import DIAGNOSTICS_TOPIC
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
 from .warmup import freeze_startup_objects, start_core
-from ..messages import DIAGNOSTIC_ARRAY, MessageTypes, transport_status
+from ..messages import DIAGNOSTIC_ARRAY, MessageTypes, TF_TOPIC, transport_status
 from ..physics.jit import compile_notices
 
 #: output publishers: reliable, volatile, keep last 10 (the rclpy default profile, spelled out)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
+#: ``/tf``: reliable, volatile, keep last 100 (tf2_ros' TransformBroadcaster)
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
 #: a backward jump of the node clock larger than this resets the simulation
 CLOCK_JUMP_BACK = Duration(nanoseconds=-1_000_000)   # 1 ms
 
@@ -119,7 +123,7 @@ class PlatformNode(Node):
         self.published = 0
         self.lost_events = 0
 
-        self._pubs = {topic: self.create_publisher(types[typ], topic, OUTPUT_QOS)
+        self._pubs = {topic: self.create_publisher(types[typ], topic, TF_QOS if topic == TF_TOPIC else OUTPUT_QOS)
                       for topic, typ in self.core.output_topics().items()}
         self._diag_pub = self.create_publisher(types[DIAGNOSTIC_ARRAY], DIAGNOSTICS_TOPIC, OUTPUT_QOS)
         # a steady clock: with use_sim_time and no /clock the node clock stands at 0 and a timer

@@ -307,8 +307,8 @@ def topics_markdown() -> str:
         "| `robot_description` | out | `std_msgs/msg/String` | URDF (gyro_platform.ros.urdf) | - "
         "| reliable, keep last 1, "
         "transient local |",
-        "| `/tf` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | every moving joint: parent → child link | "
-        "reliable, keep last 100, volatile |",
+        "| `/tf` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | every moving joint: parent → child link; "
+        "`platform` → `platform_reference` (the node's, with the attitude) | reliable, keep last 100, volatile |",
         "| `/tf_static` | out | `tf2_msgs/msg/TFMessage` | m, quaternion | fixed joints | reliable, keep last 1, "
         "transient local |",
     ]
