@@ -32,7 +32,7 @@ from typing import Any
 from .. import messages as msgs
 from ..errors import not_finite
 from ..messages import IMU, Mounting, TWIST, TWIST_STAMPED
-from ..physics.options import DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES
+from ..physics.options import DEFAULT_FIDELITY, EFFECTS, FIDELITIES, MODES, PARAM_EFFECTS
 from ..physics.params import NAV1, PlatformParams
 from ..pipeline.gate_rules import GateConfig
 
@@ -152,7 +152,8 @@ def _exact(x: float) -> str:
     return short if float(short) == x else repr(float(x))
 
 
-#: PlatformParams field -> (unit, description); physics.<field> parameters
+#: PlatformParams field -> (unit, description); physics.<field> parameters (the effects that
+#: read a field are added from ``physics.options.PARAM_EFFECTS``: :func:`physics_description`)
 PHYSICS_DOCS: dict[str, tuple[str, str]] = {
     "rotor_C": ("kg m²", "axial moments of inertia C of rotors 6, 8, 11"),
     "rotor_A": ("kg m²", "equatorial moments of inertia A of rotors 6, 8, 11"),
@@ -163,24 +164,24 @@ PHYSICS_DOCS: dict[str, tuple[str, str]] = {
     "frame4": ("kg m²", "principal moments (x, y, z) of gimbal frame 4"),
     "frame9": ("kg m²", "principal moments (x, y, z) of gimbal frame 9"),
     "platform": ("kg m²", "platform inertia tensor P11, P22, P33, P12, P13, P23 (P12 = −∫xy dm)"),
-    "spring": ("N m/rad", "restraint springs on alpha4, beta5, beta7, alpha9, beta10 (effect gimbal_springs)"),
-    "damper": ("N m s/rad", "viscous dampers per gimbal (effect gimbal_dampers)"),
-    "gimbal_coulomb": ("N m", "Coulomb friction per gimbal (effect gimbal_friction)"),
-    "gimbal_viscous_friction": ("N m s/rad", "viscous friction per gimbal (effect gimbal_friction)"),
-    "bias_torque": ("N m", "constant gimbal torques per gimbal (effect bias_torque)"),
+    "spring": ("N m/rad", "restraint springs on alpha4, beta5, beta7, alpha9, beta10"),
+    "damper": ("N m s/rad", "viscous dampers per gimbal"),
+    "gimbal_coulomb": ("N m", "Coulomb friction per gimbal"),
+    "gimbal_viscous_friction": ("N m s/rad", "viscous friction per gimbal"),
+    "bias_torque": ("N m", "constant gimbal torques per gimbal"),
     "friction_rate_eps": ("rad/s", "rate that regularises sign() in the gimbal Coulomb friction"),
     "support_rate_eps": ("rad/s", "rate that regularises sign() in the support Coulomb friction"),
-    "servo_kp": ("N m/rad", "platform servo proportional gain (effect servo)"),
-    "servo_kd": ("N m s/rad", "platform servo derivative gain (effect servo)"),
-    "servo_ki": ("N m/(rad s)", "platform servo integral gain (effect servo)"),
-    "servo_limit": ("N m", "platform servo torque saturation (effect servo)"),
-    "support_viscous": ("N m s/rad", "platform mount viscous friction (effect support_friction)"),
-    "support_coulomb": ("N m", "platform mount Coulomb friction (effect support_friction)"),
-    "gyro_mass": ("kg", "mass of each housing + rotor assembly (g-sensitive effects)"),
-    "unbalance": ("m", "CG offset along the spin axis (effect mass_unbalance)"),
-    "anisoelastic": ("m/N", "compliance along minus across the spin axis (effect anisoelastic)"),
-    "latitude": ("rad", "latitude (effect earth_rate)"),
-    "earth_rate": ("rad/s", "Earth rotation rate (effect earth_rate)"),
+    "servo_kp": ("N m/rad", "platform servo proportional gain"),
+    "servo_kd": ("N m s/rad", "platform servo derivative gain"),
+    "servo_ki": ("N m/(rad s)", "platform servo integral gain"),
+    "servo_limit": ("N m", "platform servo torque saturation"),
+    "support_viscous": ("N m s/rad", "platform mount viscous friction"),
+    "support_coulomb": ("N m", "platform mount Coulomb friction"),
+    "gyro_mass": ("kg", "mass of each housing + rotor assembly"),
+    "unbalance": ("m", "CG offset along the spin axis"),
+    "anisoelastic": ("m/N", "compliance along minus across the spin axis"),
+    "latitude": ("rad", "latitude"),
+    "earth_rate": ("rad/s", "Earth rotation rate"),
     "mounting": ("", "vehicle → platform rotation, quaternion x, y, z, w (carried mode, mount zero)"),
 }
 #: physics parameters applied live (servo gains); every other physics.* is read-only
@@ -201,10 +202,17 @@ def _integrators() -> tuple[str, ...]:
     return INTEGRATOR_CHOICES
 
 
+def physics_description(name: str) -> str:
+    """Description of ``physics.<name>``: its PHYSICS_DOCS text and the effects that read it."""
+    doc = PHYSICS_DOCS.get(name, ("", f"PlatformParams.{name}"))[1]
+    effects = sorted(PARAM_EFFECTS.get(name, ()))
+    return doc + (f" (effect{'s' if len(effects) > 1 else ''} {', '.join(effects)})" if effects else "")
+
+
 def _physics_specs() -> list[ParamSpec]:
     specs = []
     for f in dc_fields(PlatformParams):
-        unit, doc = PHYSICS_DOCS.get(f.name, ("", f"PlatformParams.{f.name}"))
+        unit, doc = PHYSICS_DOCS.get(f.name, ("", ""))[0], physics_description(f.name)
         default = getattr(NAV1, f.name)
         if isinstance(default, tuple):
             specs.append(ParamSpec(PHYSICS_PREFIX + f.name, "double[]", tuple(float(x) for x in default), doc,
@@ -379,5 +387,6 @@ def params_yaml(node_key: str = "/**") -> str:
 
 
 __all__ = ["ConfigError", "ParamSpec", "PARAMETERS", "SPECS", "SCENE_KEYS", "INPUT_TYPES", "NODE_NAME",
-           "PHYSICS_DOCS", "PHYSICS_PREFIX", "LIVE_PHYSICS", "PHYSICS_RANGES", "parameters_markdown",
+           "PHYSICS_DOCS", "PHYSICS_PREFIX", "LIVE_PHYSICS", "PHYSICS_RANGES", "physics_description",
+           "parameters_markdown",
            "topics_markdown", "params_yaml"]
