@@ -27,7 +27,8 @@ is in :mod:`gyro_platform.ros.core` (ROS-free, tested without ROS); this file wi
   (``warmup.start_core``), so numba loads every kernel and the first real Imu is answered at
   once; kernels not in the cache are not waited for (the interpreted ones answer while they
   compile in the background: ``engine.remote``); "ready" is logged after that;
-* input: one subscription (``qos_profile_sensor_data``) on ``imu_topic`` (``sensor_msgs/Imu``)
+* input: one subscription (``qos_profile_sensor_data``; history, depth and reliability
+  overridable by ``qos_overrides.<topic>.subscription.*``) on ``imu_topic`` (``sensor_msgs/Imu``)
   or ``twist_topic`` (``geometry_msgs/Twist`` or ``TwistStamped``, by ``input_type``); each
   sample is integrated in its callback, receive time = the node clock (sim time with
   ``use_sim_time``). Lost input (QoS message-lost events and gaps in the header stamps; Cyclone
@@ -66,6 +67,7 @@ try:
     from rclpy.node import Node
     from rclpy.parameter import Parameter
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+    from rclpy.qos_overriding_options import QoSOverridingOptions
     from std_srvs.srv import Trigger
 except ImportError as e:  # pragma: no cover - depends on the machine
     raise ImportError(
@@ -153,14 +155,18 @@ class PlatformNode(Node):
             event_handler = None
         SubscriptionEventCallbacks = getattr(event_handler, "SubscriptionEventCallbacks", None)
         UnsupportedEventTypeError = getattr(event_handler, "UnsupportedEventTypeError", RuntimeError)
+        # history, depth and reliability overridable at start (qos_overrides.<topic>.subscription.*)
+        overrides = QoSOverridingOptions.with_default_policies()
         if SubscriptionEventCallbacks is not None:
             try:
                 return self.create_subscription(
                     msg_type, self.core.input_topic, self._on_input, qos_profile_sensor_data,
-                    event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_message_lost))
+                    event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_message_lost),
+                    qos_overriding_options=overrides)
             except UnsupportedEventTypeError:
                 self.get_logger().info("this RMW reports no message-lost events; input loss is seen in stamp gaps only")
-        return self.create_subscription(msg_type, self.core.input_topic, self._on_input, qos_profile_sensor_data)
+        return self.create_subscription(msg_type, self.core.input_topic, self._on_input, qos_profile_sensor_data,
+                                        qos_overriding_options=overrides)
 
     # ---- parameters ---------------------------------------------------------------------
     def _declare_parameters(self) -> dict[str, Any]:
