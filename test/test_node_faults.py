@@ -92,6 +92,49 @@ def test_looped_with_clock_first_then_stamps_resets_once_per_loop():
     assert core.snapshot()["resets_by_reason"] == {"clock_jump_back": 3}
 
 
+def _published(core, t_ns):
+    """Every number the core publishes for one sample at t_ns (receive time = stamp), or None."""
+    out = core.on_message(imu(t_ns), t_ns)
+    return [[*m.position] if topic == "gimbal/joint_states" else str(m) for topic, m in out] or None
+
+
+@pytest.mark.parametrize("queued", [1, 30])
+def test_a_clock_jump_that_overtakes_queued_samples_restarts_at_the_new_loop_once(queued):
+    """A node behind a looped bag: /clock jumps back to the loop's start while the old loop's last
+    ``queued`` samples are still in its input queue. They are integrated in their run (as an
+    uninterrupted core does), and the new loop's first sample is the one restart (the stamps'):
+    its outputs are a fresh core's. Before, the clock's reset started a run of the old loop's
+    tail (outputs of a fresh state stamped at the old loop's end), and the stamps restarted again."""
+    core, straight, fresh = make_core(output_rate=0.0), make_core(output_rate=0.0), make_core(output_rate=0.0)
+    stamps = [BASE + k * 10 * MS for k in range(200)]
+    for t in stamps[:-queued]:
+        core.on_message(imu(t), t)
+        straight.on_message(imu(t), t)
+    assert core.on_clock_jump(True, -2 * 10**9, now_ns=BASE) == "deferred"
+    for t in stamps[-queued:]:                              # the old loop's tail, after the clock's jump
+        assert _published(core, t) == _published(straight, t)
+    for t in stamps[:50]:                                   # the new loop
+        assert _published(core, t) == _published(fresh, t)
+    snap = core.snapshot()
+    assert snap["resets_by_reason"] == {"jump_back": 1} and snap["clock_jumps"] == {"back": 1, "back_same_loop": 1}
+
+
+def test_a_deferred_clock_reset_without_a_stamp_jump_restarts_at_the_new_times_first_sample():
+    """The clock goes back 0.5 s, the stamps only 0.45 s (less than reset_on_jump_back, which the gate
+    would drop as backward): the clock's reset comes at that sample, which starts a fresh run."""
+    core, fresh = make_core(output_rate=0.0, gate={"max_gap": 0.1}), make_core(output_rate=0.0, gate={"max_gap": 0.1})
+    for k in range(200):
+        core.on_message(imu(BASE + k * 10 * MS), BASE + k * 10 * MS)
+    assert core.on_clock_jump(True, -5 * 10**8, now_ns=BASE + 15 * 10**8) == "deferred"
+    core.on_message(imu(BASE + 1995 * MS), BASE + 1995 * MS)     # still the old run's (after 1.5 s + 0.1 s)
+    assert core.snapshot()["resets"] == 0
+    for k in range(20):
+        t = BASE + 1545 * MS + k * 10 * MS
+        assert _published(core, t) == _published(fresh, t)
+    assert core.snapshot()["resets_by_reason"] == {"clock_jump_back": 1}
+    assert "restarted at the first sample of the new time" in core.take_notices()[-1]
+
+
 def test_input_frames_are_counted_by_name():
     core = make_core(sensor_mountings=["imu_link=0.0,0.0,1.5707963267948966"])
     frames = ["base_link"] * 5 + ["camera_link"] * 3 + ["imu_link"] * 4

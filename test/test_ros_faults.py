@@ -192,7 +192,8 @@ def test_looped_bag_with_clock_resets_once_per_loop(ros_ws, domain, tmp_path):
     by_clock = int(values.get("resets_by_reason.clock_jump_back", 0))
     by_stamps = int(values.get("resets_by_reason.jump_back", 0))
     same = int(values.get("clock_jumps.back_same_loop", 0))
-    assert by_clock + same == jumps and same <= by_stamps <= same + 1 and resets == by_clock + by_stamps, \
+    # (a clock jump that overtook queued samples waits for the new loop's first one: the last may still wait)
+    assert jumps - 1 <= by_clock + same <= jumps and same <= by_stamps <= same + 1 and resets == by_clock + by_stamps, \
         (loops, jumps, resets, by_reason, same)
     assert abs(resets - loops) <= 1 and logged == resets, (loops, jumps, resets, logged, by_reason)
     assert "Traceback" not in proc.output
@@ -218,9 +219,11 @@ def test_looped_bag_each_loop_is_the_replay_with_a_deeper_input_queue(ros_ws, do
     started ~15 samples late (5e-3 rad off the replay). The input subscription takes the standard
     QoS overrides: with ``qos_overrides./imu.subscription.depth: 100`` every loop takes every
     sample, and its outputs are those of ``gyro-platform replay`` of the bag (from its first
-    sample). Compared: the first half of each loop after the first (its end may meet the next
-    loop's jump; the first may miss samples sent before discovery matched the player)."""
-    rate, n, half = 200.0, 600, 300                      # 3 s per loop, compared: the first 1.5 s
+    sample). Compared: every loop after the first (which may miss samples sent before discovery
+    matched the player) and before the last (cut by the stop), whole: a clock jump that overtakes
+    samples still queued from the loop before waits for the new loop's first sample."""
+    rate, n = 200.0, 600                                 # 3 s per loop, compared whole
+    half = n
     write_imu_bag(tmp_path / "loop", n, rate, w=(0.02, 0.0, 0.1))
     expected = replay_joint_positions(tmp_path / "loop", tmp_path / "replayed")
     window = [T0_NS + int(round(k * 1e9 / rate)) for k in range(half)]
@@ -243,7 +246,7 @@ def test_looped_bag_each_loop_is_the_replay_with_a_deeper_input_queue(ros_ws, do
             loops.append({})
         loops[-1][t], last = m["position"], t
     # the first loop may miss samples published before discovery matched the player to the node
-    whole = [out for out in loops[1:] if max(out) > window[-1]]
+    whole = [out for out in loops[1:-1] if max(out) >= window[-1]]
     assert len(whole) >= 2, ([(len(o), min(o), max(o)) for o in loops], report["command"])
     for i, out in enumerate(whole, 2):
         missing = [round((t - T0_NS) * rate / 1e9) for t in window if t not in out]

@@ -244,6 +244,25 @@ def test_a_params_file_rcl_cannot_read_is_one_line_and_exit_2(ros_ws, domain, tm
     assert len(lines) == 1 and says in lines[0] and "./src/" not in lines[0], out[-3000:]
 
 
+def test_a_parameter_the_node_does_not_have_is_said_not_ignored_silently(ros_ws, domain, tmp_path):
+    """``-p input_topic:=…`` (the launch argument's name, not the parameter's) and a misspelt key in
+    the params file: rclpy ignores both without a word, and the node ran on /imu. Now one WARN line
+    each, naming the parameter meant; the node starts as before and ROS's own parameters are quiet."""
+    path = tmp_path / "p.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    output_rte: 5.0\n    use_sim_time: false\n")
+    exe = ros_ws.root / "install" / "gyro_platform" / "lib" / "gyro_platform" / "platform_node"
+    proc = ros_ws.start(f"{exe} --ros-args -p input_topic:=/vehicle/imu --params-file {path}", domain=domain)
+    try:
+        assert proc.wait_for("ready:", rosenv.READY_TIMEOUT), proc.output[-3000:]
+    finally:
+        code = proc.stop(signal.SIGINT)
+    warned = [ln for ln in proc.output.splitlines() if "[WARN]" in ln and "not one of this node's" in ln]
+    assert len(warned) == 2, proc.output[-3000:]
+    assert "'input_topic'" in warned[0] and "imu_topic" in warned[0]
+    assert "'output_rte'" in warned[1] and "'output_rate'" in warned[1]
+    assert code == 0 and "Traceback" not in proc.output
+
+
 @pytest.mark.parametrize("after", [0.5, 0.9, 1.5])
 def test_ctrl_c_while_the_node_starts_is_a_quiet_exit_0(ros_ws, domain, after):
     """SIGINT to the node's process group while numba and rclpy load (as ``ros2 launch`` sends

@@ -32,7 +32,7 @@ import difflib
 import functools
 from pathlib import Path
 import re
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from .dds_names import expand_topic_name, NameError_
 from .parameters import ConfigError, INPUT_TYPES, NODE_NAME, PARAMETERS, PHYSICS_PREFIX, SPECS
@@ -104,6 +104,22 @@ def parameter_defaults(scene: str = "") -> dict[str, Any]:
 # =========================================================================================
 def _is_ros_standard(name: str) -> bool:
     return name in ROS_STANDARD_PARAMETERS or name.startswith(ROS_STANDARD_PREFIXES)
+
+
+def unknown_parameter_lines(names: Iterable[str]) -> list[str]:
+    """One line for each of ``names`` (parameters set for this node by a params file or ``-p``)
+    that is neither the node's nor ROS's own: rclpy ignores them silently, so a misspelt or
+    misplaced one (``input_topic`` is the launch argument; the parameter is ``imu_topic``)
+    would change nothing unseen."""
+    lines = []
+    for k in sorted(set(names)):
+        if k not in SPECS and not _is_ros_standard(k):
+            close = difflib.get_close_matches(k, SPECS, n=1, cutoff=0.5)
+            hint = {"input_topic": "imu_topic or twist_topic (input_topic is the launch argument)"}.get(
+                k, f"'{close[0]}'" if close else "")
+            lines.append(f"parameter '{k}' is not one of this node's: ignored" + (f"; did you mean {hint}?"
+                                                                                  if hint else ""))
+    return lines
 
 
 #: plain scalars rcl's YAML parser reads as doubles (strtod on the whole scalar) and YAML 1.1
@@ -335,4 +351,4 @@ class NodeConfig:
 
 
 __all__ = ["NodeConfig", "load_params_file", "parameter_defaults", "resolve_scene", "load_node_scene",
-           "scene_defaults", "ROS_STANDARD_PARAMETERS", "ROS_STANDARD_PREFIXES"]
+           "scene_defaults", "ROS_STANDARD_PARAMETERS", "ROS_STANDARD_PREFIXES", "unknown_parameter_lines"]

@@ -197,6 +197,7 @@ class NodeCore:
         self._last_out = None
         self._last_rx_ns: int | None = None
         self._stamp_jump_at: int | None = None    # stamp of the last input jump-back reset (see on_clock_jump)
+        self._clock_back_to: int | None = None    # a clock jump's reset waiting for the new time's first sample
         self._last_rejected_rx: int | None = None
         self._last_error_rx: int | None = None
         self.loss = InputLoss()
@@ -245,6 +246,8 @@ class NodeCore:
             pipe = self.pipe
             reading = msgs.reading_from_msg(msg, pipe.mounting)
             if reading.__class__ is Reading:
+                if self._clock_back_to is not None and reading.stamp_ns:
+                    self._clock_reset_due(reading.stamp_ns)
                 frames, frame = self.frames, reading.frame_id
                 if frame in frames:
                     frames[frame] += 1
@@ -311,7 +314,7 @@ class NodeCore:
             self.loss.restart()
         self.resets[reason] += 1
         self.last_reset_reason = reason
-        self._stamp_jump_at = None
+        self._stamp_jump_at = self._clock_back_to = None
         at = rx if rx is not None else self._last_rx_ns
         if at is not None:
             self._restarts_rx.append(at)
@@ -372,24 +375,46 @@ class NodeCore:
         self.pipe.slot = None
         self.resets[reason] += 1
         self.last_reset_reason = reason
-        self._stamp_jump_at = None
+        self._stamp_jump_at = self._clock_back_to = None
 
-    def on_clock_jump(self, backward: bool, delta_ns: int | None = None) -> str:
-        """The node clock jumped (``delta_ns`` if known). Backward: reset (reason
-        ``clock_jump_back``) when ``reset_on_clock_jump`` is true — unless the input stamps
-        jumped back just before (a looped ``ros2 bag play --clock``: the stamps' reset, at most
-        ``max_gap`` of stamps ago, was the same loop's, and a second one would throw away the
-        samples taken since). Returns ``"reset"``, ``"same_loop"`` or ``""`` (nothing done)."""
+    def on_clock_jump(self, backward: bool, delta_ns: int | None = None, now_ns: int | None = None) -> str:
+        """The node clock jumped (``delta_ns`` if known) to ``now_ns`` (if known). Backward: reset
+        (reason ``clock_jump_back``) when ``reset_on_clock_jump`` is true — unless the input
+        stamps jumped back just before (a looped ``ros2 bag play --clock``: the stamps' reset, at
+        most ``max_gap`` of stamps ago, was the same loop's, and a second one would throw away the
+        samples taken since). With header stamps after ``now_ns`` + ``max_gap`` (the clock
+        overtook samples still queued from before its jump) the reset waits for the first sample
+        stamped at most that: the queued ones are integrated in their run, and a stamps' jump back
+        there is the one reset (``same_loop``). Returns ``"reset"``, ``"same_loop"``,
+        ``"deferred"`` or ``""`` (nothing done)."""
         self.clock_jumps["back" if backward else "forward"] += 1
         if not (backward and self.config["reset_on_clock_jump"]):
             return ""
         at, last = self._stamp_jump_at, self.gate.last_stamp_ns
         self._stamp_jump_at = None
-        if at is not None and last is not None and 0 <= last - at <= self.config["gate.max_gap"] * NS:
+        max_gap = self.config["gate.max_gap"] * NS
+        if at is not None and last is not None and 0 <= last - at <= max_gap:
             self.clock_jumps["back_same_loop"] += 1
             return "same_loop"
+        if now_ns is not None and last is not None and self.gate.time_source == "header" and last > now_ns + max_gap:
+            self._clock_back_to = int(now_ns)
+            return "deferred"
         self.reset("clock_jump_back")
         return "reset"
+
+    def _clock_reset_due(self, stamp_ns: int) -> None:
+        """A sample stamped ``stamp_ns`` while a clock jump's reset waits (:meth:`on_clock_jump`):
+        one stamped after the new time + ``max_gap`` is the old run's; the first one not is the
+        new time's: the gate's own reset when its stamps jump back (``same_loop``), else this one."""
+        if stamp_ns > self._clock_back_to + self.config["gate.max_gap"] * NS:
+            return
+        self._clock_back_to = None
+        last = self.gate.last_stamp_ns
+        if last is not None and last - stamp_ns > self.gate.config.reset_on_jump_back * NS:
+            self.clock_jumps["back_same_loop"] += 1
+            return
+        self.reset("clock_jump_back")
+        self.notices.append("clock jumped back: simulation restarted at the first sample of the new time")
 
     def set_parameters(self, changes: Mapping[str, Any]) -> tuple[bool, str]:
         """Validate and apply ``changes`` (name → value) atomically. Returns ``(True, "")`` or

@@ -75,7 +75,7 @@ except ImportError as e:  # pragma: no cover - depends on the machine
         "install (source /opt/ros/jazzy/setup.bash) or use the ROS-free core "
         "(gyro_platform.ros.core) / 'gyro-platform node' on plain DDS") from e
 
-from .config import NodeConfig, parameter_defaults
+from .config import NodeConfig, parameter_defaults, unknown_parameter_lines
 from .core import DIAGNOSTICS_TOPIC
 from .parameters import ConfigError, NODE_NAME, PARAMETERS, ParamSpec, SPECS
 from .warmup import freeze_startup_objects, start_core
@@ -137,6 +137,8 @@ class PlatformNode(Node):
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
             post_callback=self._on_clock_jump)
+        for line in unknown_parameter_lines(getattr(self, "_parameter_overrides", {})):
+            self.get_logger().warning(line)
         self.add_on_set_parameters_callback(self._on_set_parameters)   # after declaring: only real changes
         self._sub = self._subscribe(types[self.core.input_type])        # last: the node is ready
         o = config.options
@@ -236,11 +238,13 @@ class PlatformNode(Node):
     def _on_clock_jump(self, jump: Any) -> None:
         delta = jump.delta.nanoseconds
         with self._lock:
-            done = self.core.on_clock_jump(delta < 0, delta)
+            done = self.core.on_clock_jump(delta < 0, delta, self.get_clock().now().nanoseconds)
         if delta < 0:
             self.get_logger().info(f"clock jumped back {-delta * 1e-9:.3f} s" + {
                 "reset": "; simulation restarted",
-                "same_loop": " with the input stamps (one loop of a replay): already restarted"}.get(done, ""))
+                "same_loop": " with the input stamps (one loop of a replay): already restarted",
+                "deferred": ("; samples stamped before the jump are still queued: integrated first, the "
+                             "simulation restarts at the first sample of the new time")}.get(done, ""))
 
     # ---- diagnostics --------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:

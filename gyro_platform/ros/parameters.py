@@ -306,7 +306,7 @@ def topics_markdown() -> str:
             typ = ("`sensor_msgs/msg/Imu`" if t.type == IMU
                    else "`geometry_msgs/msg/Twist` or `geometry_msgs/msg/TwistStamped` (input_type)")
             name = f"`{t.name}` (param `{'imu_topic' if t.type == IMU else 'twist_topic'}`)"
-            qos = "sensor data: best effort, keep last 5, volatile"
+            qos = "sensor data: best effort, keep last 5 (overridable: `qos_overrides`), volatile"
         else:
             typ, name = f"`{t.type}`", f"`{t.name}`"
             qos = "reliable, keep last 10, volatile"
