@@ -62,6 +62,7 @@ from .stages import csr_axpy, csr_mv, phi_taylor, stage_matrices
 from .views import borrow, view1, view2
 from ..physics.effects import SUPPORT
 from ..physics.jit import njit, plain
+from ..physics.model import commit_attitudes
 from ..physics.rhs_linear import takes_linear_path
 from ..physics.switching import support_switch_passed, support_switch_time
 from ..physics.system import (FASTMATH, LAY_QIB, LAY_QIP, LAY_STAB, model_rhs, SEG_DT, SEG_F0, SEG_F1, SEG_N, SEG_T0,
@@ -79,18 +80,6 @@ GRID = ETD2.GRID
 
 
 # ---------------------------------------------------------------------------- kernels
-@njit(cache=True, inline="always")
-def _normalise(y, a, b):
-    if a < 0:
-        return
-    s = 0.0
-    for i in range(a, b):
-        s += y[i] * y[i]
-    s = math.sqrt(s)
-    for i in range(a, b):
-        y[i] /= s
-
-
 @njit(cache=True, inline="always")
 def _quat_ok(x, y, z, w):
     """The quaternion (x, y, z, w) can be turned into a matrix (finite, non-zero)."""
@@ -530,8 +519,7 @@ def block_kernel(fb, ib, mi, md, ts, ws, fs, has_f, first, out_idx, y_out, seg_o
         # accepted: normalise, check, commit
         ih[J_NRHS] += nrhs
         ih[J_REJ] += nrej
-        _normalise(yw, qa, qa + 4)
-        _normalise(yw, qp, qp + 4)
+        commit_attitudes(y, yw, qa, qp, seg, method == EXPRK_D)     # etd2: the vehicle's by quadrature
         for m in range(n):
             if not math.isfinite(yw[m]):
                 for k in range(SEG_N):

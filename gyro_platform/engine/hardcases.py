@@ -199,6 +199,7 @@ class CaseResult:
     finite: bool = True
     stats: dict = field(default_factory=dict)
     attitude: np.ndarray | None = None
+    vehicle: np.ndarray | None = None
 
 
 def _platform_run(case: HardCase, method: str, rtol: float, atol: float, duration: float,
@@ -222,7 +223,7 @@ def _platform_run(case: HardCase, method: str, rtol: float, atol: float, duratio
     lay = sim.layout
     att = sim.y[lay.quat_IP].copy() if lay.quat_IP is not None else None
     return CaseResult(sim.y[lay.q].copy(), cpu, float(sim.t - t[0]), refused, bool(np.all(np.isfinite(sim.y))),
-                      sim.stats, att)
+                      sim.stats, att, sim.y[lay.quat_IB].copy())
 
 
 class _GyroSystem:
@@ -272,11 +273,12 @@ def run_reference(case: HardCase, duration: float | None = None) -> CaseResult:
 
 
 def angle_error(res: CaseResult, ref: CaseResult) -> float:
-    """Largest angle difference (rad): gimbal angles, and the platform attitude (stabilised)."""
+    """Largest angle difference (rad): gimbal angles, the platform attitude (stabilised) and the
+    vehicle attitude (the mount angles are the two attitudes' difference)."""
     e = float(np.max(np.abs(res.angles - ref.angles)))
-    if res.attitude is not None and ref.attitude is not None:
-        R = quat_matrix(ref.attitude).T @ quat_matrix(res.attitude)
-        e = max(e, float(np.linalg.norm(matrix_rotvec(R))))
+    for a, b in ((res.attitude, ref.attitude), (res.vehicle, ref.vehicle)):
+        if a is not None and b is not None:
+            e = max(e, float(np.linalg.norm(matrix_rotvec(quat_matrix(b).T @ quat_matrix(a)))))
     return e
 
 

@@ -38,7 +38,7 @@ from .output_kernel import OutputKernel
 from .outputs import OutputBlock, Outputs, outputs_of_row
 from .snapshots import Snapshots
 from ..errors import GimbalLockError, InputError, SimulationError
-from ..physics.model import spin_momentum
+from ..physics.model import commit_attitudes, spin_momentum
 from ..physics.options import ModelOptions, NEEDS_SPECIFIC_FORCE
 from ..physics.params import NAV1, PlatformParams
 from ..physics.rotations import quat_matrix
@@ -426,10 +426,8 @@ class Simulator:
         except BaseException:
             seg[:] = saved
             raise
-        st = self.layout
-        for sl in (st.quat_IB, st.quat_IP):
-            if sl is not None:
-                y1[sl] /= np.linalg.norm(y1[sl])
+        qa, qp = (-1 if sl is None else sl.start for sl in (self.layout.quat_IB, self.layout.quat_IP))
+        commit_attitudes(self.y, y1, qa, qp, seg, self.integrator.name == "etd2")      # as the compiled kernel
         self.y[:] = y1
         e.fh[H_T_REL] = t1
         e.tr[0] = t1

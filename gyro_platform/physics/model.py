@@ -115,6 +115,63 @@ def seg_slope(seg, k):
     return ((seg[k + 3] - seg[k]) * inv_dt, (seg[k + 4] - seg[k + 1]) * inv_dt, (seg[k + 5] - seg[k + 2]) * inv_dt)
 
 
+#: pieces of an input interval in :func:`vehicle_attitude_over` (local error ∝ pieces⁻⁴)
+MAGNUS_PIECES = 4
+
+
+@njit(cache=True, inline="always")
+def vehicle_attitude_over(y0, y1, i, seg):
+    """``y1[i:i+4]`` = the vehicle attitude q_IB at the end of the input interval ``seg`` from
+    ``y0[i:i+4]`` at its start: ``q̇ = ½ q ⊗ (ω, 0)`` for the vehicle rate ω linear over the
+    interval (vehicle axes), by the fourth-order Magnus expansion over each of
+    ``MAGNUS_PIECES`` equal pieces (ω0 → ω1 in h s): ``q ⊗ exp(θ/2)``, ``θ = h (ω0 + ω1)/2 +
+    h²/12 ω0 × ω1`` (rad; local error O(h⁵ |ω|² |ω̇|) a piece: ~1e-14 rad at 10 rad/s and
+    350 rad/s² over 1 ms). The vehicle attitude is a quadrature of the input with nothing to
+    damp its errors: a method of order 2 adds one local error a step to it unseen (etd2: 1e-3
+    rad of mount angle in 10 s at rtol 1e-6), so etd2 commits this value instead of its own.
+    Not normalised."""
+    h = seg[SEG_DT] / MAGNUS_PIECES
+    c = h * h / 12.0
+    x, y, z, w = y0[i], y0[i + 1], y0[i + 2], y0[i + 3]
+    for p in range(MAGNUS_PIECES):
+        s0, s1 = p / MAGNUS_PIECES, (p + 1) / MAGNUS_PIECES
+        a0 = seg[SEG_W0] + s0 * (seg[SEG_W1] - seg[SEG_W0])
+        a1 = seg[SEG_W0 + 1] + s0 * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
+        a2 = seg[SEG_W0 + 2] + s0 * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
+        b0 = seg[SEG_W0] + s1 * (seg[SEG_W1] - seg[SEG_W0])
+        b1 = seg[SEG_W0 + 1] + s1 * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
+        b2 = seg[SEG_W0 + 2] + s1 * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
+        t0 = 0.5 * h * (a0 + b0) + c * (a1 * b2 - a2 * b1)
+        t1 = 0.5 * h * (a1 + b1) + c * (a2 * b0 - a0 * b2)
+        t2 = 0.5 * h * (a2 + b2) + c * (a0 * b1 - a1 * b0)
+        th = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        k = math.sin(0.5 * th) / th if th > 1e-4 else 0.5 - th * th / 48.0     # sin(θ/2)/θ
+        ex, ey, ez, ew = k * t0, k * t1, k * t2, math.cos(0.5 * th)
+        x, y, z, w = (w * ex + x * ew + y * ez - z * ey, w * ey - x * ez + y * ew + z * ex,
+                      w * ez + x * ey - y * ex + z * ew, w * ew - x * ex - y * ey - z * ez)
+    y1[i], y1[i + 1], y1[i + 2], y1[i + 3] = x, y, z, w
+
+
+@njit(cache=True, inline="always")
+def _normalise(y, i):
+    if i >= 0:
+        s = math.sqrt(y[i] * y[i] + y[i + 1] * y[i + 1] + y[i + 2] * y[i + 2] + y[i + 3] * y[i + 3])
+        for k in range(i, i + 4):
+            y[k] /= s
+
+
+@njit(cache=True, inline="always")
+def commit_attitudes(y0, y1, qa, qp, seg, quadrature):
+    """The quaternions of a step's end state ``y1`` (from ``y0`` over the input interval
+    ``seg``) as committed, by the compiled and the Python paths alike: the vehicle attitude (at
+    ``qa``) by :func:`vehicle_attitude_over` when ``quadrature`` (etd2), then it and the
+    platform attitude (at ``qp``) normalised (−1: absent)."""
+    if quadrature and qa >= 0:
+        vehicle_attitude_over(y0, y1, qa, seg)
+    _normalise(y1, qa)
+    _normalise(y1, qp)
+
+
 @dataclass(frozen=True)
 class StateLayout:
     """Slices of the state vector for one mode/fidelity."""
