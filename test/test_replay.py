@@ -39,6 +39,7 @@ from gyro_platform.bags.paths import read_metadata
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
 from gyro_platform.pipeline.gate import TimeGate
 from gyro_platform.pipeline.gate_rules import Action, GateConfig
+from imubag import write_imu_bag
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"
@@ -671,3 +672,42 @@ def test_many_unmounted_frames_are_named_up_to_sixteen_and_cut(tmp_path, capsys)
     taken = summary["config"]["frames_taken_as_base_link"]
     assert len(taken) == 17 and taken[-1] == "…" and len(taken[0]) == 64
     assert summary["counts"]["accepted"] == 200
+
+
+def test_an_input_slower_than_max_gap_is_no_usable_input(tmp_path, capsys):
+    """A 0.5 Hz Imu against max_gap 1 s: every sample restarted the simulation, nothing was
+    integrated, and the replay said '30 accepted, 29 resets, 30 outputs' and exited 0 (every
+    output the initial state). Now exit 3 with one line naming max_gap; --max-gap 3 integrates."""
+    bag = tmp_path / "slow"
+    write_imu_bag(bag, 30, 0.5)
+    code = cli.main(["replay", str(bag), "--out", str(tmp_path / "out"), "--quiet", "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == 3 and "none of the 30 accepted samples was integrated" in err and "--max-gap" in err, err
+    summary = json.loads((tmp_path / "out.summary.json").read_text())
+    assert summary["no_usable_input"] and summary["counts"]["resets_by_reason"] == {"gap": 29}
+    assert any("max_gap" in w for w in summary["warnings"])
+    code = cli.main(["replay", str(bag), "--out", str(tmp_path / "ok"), "--quiet", "--no-plot", "--max-gap", "3"])
+    assert code == 0 and not json.loads((tmp_path / "ok.summary.json").read_text())["no_usable_input"]
+
+
+def test_samples_the_simulator_refuses_are_said_with_its_reason(tmp_path, capsys):
+    """A Twist bag (no specific force) under a scene with mass_unbalance (which needs it): every
+    sample is refused; the line said only 'see dropped_by_reason' (the summary: 'the simulator
+    refused the sample'). Now it carries the simulator's reason, and the summary its errors."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    Twist, Vec3 = ts.types["geometry_msgs/msg/Twist"], ts.types["geometry_msgs/msg/Vector3"]
+    bag = tmp_path / "twist"
+    with Writer(bag, version=8) as writer:
+        conn = writer.add_connection("/cmd", Twist.__msgtype__, typestore=ts)
+        for k in range(50):
+            m = Twist(linear=Vec3(x=0.0, y=0.0, z=0.0), angular=Vec3(x=0.0, y=0.0, z=0.1))
+            writer.write(conn, 10**9 + k * 10**7, ts.serialize_cdr(m, Twist.__msgtype__))
+    scene = tmp_path / "unb.yaml"
+    scene.write_text("name: unb\neffects: [defaults, mass_unbalance]\nduration: 2\n"
+                     "motion: {type: constant, omega: [0, 0, 0]}\n")
+    code = cli.main(["replay", str(bag), "--out", str(tmp_path / "out"), "--scene", str(scene), "--quiet",
+                     "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == 3 and "refused" in err and "mass_unbalance" in err and "specific force" in err, err
+    summary = json.loads((tmp_path / "out.summary.json").read_text())
+    assert "mass_unbalance" in summary["simulator"]["errors"][0]

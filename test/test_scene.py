@@ -563,3 +563,38 @@ def test_run_on_a_full_disk_leaves_whole_rows_and_one_line(tmp_path):
     got = _read(out / "outputs.csv")
     rows = _lines_whole(got)
     assert 1 < len(rows) < full.count("\n") and full.startswith(got)
+
+
+@pytest.mark.parametrize("motion, top", [
+    ({"type": "sinusoidal", "roll": {"amplitude_deg": 1.0, "frequency_hz": 80.0}}, 80.0),
+    ({"type": "coning", "half_angle_deg": 1.0, "frequency_hz": 50.0}, 50.0),
+    ({"type": "random", "seed": 1, "angle_rms_deg": 1.0, "band_hz": [1.0, 60.0]}, 60.0),
+])
+def test_a_motion_at_or_above_half_the_sample_rate_is_refused(motion, top):
+    """An 80 Hz roll sampled at 100 Hz ran (exit 0) as its alias: drift 1.1e-4 rad where 5 kHz
+    samples give 1.1e-5. Now the scene is refused naming sample_rate; below half it loads."""
+    d = {**copy.deepcopy(BASE), "motion": motion, "expect": []}
+    with pytest.raises(ScenarioError, match=rf"sample_rate: 100 Hz cannot carry the motion's {top:g} Hz.*"
+                                            rf"more than {2 * top:g} Hz"):
+        load(d)
+    assert load({**d, "sample_rate": 2.0 * top + 1.0}).sample_rate == 2.0 * top + 1.0
+
+
+def test_a_duration_shorter_than_an_output_period_names_duration():
+    """It blamed fit_start ('must leave the drift fits two outputs … (-0.099 s), got 0'), a key the
+    scene did not set."""
+    with pytest.raises(ScenarioError, match=r"duration: must span one output period .*0\.1 s.*got 0\.001 s"):
+        load({**copy.deepcopy(BASE), "duration": 0.001, "expect": []})
+
+
+@pytest.mark.parametrize("output_rate", [10.0, 1000.0])
+def test_the_mean_vehicle_rate_is_a_time_average(tmp_path, output_rate):
+    """One period of a 10°, 0.5 Hz roll: the mean rate is 0, whatever the output rate (the mean
+    of the output instants, both ends counted, read 0.026 rad/s at 10 Hz and 2.7e-4 at 1 kHz)."""
+    d = {**copy.deepcopy(BASE), "duration": 2.0, "sample_rate": 1000.0, "output_rate": output_rate,
+         "motion": {"type": "sinusoidal", "roll": {"amplitude_deg": 10.0, "frequency_hz": 0.5}}, "expect": []}
+    path = tmp_path / "mean.yaml"
+    path.write_text(json.dumps(d))
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    mean = json.loads((tmp_path / "out" / "summary.json").read_text())["summary"]["mean_vehicle_rate"]
+    assert abs(mean["x"]) < 1e-9, mean

@@ -293,7 +293,8 @@ class ChunkedRuns:
             stamp = int(gb.stamp_ns[i])
             action = Action.RESET if gb.action[i] == RESET else Action.ACCEPT
             sample = RateSample(float(gb.t[i]), rb.omega[i].copy(), rb.force[i].copy() if rb.has_force[i] else None)
-            outcome = apply_decision(self.sim, Decision(action, ALL_REASONS[gb.reason[i]], sample, stamp))
+            outcome = apply_decision(self.sim, Decision(action, ALL_REASONS[gb.reason[i]], sample, stamp),
+                                     self.record_error)
             res.outcome[i] = OUTCOMES.index(outcome)
             if outcome == "rejected" and self._refusable:
                 raise _Refused(i)

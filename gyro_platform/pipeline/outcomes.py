@@ -17,7 +17,7 @@ names of what came of them: the outcome names and codes of ``Pipeline.outcomes``
 when a drop reason took every sample."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable, Mapping, Sequence
 
 from .gate_rules import Action, Decision
 from ..engine.inputs import RateSample
@@ -31,11 +31,12 @@ ADVANCED = ("pushed", "reset", "restarted")
 _ACT_DROP, _ACT_RESET = Action.DROP, Action.RESET
 
 
-def apply_decision(sim: Any, decision: Decision) -> str:
+def apply_decision(sim: Any, decision: Decision, refused: Callable[[str], None] | None = None) -> str:
     """Apply a gate decision to a ``Simulator``. Returns ``"pushed"``, ``"reset"`` (reset, then
     pushed), ``"dropped"``, ``"rejected"`` (the simulator refused the sample: InputError, state
-    unchanged) or ``"restarted"`` (the integration failed: SimulationError; the simulator is
-    reset and restarted at this sample). Outputs already taken are never touched."""
+    unchanged; its message to ``refused``) or ``"restarted"`` (the integration failed:
+    SimulationError; the simulator is reset and restarted at this sample). Outputs already
+    taken are never touched."""
     action = decision.action
     if action is _ACT_DROP or decision.sample is None:
         return "dropped"
@@ -43,7 +44,9 @@ def apply_decision(sim: Any, decision: Decision) -> str:
         sim.reset()
     try:
         sim.push(decision.sample)
-    except InputError:
+    except InputError as e:
+        if refused is not None:
+            refused(f"refused: {e}")
         return "rejected"
     except SimulationError:
         return restart_at(sim, decision.sample)
@@ -73,13 +76,31 @@ DROP_HINTS = {
 }
 
 
-def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int) -> str:
-    """One line: no sample of ``n_in`` was accepted, the main drop reason and its fix."""
+def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int, errors: Sequence[str] = ()) -> str:
+    """One line: no sample of ``n_in`` was accepted, the main drop reason and its fix (for
+    ``refused``: the simulator's first error, ``errors``, says why)."""
     if not dropped_by_reason:
         return f"none of the {n_in} input messages was accepted: no outputs"
     reason, count = max(dropped_by_reason.items(), key=lambda kv: kv[1])
     hint = DROP_HINTS.get(reason, "see dropped_by_reason in the summary")
+    if reason == "refused" and errors:
+        hint = f"the simulator refused them: {errors[0].removeprefix('refused: ')}"
     return f"none of the {n_in} input messages was accepted ({count} dropped as {reason}): {hint}"
+
+
+def nothing_integrated_hint(outcomes: Mapping[str, int], resets_by_reason: Mapping[str, int],
+                            accepted: int, max_gap: float) -> str | None:
+    """One line when ``accepted`` (≥ 2) samples gave no integrated interval: each started a run
+    of its own (a restart: the gate's reset or the simulator's), so every output is the initial
+    state; None when some interval was integrated (more than one sample ``pushed``)."""
+    if accepted < 2 or outcomes.get("pushed", 0) > 1:
+        return None
+    restarts = sum(resets_by_reason.values()) + outcomes.get("restarted", 0)
+    why = ", ".join(f"{n} by {r}" for r, n in sorted(resets_by_reason.items(), key=lambda kv: -kv[1]))
+    hint = (f": the samples are further apart than the gate's max_gap ({max_gap:g} s); raise it (--max-gap) "
+            "above the input's sample interval" if resets_by_reason.get("gap", 0) * 2 >= restarts else "")
+    return (f"none of the {accepted} accepted samples was integrated: each started a new run ({restarts} restarts"
+            f"{': ' + why if why else ''}), so the outputs are the initial state{hint}")
 
 
 #: per-row outcome codes of a block; the names are the keys of ``Pipeline.outcomes``

@@ -164,8 +164,9 @@ class Pipeline(ChunkedRuns):
             return self.apply(gate.offer(reading, receive_ns))
         try:
             self.sim.push_plain(plain[0], plain[1], plain[2])
-        except InputError:
+        except InputError as e:
             outcome = "rejected"
+            self.record_error(f"refused: {e}")
         except SimulationError:
             outcome = restart_at(self.sim, gate.last.sample)
         else:
@@ -174,7 +175,7 @@ class Pipeline(ChunkedRuns):
 
     def apply(self, decision: Decision) -> Step:
         """A gate decision: simulator, outcome count, output grid (restarted on a reset)."""
-        return self._settle(decision, apply_decision(self.sim, decision))
+        return self._settle(decision, apply_decision(self.sim, decision, self.record_error))
 
     def _settle(self, decision: Decision | None, outcome: str, plain: tuple | None = None) -> Step:
         """Count the simulator's ``outcome`` of ``decision`` (None: a pushed ``plain`` reading,

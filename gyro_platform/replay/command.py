@@ -46,7 +46,7 @@ from ..filesystem import check_output_path, write_failure
 from ..messages import Mounting
 from ..pipeline.gate_rules import GateConfig
 from ..pipeline.grid import check_grid_rate
-from ..pipeline.outcomes import no_sample_hint
+from ..pipeline.outcomes import no_sample_hint, nothing_integrated_hint
 
 #: a ROS 2 namespace (empty or "/" = root): tokens [A-Za-z_][A-Za-z0-9_]*, no "__", joined by "/"
 #: (rmw_validate_namespace, plus the design article's rule against repeated underscores)
@@ -219,13 +219,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def not_usable(summary: dict[str, Any]) -> str | None:
-    """Why a finished replay gave no output at all (one line), None if it gave some."""
+    """Why a finished replay gave no usable output (one line): none at all, or only the initial
+    state (no interval integrated); None if it gave some."""
     c = summary["counts"]
     if c["out"]:
-        return None
+        return nothing_integrated_hint(c["simulator"], c["resets_by_reason"], c["accepted"],
+                                       summary["config"]["gate"]["max_gap"])
     if not c["in"]:
         return f"topic {summary['input']['topic']} has no messages: no outputs"
     if not c["accepted"]:
-        return no_sample_hint(c["dropped_by_reason"], c["in"])
+        return no_sample_hint(c["dropped_by_reason"], c["in"], summary["simulator"]["errors"])
     return (f"{c['accepted']} of {c['in']} input samples accepted but no output: the simulator refused them "
             f"({c['simulator']}); see the summary's simulator errors")

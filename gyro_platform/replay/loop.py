@@ -48,7 +48,7 @@ from ..messages.typedefs import core_typestore
 from ..pipeline.gate import TimeGate
 from ..pipeline.gate_rules import DROP, GateConfig, NS
 from ..pipeline.grid import grid_index, grid_indices, new_slots
-from ..pipeline.outcomes import ADVANCED, no_sample_hint
+from ..pipeline.outcomes import ADVANCED, no_sample_hint, nothing_integrated_hint
 from ..pipeline.pacing import ChunkPacer, prefetched
 from ..pipeline.stream import judge, Pipeline
 from ..reports.jsonio import write_json
@@ -531,7 +531,8 @@ class _Run:
             "real_time_factor": duration / wall if wall > 0 else None,
             "messages_per_s": self.n_msgs / wall if wall > 0 else None,
             "simulated": self.simulated,
-            "no_usable_input": bool(self.n_in) and self.simulated == 0,
+            "no_usable_input": bool(self.n_in) and (self.simulated == 0 or nothing_integrated_hint(
+                self.outcomes, snap["resets_by_reason"], snap["accepted"], self.cfg.gate.max_gap) is not None),
             "engine": self.cfg.engine,
             "interrupted_by": self.interrupted,
             "ranges": self.stats.ranges(),
@@ -551,8 +552,12 @@ class _Run:
     def warnings(self, snap: dict[str, Any]) -> list[str]:
         """What a user must know about this replay's results (also printed)."""
         res = []
+        idle = nothing_integrated_hint(self.outcomes, snap["resets_by_reason"], snap["accepted"],
+                                       self.cfg.gate.max_gap)
         if self.n_in and not snap["accepted"]:
-            res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in))
+            res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in, self.sim_errors))
+        elif idle is not None and self.n_out:
+            res.append(idle)
         elif self.n_in and not self.simulated:
             res.append(f"none of the {snap['accepted']} accepted samples could be simulated "
                        f"(simulator: {dict(self.outcomes)}; errors: {self.sim_errors[:1]}): no outputs")

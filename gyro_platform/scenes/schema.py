@@ -94,7 +94,7 @@ Quantities (``QUANTITIES``; selector and unit):
     final_drift_angle, max_abs_drift_angle        axis                                      rad
     drift_rate, drift_rate_deg_per_h (LSQ slope)  axis                                      rad/s, °/h
     platform_vs_vehicle_rate_deg_per_h            axis (synthetic, steady vehicle rate)     °/h
-    mean_vehicle_rate, max_abs_vehicle_rate       axis                                      rad/s
+    mean_vehicle_rate (time average), max_abs_…   axis                                      rad/s
     duration                                      —                                         s
 
 ``load_scene(path) -> Scene`` (here: the schema, loading and lookup by name; the checks of single
@@ -366,6 +366,20 @@ def repo_root(start: Path) -> Path | None:
     return None
 
 
+def top_frequency(motion: MotionSpec) -> float | None:
+    """Highest frequency (Hz) of a periodic or band-limited synthetic motion (sinusoidal,
+    coning, random), None for the others (their input is not a sum of oscillations)."""
+    m = motion.settings
+    if motion.type == "sinusoidal":
+        return max((float(m[ax]["frequency_hz"]) for ax in ("roll", "pitch", "yaw", "heave") if ax in m),
+                   default=None)
+    if motion.type == "coning":
+        return float(m["frequency_hz"])
+    if motion.type == "random":
+        return float(m.get("band_hz", [0.05, 2.0])[1])
+    return None
+
+
 def fit_window_too_short(fit_start: float, duration: float, output_rate: float) -> bool:
     """The drift fits' window [fit_start, duration] holds fewer than two outputs of the grid
     (outputs every 1/output_rate s and at the end: it must span one output period)."""
@@ -433,6 +447,9 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
         test_duration = v.number(d["test_duration"], "test_duration", lo=0.0, hi=duration, lo_open=True)
     output_rate = v.number(d.get("output_rate", 10.0), "output_rate", lo=0.0, hi=MAX_GRID_RATE, lo_open=True)
     fit_start = v.number(d.get("fit_start", 0.0), "fit_start", lo=0.0)
+    if fit_window_too_short(0.0, duration, output_rate):
+        v.fail("duration", f"must span one output period (1/output_rate = {1 / output_rate:g} s) so that the "
+                           f"drift fits have two outputs, got {duration:g} s")
     if fit_window_too_short(fit_start, duration, output_rate):
         v.fail("fit_start", f"must leave the drift fits two outputs: ≤ duration − 1/output_rate "
                             f"({duration - 1 / output_rate:g} s), got {fit_start:g}")
@@ -448,6 +465,11 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: Path | None = N
             v.fail("output_rate", f"must be ≤ sample_rate ({sample_rate:g} Hz), got {output_rate:g}")
         if sample_rate * duration < 1.0:
             v.fail("sample_rate", f"gives fewer than 2 samples over {duration:g} s")
+        top = top_frequency(motion)
+        if top is not None and top >= sample_rate / 2:
+            v.fail("sample_rate", f"{sample_rate:g} Hz cannot carry the motion's {top:g} Hz (at or above half the "
+                                  f"sample rate its samples are a different, aliased motion); give more than "
+                                  f"{2 * top:g} Hz")
     check_budget(source, duration, sample_rate, output_rate, max_step)
 
     raw_expect = d.get("expect", []) or []
