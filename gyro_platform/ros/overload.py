@@ -29,6 +29,14 @@ class InputLoss:
     accepted samples (a keep-last queue that overwrites samples raises no event on Cyclone DDS,
     and it gives no publication sequence numbers).
 
+    ``total`` counts each lost sample once: both sources see the same overwrites (the DDS
+    transport reports its queue's, and the stamps show their gaps), so per run of one time base
+    (between :meth:`restart` calls) the total is the larger of the transport's count and the
+    stamp gaps', summed over the runs. The transport alone counts what the stamps cannot see
+    (unstamped input, a loss before a run's first stamp), the stamps alone what the transport
+    cannot (Cyclone's keep-last overwrites); when both see some of each, the larger is a lower
+    bound of their union (never more than the samples lost).
+
     Stamp gaps, by segment: a segment is a run of stamps at one nominal period ``P``; its loss
     is ``round((last stamp − first stamp) / P) − steps`` — the samples the span holds at the
     nominal rate minus those taken — recomputed at every step that is not a single (and when
@@ -36,9 +44,17 @@ class InputLoss:
     that never saw two consecutive samples until its queue drained) counts the whole segment.
     ``P`` is the mean of the segment's *single* steps: shorter than 1.5 × the current ``P``
     (the cluster at the window's minimum: jitter averages out, multi-period steps stay out however
-    many there are). A step shorter than ``P`` / 1.5 makes it the period at once (the segment is
-    counted at it); once ``CONFIRM`` singles confirm it, the steps of the window before it tell
-    why it appeared:
+    many there are). A step shorter than ``P`` / 1.5 is the period hidden by losses only when
+    supported (a single short step, or a jittered pair summing to a regular one, is no period:
+    a 10 ms publisher's exact stamps are multiples of any 0.1 ms catch-up step): at once when
+    the window's steps are multiples of it spread over ``SPREAD`` or more multiples, at most half
+    of them at one; or after ``DRAIN`` such steps in a row, near each other (a keep-last queue
+    drained), when the steps before are no regular rate or the period has not had ``CONFIRM``
+    singles yet. ``CONFIRM`` of them in a row after a regular rate are a publisher that sped up
+    (the segment closes where they began, counted at the old period). Other short steps are
+    jitter or a burst after a stall: no single, the count stays at ``P``. A period taken at
+    once (the segment is counted at it) is checked once ``CONFIRM`` singles confirm it: the
+    steps of the window before it tell why it appeared:
 
     * they are a regular rate (¾ of them within half a period of their minimum), neither its
       multiples nor spread multiples of any shorter period (exact stamps of a node that takes
@@ -54,11 +70,14 @@ class InputLoss:
     the window's steps are spread, the largest period they are all multiples of (the smallest
     difference between their groups, divided by 1…4, refined as the least-squares period of the
     steps, shortest first: exact for exact stamps, within the jitter's mean for jittered ones)
-    becomes ``P`` if shorter.
+    becomes ``P`` if shorter and the steps spread over its multiples as above.
 
     A publisher that slows down: ``WINDOW`` steps in a row without a single, ¾ of them within
     half a period of the window's minimum (a regular rate, not the spread of an overload) — the
-    segment closes where those steps began and they start a new one at their period. An exact
+    segment closes where those steps began and they start a new one at their period (a period
+    that never had ``CONFIRM`` singles is abandoned instead: the segment is recounted at the
+    slower one, no count made at it is kept; the count of a segment is never more than its
+    span at ``P`` minus the samples taken). An exact
     integer slow-down (100 → 50 Hz) cannot be told from every other sample lost and counts as loss
     until the rest of the window spreads. A step longer than ``max_gap`` is a pause (the gate's,
     not counted; the segment closes, the period is kept) unless the receive times say the samples
@@ -70,10 +89,17 @@ class InputLoss:
     CONFIRM = 8
     #: steps within this many periods of an integer multiple are "multiples" (jitter tolerance)
     MULTIPLE_TOL = 0.15
+    #: distinct multiples the steps must spread over for a period hidden by losses
+    SPREAD = 3
+    #: short steps in a row after spread steps that make a period hidden by losses (a drain)
+    DRAIN = 3
 
     def __init__(self) -> None:
         self.transport = 0                 # samples the transport says it lost
         self.closed = 0                    # stamp-gap losses of closed segments
+        self._union_closed = 0             # total of the runs (time bases) before this one
+        self._run_transport = 0            # transport and stamp-gap counts when this run began
+        self._run_stamp = 0
         self.last_rx_ns: int | None = None  # receive time of the last loss (node clock)
         self._steps: deque[int] = deque()  # the last WINDOW steps (ns), oldest first
         self._sorted: list[int] = []       # the same steps, sorted
@@ -90,6 +116,7 @@ class InputLoss:
         self._ref: float | None = None     # the nominal period (ns) steps are classified against
         self._no_single = 0                # steps in a row without a single
         self._pending: tuple | None = None  # a shorter period not yet confirmed (see _decide)
+        self._fast: tuple | None = None    # short steps not (yet) a period (see _short_step)
 
     @property
     def period_ns(self) -> float | None:
@@ -98,13 +125,17 @@ class InputLoss:
 
     @property
     def stamp_gaps(self) -> int:
+        """Samples lost by the gaps in the header stamps (all runs)."""
         return self.closed + self._current
 
     @property
     def total(self) -> int:
-        return self.transport + self.stamp_gaps
+        """Samples lost, each counted once: per run, the larger of the transport's count and the
+        stamp gaps' (both see the same overwrites; the transport alone sees unstamped input)."""
+        return self._union_closed + max(self.transport - self._run_transport, self.stamp_gaps - self._run_stamp)
 
     def on_transport_loss(self, count: int, rx_ns: int | None) -> None:
+        """``count`` samples the transport reports lost, at receive time ``rx_ns``."""
         if count > 0:
             self.transport += int(count)
             self.last_rx_ns = rx_ns
@@ -126,13 +157,15 @@ class InputLoss:
         if step > gap and (rx_ns is None or last_rx is None or not 0 <= rx_ns - last_rx <= gap):
             self._close()                  # a pause (the gate's): not lost samples
             self._open(stamp_ns)
-            self._pending = None
+            self._pending = self._fast = None
             self._steps.clear()
             self._sorted.clear()
             self._no_single = 0
             return
         self._seg_steps += 1
         ref = self._ref
+        if self._fast is not None and (ref is None or step * self.SINGLE >= ref):
+            self._fast = None              # short steps that stopped: jitter or a burst, not a period
         single = ref is not None and step < self.SINGLE * ref and step * self.SINGLE >= ref and self._pending is None
         if single:
             self._sum += step              # a single step at a known period: the common case, inline
@@ -178,11 +211,16 @@ class InputLoss:
         if ref is None:
             self._sum, self._n, self._ref, self._no_single = step, 1, float(step), 0
         elif step * self.SINGLE < ref:                  # shorter than the nominal period
+            run = self._short_step(step, last)
+            if run is None:
+                return                     # not (yet) a period: no single, no count at it
+            at, before, total, n = run
             if self._n >= self.CONFIRM and self._pending is None:
                 # sped up, or the period was hidden by losses: decided once the new one is
                 # confirmed; meanwhile the segment is counted at the new period
-                self._pending = (last, self._seg_steps - 1, self._current, list(self._sorted), ref)
-            self._sum, self._n, self._ref, self._no_single = step, 1, float(step), 0
+                self._pending = (at, before, self._count(at - self._seg_start, before),
+                                 sorted(list(self._steps)[:before - self._seg_steps + len(self._steps) + 1]), ref)
+            self._sum, self._n, self._ref, self._no_single = total, n, total / n, 0
         elif step < self.SINGLE * ref:
             self._sum += step
             self._n += 1
@@ -192,6 +230,68 @@ class InputLoss:
                 self._decide()
         else:
             self._no_single += 1
+
+    def _short_step(self, step: int, last: int) -> tuple | None:
+        """A step shorter than the period: does it become the period (losses hid it)? At once
+        when the window's steps are multiples of it (refined by :func:`_fitted_period`) spread
+        over several multiples (:meth:`_spread_multiples`); else once ``DRAIN`` such steps come
+        in a row, near each other, after steps that are no regular rate, or before the period
+        is established by ``CONFIRM`` singles (a node behind a keep-last queue takes its last
+        samples one by one when the input stops). Else it is
+        jitter, a catch-up burst after a stall (after regular steps), or a publisher that sped
+        up: that takes ``CONFIRM`` such steps in a row (:meth:`_sped_up`; before the period is
+        established by ``CONFIRM`` singles they become it, the segment kept). Until then the
+        step is no single and the count stays at the period. The run that becomes the period:
+        (stamp before it, the segment's steps before it, sum of its steps, their count); None
+        if none."""
+        fast = self._fast
+        if fast is not None and step < self.SINGLE * fast[2] / fast[3] and step * self.SINGLE >= fast[2] / fast[3]:
+            self._fast = fast = (fast[0], fast[1], fast[2] + step, fast[3] + 1)
+            if fast[3] >= self.CONFIRM:
+                if self._n >= self.CONFIRM:
+                    self._sped_up()
+                    return None
+            elif fast[3] < self.DRAIN or (self._n >= self.CONFIRM
+                                          and self._regular(self._before(fast[3] - 1), self._ref)):
+                return None
+            self._fast = None
+            return fast
+        srt = self._sorted
+        p = _fitted_period(srt, step) if srt else None
+        self._fast = (last, self._seg_steps - 1, step, 1)
+        if p is not None and p * self.SINGLE < self._ref and self._spread_multiples(srt, p):
+            self._fast = None
+            return last, self._seg_steps - 1, step, 1
+        return None
+
+    def _before(self, k: int) -> list[int]:
+        """The window's steps but its last ``k``, sorted."""
+        steps = list(self._steps)
+        return sorted(steps[:len(steps) - k])
+
+    def _sped_up(self) -> None:
+        """``CONFIRM`` short steps in a row: the publisher sped up. The segment closes where the
+        new rate began, counted at the old period; a new one starts there at the new period."""
+        at, steps_before, total, n = self._fast
+        self._fast = None
+        self.closed += self._count(at - self._seg_start, steps_before)
+        self._current = 0
+        self._seg_start, self._seg_steps = at, self._seg_steps - steps_before
+        self._sum, self._n, self._ref, self._no_single = total, n, total / n, 0
+        self._pending = None
+
+    def _spread_multiples(self, srt: list[int], p: float) -> bool:
+        """Are the sorted steps ``srt`` multiples of ``p`` spread over several multiples (losses
+        hid ``p``), not mostly one multiple (a regular rate with one jittered or late step, or
+        a burst: exact stamps of a 100 Hz publisher are multiples of any 1 ms step)? At most
+        half of the steps at one multiple, at least ``SPREAD`` multiples."""
+        if not self._multiples(srt, p):
+            return False
+        counts: dict[int, int] = {}
+        for s in srt:
+            m = round(s / p)
+            counts[m] = counts.get(m, 0) + 1
+        return len(counts) >= self.SPREAD and 2 * max(counts.values()) <= len(srt)
 
     def _decide(self) -> None:
         """The shorter period is confirmed: were the steps before it a regular slower rate that
@@ -225,9 +325,9 @@ class InputLoss:
         than the nominal one (exact stamps, every step spanning losses: no single ever seen)?
         That period (:meth:`_base_period`) becomes the nominal one."""
         p = self._base_period(self._sorted)
-        if p is not None and p * self.SINGLE < self._ref:
+        if p is not None and p * self.SINGLE < self._ref and self._spread_multiples(self._sorted, p):
             self._sum, self._n, self._ref, self._no_single = p, 1, p, 0
-            self._pending = None
+            self._pending = self._fast = None
 
     def _base_period(self, srt: list[int]) -> float | None:
         """The period the sorted steps ``srt`` are spread multiples of, None if they are not
@@ -251,26 +351,38 @@ class InputLoss:
         return None
 
     def _slowed_down(self, stamp_ns: int) -> None:
-        """``WINDOW`` steps without a single: a regular slower rate starts a new segment there."""
-        srt = self._sorted
-        near = self._regular(srt, self._ref)
+        """``WINDOW`` steps without a single: a regular slower rate starts a new segment there —
+        unless the period it replaces never had ``CONFIRM`` singles (a short step taken for the
+        period too early, e.g. a burst after a stall at the start): that period is abandoned,
+        the segment stays and is recounted at the slower one, not kept at the count made at
+        it."""
+        srt, ref = self._sorted, self._ref
+        if self._n < self.CONFIRM:         # the steps at their own scale, if not multiples of it
+            srt = srt[bisect_left(srt, self.SINGLE * ref):]
+            tol = self.MULTIPLE_TOL
+            if srt and any(abs(s / ref - round(s / ref)) > tol for s in srt):
+                ref = srt[0]
+        near = self._regular(srt, ref)
         if not near:
             self._no_single = 0            # spread: an overload, not a slower publisher
             return
-        span = sum(self._steps)
-        self._current = self._count(stamp_ns - span - self._seg_start, self._seg_steps - len(self._steps))
-        self._close()
-        self._seg_start, self._seg_steps = stamp_ns - span, len(self._steps)
+        if self._n >= self.CONFIRM:
+            span = sum(self._steps)
+            self._current = self._count(stamp_ns - span - self._seg_start, self._seg_steps - len(self._steps))
+            self._close()
+            self._seg_start, self._seg_steps = stamp_ns - span, len(self._steps)
         p0 = sum(srt[:near]) / near
         singles = srt[:bisect_left(srt, self.SINGLE * p0)]      # the cluster's jitter in full
         self._sum, self._n, self._no_single = sum(singles), len(singles), 0
         self._ref = self._sum / self._n
-        self._pending = None
+        self._pending = self._fast = None
 
     def restart(self) -> None:
         """A new time base (reset): stamp steps across it are not gaps; the period is learnt
         again."""
         self._close()
+        self._union_closed = self.total
+        self._run_transport, self._run_stamp = self.transport, self.stamp_gaps
         self._steps.clear()
         self._sorted.clear()
         self._last_stamp = None
