@@ -207,13 +207,14 @@ def test_same_files_as_rosbags_writer(tmp_path, storage, by_chunk, monkeypatch):
 
 
 def test_copy_chunk_skips_uncopied_connections(tmp_path):
-    """Rows of a connection without definition are skipped (counted in ``skipped``), the rest
-    copied in bag order; unknown connections are added from the input bag."""
+    """Rows of a connection the output bag cannot hold (no type name: an MCAP channel without a
+    schema) are skipped (counted in ``skipped``), the rest copied in bag order; unknown
+    connections are added from the input bag."""
     from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
 
     none = MessageDefinition(MessageDefinitionFormat.NONE, "")
     good = Connection(1, "/imu", m.IMU, none, "", 0, ConnectionExtRosbag2("cdr", []), None)
-    bad = Connection(2, "/weird", "my_pkg/msg/Unknown", none, "", 0, ConnectionExtRosbag2("cdr", []), None)
+    bad = Connection(2, "/weird", "__schemaless__", none, "", 0, ConnectionExtRosbag2("cdr", []), None)
 
     class Bag:
         connections = [good, bad]

@@ -15,7 +15,8 @@
 """bags — rosbag2 bags in and out (sqlite3 and mcap), through rosbags.
 
 Holds where a bag's files are (``paths``), reading an intact bag (``reader``: ``InputBag``; fast
-block readers ``fast``), salvaging a damaged one (``salvage``), the storage writers (``storage``,
+block readers ``fast``), salvaging a damaged one (``salvage``), rosbags' reader opening a type of no definition
+(``lenient``), the storage writers (``storage``,
 with ``rows``: a write batch's payloads, and ``yaml_dump``: libyaml for its YAML) and writing the
 output bag (``writer``: ``OutputBag``). May import ``messages`` (types, blocks, decoding),
 ``physics`` (jit), ``errors``, ``signals`` and ``filesystem``.
@@ -43,6 +44,12 @@ Internals used, and why (no public API does it at an acceptable cost):
   ``storage_mcap.decompress`` (chunk size and CRC, rosbags' decompressors). Why: rows as arrays
   without a Python object per message (MCAP 0.4–0.8 µs per row against 2.4–4.9 through
   ``Reader.messages``, sqlite3 0.8–0.9 against 1.1–1.5).
+* ``lenient``: a subclass of ``storage_sqlite3.Sqlite3Reader`` put in ``Reader.STORAGE_PLUGINS`` and
+  ``reader.DirectoryReader.STORAGE_PLUGINS``; when rosbags' ``open`` fails on a
+  ``message_definitions`` encoding it does not map (rosbag2's empty definition of a type), it sets
+  the reader's ``dbconn``, ``schema``, ``msgtypes``, ``connections`` and ``metadata``
+  (``ReaderMetadata``) as rosbags does. Why: rosbags' sqlite3 reader raises ``KeyError`` there
+  (its MCAP reader reads it as no definition) and has no hook for it.
 * ``salvage`` and ``fast``: ``metadata.parse_qos`` (QoS text → ``Qos``, as rosbags parses it)
   and ``storage_mcap.decompress`` for damaged or foreign files rosbags' ``Reader`` refuses.
 * ``fast``: ``reader.zstd``, the module whose ``decompress`` rosbags' ``Reader.messages`` applies

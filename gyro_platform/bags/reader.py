@@ -27,6 +27,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from .fast import Batch, McapBag, row_batches
+from .lenient import reader_class
 from .paths import reader_path, resolve_bag_path, rosbags_api, storage_files, storage_of
 from .salvage import Salvage
 from .. import messages as msgs
@@ -79,6 +80,9 @@ class InputBag:
         self.foreign: str | None = None
         self.skipped_channels: dict[str, str] = {}
         self.skipped_input: dict[str, int] = {}
+        #: salvaged bag: storage file -> its damage, for each file whose rest is lost (a split
+        #: bag's later files are read on past a damaged one)
+        self.damaged_files: dict[str, str] = {}
         self.warnings: list[str] = []
         #: reader of the last :meth:`chunks` call: "fast" (bag_fast on rosbags' index),
         #: "mcap" (the mcap package, foreign MCAP), "rosbags" or "salvage" (row by row)
@@ -105,7 +109,7 @@ class InputBag:
         if self.storage == "sqlite3":
             self.warnings += [w for w in map(wal_warning, storage_files(path)) if w]
         try:
-            reader = rb["Reader"](reader_path(path))
+            reader = reader_class()(reader_path(path))   # rosbags' Reader; also a type of empty definition
             reader.open()
             _check_counts(reader.connections)
         except (ReplayError, BagReadError):    # the path itself (BagPathError: several files, no metadata …)
@@ -122,6 +126,7 @@ class InputBag:
                 self.damage = why
                 self._salvage = Salvage.open(path, self.storage, self.damage)
                 self.salvaged = True
+                self.damaged_files = self._salvage.damaged_files     # filled as it is read
                 conns = list(self._salvage.connections)
         else:
             self._reader = reader

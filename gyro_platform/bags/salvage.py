@@ -15,7 +15,8 @@
 """Reading what is readable of a damaged rosbag2 bag (no index, no footer, a cut-off database).
 
 Used by :class:`.bag_reader.InputBag` when rosbags cannot open the bag. Messages are streamed
-in file order up to the damage, then ``BagReadError`` names the file and where it broke.
+file by file, each in file order up to its damage (the files after a damaged one of a split bag
+are read on), then ``BagReadError`` names each damaged file and where it broke.
 
 * MCAP: the file is a stream of length-prefixed records, read front to back (neither the
   summary nor the footer is needed). The connections (schemas and channels, top level and in
@@ -55,6 +56,9 @@ class Salvage:
         self.path, self.files, self.storage, self.why = path, files, storage, why
         self.connections: list[Any] = []
         self._conn_key: dict[tuple[int, int], Any] = {}    # (file index, storage id) -> connection
+        #: storage file -> its damage, for each file the last read stopped inside (the rest of it
+        #: lost; the files after it are read on)
+        self.damaged_files: dict[str, str] = {}
 
     @classmethod
     def open(cls, path: Path, storage: str, why: str) -> "Salvage":
@@ -84,27 +88,49 @@ class Salvage:
         return s
 
     def messages(self, conn_ids: set[int]) -> Iterator[tuple[Any, int, bytes]]:
-        """(connection, receive time ns, CDR bytes) up to the damage, then BagReadError."""
+        """(connection, receive time ns, CDR bytes) of each storage file in turn, each up to its
+        damage (a damaged file's readable rows, then the next file's), then BagReadError."""
+        self.damaged_files.clear()
         for i, f in enumerate(self.files):
             src = sqlite_messages(f) if self.storage == "sqlite3" else mcap_messages(f)
-            for sid, ts, raw in src:
-                conn = self._conn_key.get((i, sid))
-                if conn is not None and conn.id in conn_ids:
-                    yield conn, ts, raw
-        raise BagReadError(f"{self.path}: damaged bag, salvaged up to here ({self.why})")
+            try:
+                for sid, ts, raw in src:
+                    conn = self._conn_key.get((i, sid))
+                    if conn is not None and conn.id in conn_ids:
+                        yield conn, ts, raw
+            except BagReadError as e:
+                self.damaged_files[str(f)] = str(e)
+        raise self._end()
 
     def batches(self, conn_ids: set[int]) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
         """MCAP: :meth:`messages` as blocks (bag connection ids, receive times ns, raws), a chunk
         at a time: the same rows in the same order, the same BagReadError after them."""
         if self.storage != "mcap":
             raise ValueError("batches() reads MCAP; sqlite3 rows come from messages()")
+        self.damaged_files.clear()
         for i, f in enumerate(self.files):
             lut = np.full(65536, -1, np.int64)       # MCAP channel id (uint16) -> bag connection id
             for (fi, sid), c in self._conn_key.items():
                 if fi == i and c.id in conn_ids:
                     lut[sid] = c.id
-            yield from mcap_batches(f, lut)
-        raise BagReadError(f"{self.path}: damaged bag, salvaged up to here ({self.why})")
+            try:
+                yield from mcap_batches(f, lut)
+            except BagReadError as e:
+                self.damaged_files[str(f)] = str(e)
+        raise self._end()
+
+    def _end(self) -> BagReadError:
+        """The error that ends a salvaged read: the damage of each damaged file (a split bag's
+        later files are read past a damaged one: the error says so), else rosbags' reason."""
+        if not self.damaged_files:
+            return BagReadError(f"{self.path}: damaged bag, salvaged up to here ({self.why})")
+        text = "; ".join(self.damaged_files.values())
+        if len(self.files) > 1:
+            last = max(i for i, f in enumerate(self.files) if str(f) in self.damaged_files)
+            later = [f.name for f in self.files[last + 1:]]
+            text += (f" (split bag: {len(self.damaged_files)} of {len(self.files)} files damaged, the rest of "
+                     f"each lost; " + (f"read on in {', '.join(later)}" if later else "no file after it") + ")")
+        return BagReadError(text)
 
     def close(self) -> None:
         pass

@@ -45,6 +45,7 @@ from contextlib import contextmanager
 from functools import lru_cache
 import os
 from pathlib import Path
+import re
 import sys
 from typing import Any, Iterable, Iterator, Sequence
 
@@ -57,6 +58,11 @@ from .. import messages as msgs
 from ..errors import OutputError
 from ..messages.typedefs import core_typestore, has_type
 from ..signals import deferred_signals
+
+
+#: type hash handed to rosbags' ``Writer`` for a type without one (it asks for one), written over
+#: with '' (rosbag2's hash of a type it has no definition of)
+NO_HASH = "RIHS01_" + "0" * 64
 
 
 def default_qos() -> list:
@@ -161,14 +167,44 @@ class OutputBag:
                     digest = None
         if msgdef is None or digest is None:
             jazzy = msgs.jazzy_typestore()
-            if conn.msgtype not in jazzy.fielddefs:
-                self.skipped[conn.topic] = f"type {conn.msgtype} has no definition in the bag nor in Jazzy"
-                return None
+            if conn.msgtype not in jazzy.fielddefs:     # copied raw, with what the bag says of it
+                return self._add_undefined(conn, msgdef or "", digest or "")
             msgdef, _ = jazzy.generate_msgdef(conn.msgtype, ros_version=2)
             digest = jazzy.hash_rihs01(conn.msgtype)
         return self.writer.add_connection(conn.topic, conn.msgtype, msgdef=msgdef, rihs01=digest,
                                           serialization_format=conn.ext.serialization_format,
                                           offered_qos_profiles=conn.ext.offered_qos_profiles)
+
+    def _add_undefined(self, conn: Any, msgdef: str, digest: str) -> Any | None:
+        """Output connection of a type neither the bag nor Jazzy defines (rosbag2 records one,
+        with an empty definition, when the recording machine lacks the type): its rows are
+        copied byte for byte. Definition ``msgdef`` (empty: an empty ``ros2msg`` one, which rosbags
+        and rosbag2 read) and type hash ``digest`` (empty, as rosbag2 writes it, when the bag has
+        none: rosbags' ``Writer`` asks for one, so a placeholder is written over). None (the
+        topic in ``skipped``) for a channel without a type name or when the writer refuses it."""
+        if not re.fullmatch(r"[A-Za-z]\w*(/\w+)+", conn.msgtype or ""):    # rosbags' '__schemaless__' …
+            self.skipped[conn.topic] = (f"no type name ({conn.msgtype!r}: e.g. an MCAP channel without a schema) "
+                                        f"and no definition: its {conn.msgcount} messages are not copied")
+            return None
+        try:
+            out = self.writer.add_connection(conn.topic, conn.msgtype, msgdef=msgdef, rihs01=digest or NO_HASH,
+                                             serialization_format=conn.ext.serialization_format,
+                                             offered_qos_profiles=conn.ext.offered_qos_profiles)
+        except WRITE_ERRORS:
+            raise
+        except Exception as e:      # rosbags' WriterError, its checks of a definition …
+            self.skipped[conn.topic] = (f"type {conn.msgtype} has no definition in the bag nor in Jazzy and "
+                                        f"the writer refused it ({_err(e)})")
+            return None
+        if not digest:
+            out = out._replace(digest="")
+            self.writer.connections[-1] = out       # (just added; metadata.yaml is written from these)
+            cursor = getattr(self.writer.storage, "cursor", None)     # sqlite3: the rows written with it
+            if cursor is not None:
+                cursor.execute("UPDATE topics SET type_description_hash = '' WHERE id = ?", (out.id,))
+                cursor.execute("UPDATE message_definitions SET type_description_hash = '' "
+                               "WHERE topic_type = ? AND type_description_hash = ?", (conn.msgtype, NO_HASH))
+        return out
 
     def add_output(self, topic: str, msgtype: str) -> None:
         """Add an output topic; an input topic of the same name and type is shared (/diagnostics)."""

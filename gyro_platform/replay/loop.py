@@ -143,6 +143,8 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
                     out = run.out = OutputBag(out_bag, cfg.storage or bag.storage)
                 for conn in bag.connections:
                     out.copy_connection(conn, bag.store_for(conn))
+                for line in skipped_warnings(out.skipped):
+                    print(f"gyro-platform replay: warning: {line}", file=sys.stderr)
                 for topic, typ in out_topics.items():
                     out.add_output(topic, typ)
                 run.loop()
@@ -171,6 +173,11 @@ def replay(in_bag: str | Path, out_bag: str | Path, config: ReplayConfig | None 
     return summary
 
 
+def skipped_warnings(skipped: dict[str, str]) -> list[str]:
+    """One line per input topic the output bag could not copy (``OutputBag.skipped``)."""
+    return [f"input topic {t} is not in the output bag: {why}" for t, why in skipped.items()]
+
+
 def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, cpu: float, plot: bool) -> dict[str, Any]:
     """The run's summary, its plot when asked, both written next to ``out_bag`` (``wall``, ``cpu``:
     seconds of the replay, wall clock and this process's CPU)."""
@@ -178,6 +185,7 @@ def _results(run: "_Run", in_bag: Path, out_bag: Path, wall: float, cpu: float, 
     summary = run.summary(in_bag, out_bag, wall, cpu)
     if run.out.skipped:
         summary["output"]["skipped_topics"] = run.out.skipped
+        summary["warnings"] += skipped_warnings(run.out.skipped)
     summary["files"] = {"bag": str(out_bag), "summary": str(summary_path), "plot": None}
     if plot:
         try:
@@ -514,7 +522,8 @@ class _Run:
                       "type": self.bag.msgtype, "messages": self.n_msgs, "topic_messages": self.n_in,
                       "salvaged": self.bag.salvaged, "damage": self.bag.damage,
                       **{k: getattr(self.bag, k) for k in ("skipped_channels", "skipped_input", "foreign",
-                                                           "chunk_source", "warnings") if hasattr(self.bag, k)},
+                                                           "damaged_files", "chunk_source", "warnings")
+                         if hasattr(self.bag, k)},
                       "time_source": snap["time_source"]},
             "output": {"bag": str(out_bag), "storage": self.out.storage, "version": 9,
                        "messages": sum(self.out.counts.values()), "messages_by_topic": dict(self.out.counts),
