@@ -272,3 +272,24 @@ def test_lost_input_turns_the_node_status_warn(harness):
     h.wait(lambda: len(h.got["/diagnostics"]) > n, timeout=5.0, what="/diagnostics")
     node = [s for s in h.got["/diagnostics"][-1].status if s.name == "gyro_platform: node"][0]
     assert node.level == node.WARN and "overload" in node.message
+
+
+def test_a_publisher_of_another_type_on_the_input_is_said(harness):
+    """A Twist publisher on the Imu input (or TwistStamped where Twist is taken: Jazzy stacks are
+    moving to it) never matches, and DDS raises no event for it: the node said only 'no input
+    yet'. Now /diagnostics names the other type (WARN when no publisher is of the input's type)."""
+    from geometry_msgs.msg import Twist
+
+    h = harness()
+    h.driver.create_publisher(Twist, "imu", 10)
+    h.driver.destroy_publisher(h.pub)
+
+    def warned():
+        for a in h.got["/diagnostics"]:
+            st = {s.name: s for s in a.status}
+            values = {v.key: v.value for v in st["gyro_platform: transport"].values}
+            node = st["gyro_platform: node"]
+            if values.get("input_publishers_other_types") == "geometry_msgs/msg/Twist" and node.level != node.OK:
+                return "geometry_msgs/msg/Twist" in node.message and "sensor_msgs/msg/Imu" in node.message
+        return False
+    h.wait(warned, timeout=15.0, what="a WARN naming the Twist publisher")

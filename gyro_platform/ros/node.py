@@ -133,6 +133,7 @@ class PlatformNode(Node):
         self._diag_timer = self.create_timer(1.0 / config["diagnostics_rate"], self._publish_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._clock_state = ""                  # "", "waiting", "running": what was logged about /clock
+        self._wrong_types: list[str] = []       # input publishers of another type, as last logged
         self._reset_srv = self.create_service(Trigger, "~/reset", self._on_reset)
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=CLOCK_JUMP_BACK, on_clock_change=False),
@@ -255,11 +256,15 @@ class PlatformNode(Node):
         now = clock.now().nanoseconds
         sim = clock.ros_time_is_active
         waiting = sim and now == 0
+        topic = self.resolve_topic_name(self.core.input_topic)
+        kinds = [i.topic_type for i in self.get_publishers_info_by_topic(topic)]
+        own = self.core.input_type
+        others = sorted(set(kinds) - {own})
         with self._lock:
             arr = self.core.diagnostics(now)
-            topic = self.resolve_topic_name(self.core.input_topic)
             values = {"transport": "rclpy", "input_topic": topic,
-                      "input_publishers_matched": self.count_publishers(topic),
+                      "input_publishers_matched": kinds.count(own),
+                      "input_publishers_other_types": ", ".join(others),
                       "samples_lost_reported_by_rmw": self.lost_events, "processed": self.processed,
                       "published": self.published,
                       "clock": ("waiting for /clock (use_sim_time)" if waiting
@@ -269,6 +274,15 @@ class PlatformNode(Node):
             node.message = f"waiting for /clock (use_sim_time is true; none received); {node.message}"
             if node.level == node.OK:
                 node.level = node.WARN
+        if others and own not in kinds:
+            # a publisher of another type never matches (DDS raises no event for it): say so
+            node = next(st for st in arr.status if st.name.endswith(": node"))
+            node.message = f"input {topic} has publishers of {', '.join(others)} only, not {own}; {node.message}"
+            node.level = max(node.level, node.WARN)
+            if others != self._wrong_types:
+                self.get_logger().warning(f"{topic} is published as {', '.join(others)}, not {own} (this node's "
+                                          "input_type): those samples never reach it")
+        self._wrong_types = others
         arr.status.append(transport_status(self.core.types, values))
         self._diag_pub.publish(arr)
         self._log_clock_state("waiting" if waiting else (("running" if sim else "system") if self._clock_state else ""))
