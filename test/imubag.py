@@ -12,11 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Imu recordings for the ROS tests, written with rosbags (Jazzy typestore, rosbag2 version 8)."""
+"""Imu recordings for the tests, written with rosbags (Jazzy typestore, rosbag2 version 8), and
+the raw rows of a bag by topic."""
 from pathlib import Path
 
 import numpy as np
-from rosbags.rosbag2 import Writer
+from rosbags.rosbag2 import Reader, Writer
 from rosbags.typesys import get_typestore, Stores
 
 T0_NS = 1000 * 10**9
@@ -40,3 +41,12 @@ def write_imu_bag(path: Path, n: int, rate_hz: float, w=(0.02, 0.0, 0.1), stampe
                     angular_velocity=Vec3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=cov,
                     linear_acceleration=Vec3(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=cov)
             writer.write(conn, t, ts.serialize_cdr(m, Imu.__msgtype__))
+
+
+def raw_by_topic(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """Topic → (bag time ns, serialised bytes) of every message of ``bag``, in bag order."""
+    res: dict[str, list] = {}
+    with Reader(bag) as r:
+        for c, ts, raw in r.messages():
+            res.setdefault(c.topic, []).append((ts, bytes(raw)))
+    return res

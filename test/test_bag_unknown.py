@@ -34,6 +34,7 @@ from gyro_platform import cli
 from gyro_platform.bags import InputBag
 from gyro_platform.errors import EXIT_DATA, EXIT_OK
 from gyro_platform.replay import sidecar_paths
+from imubag import raw_by_topic
 
 S = 1_000_000_000
 T0 = 1_700_000_000 * S
@@ -94,16 +95,6 @@ def _replay(bag: Path, out: Path, capsys) -> tuple[int, dict, str]:
     return code, json.loads(sidecar_paths(out)[0].read_text()), err
 
 
-def _rows(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
-    from rosbags.rosbag2 import Reader
-
-    res: dict[str, list] = {}
-    with Reader(bag) as r:
-        for c, ts, raw in r.messages():
-            res.setdefault(c.topic, []).append((ts, bytes(raw)))
-    return res
-
-
 # ---- a type of no definition (sqlite3) --------------------------------------------------------
 @pytest.mark.parametrize("encoding", ["", "unknown"])
 def test_a_type_without_definition_opens_as_an_intact_bag(tmp_path, encoding):
@@ -123,7 +114,7 @@ def test_replay_of_a_type_without_definition_is_exit_0_and_copies_it_raw(tmp_pat
     assert "damaged" not in err and summary["error"] is None and not summary["input"]["salvaged"]
     assert summary["counts"]["in"] == summary["counts"]["accepted"] == 500
     assert "skipped_topics" not in summary["output"] and summary["warnings"] == []
-    rows = _rows(tmp_path / "out")
+    rows = raw_by_topic(tmp_path / "out")
     assert rows["/custom"] == _rows_of(bag, "/custom") and len(rows["/custom"]) == 10
     assert rows["/imu/data"] == _rows_of(bag, "/imu/data")
     meta = yaml.safe_load((tmp_path / "out" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -199,7 +190,7 @@ def test_a_channel_without_schema_is_copied_or_said(tmp_path, capsys, mode):
     copied = summary["output"]["messages_by_topic"].get("/custom", 0)
     if mode == "emptyschema":       # a type name, no definition: copied raw
         assert copied == 10 and summary["warnings"] == [] and "skipped_topics" not in summary["output"]
-        assert _rows(tmp_path / "out")["/custom"][0][1] == FOO
+        assert raw_by_topic(tmp_path / "out")["/custom"][0][1] == FOO
     else:                           # nothing to name the type with: not copied, and said
         assert copied == 0 and "/custom" in summary["output"]["skipped_topics"]
         lines = [w for w in summary["warnings"] if "/custom" in w]
@@ -244,5 +235,5 @@ def test_a_split_bag_with_a_damaged_first_file_is_read_on_in_the_next(tmp_path, 
     error = [ln for ln in err.splitlines() if "error" in ln]
     assert len(error) == 1 and first.name in error[0] and "read on in split_1." in error[0], err
     assert "read on in split_1." in summary["error"]
-    rows = _rows(tmp_path / "out")["/imu/data"]
+    rows = raw_by_topic(tmp_path / "out")["/imu/data"]
     assert len(rows) == n and rows[-1][0] == T0 + S + 999 * S // 1000

@@ -31,7 +31,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from gyro_platform import messages as m
@@ -40,6 +40,7 @@ from gyro_platform.physics.options import ModelOptions
 from gyro_platform.pipeline.gate_rules import GateConfig
 from gyro_platform.pipeline.grid import grid_index, grid_indices, new_slots
 from gyro_platform.replay.stats import LineFit, PlotSeries, Stats
+from imubag import raw_by_topic
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 T = JAZZY.types
@@ -111,21 +112,13 @@ def write_bag(path: Path, rows, storage: str = "sqlite3", topic: str = "/imu") -
     return path
 
 
-def by_topic(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
-    res: dict[str, list] = {}
-    with Reader(bag) as r:
-        for c, ts, raw in r.messages():
-            res.setdefault(c.topic, []).append((ts, bytes(raw)))
-    return res
-
-
 def both(bag: Path, tmp: Path, **cfg) -> dict[str, tuple[dict, dict]]:
     """Replay ``bag`` with both engines; engine -> (summary, records by topic)."""
     res = {}
     for engine in ("per_message", "chunked"):
         out = tmp / f"out_{engine}"
         s = rp.replay(bag, out, rp.ReplayConfig(progress=False, plot=False, engine=engine, **cfg))
-        res[engine] = (s, by_topic(out))
+        res[engine] = (s, raw_by_topic(out))
     return res
 
 
@@ -431,7 +424,7 @@ def test_signal_stops_at_a_chunk_boundary_with_consistent_counts(tmp_path, sig):
     assert c["accepted"] == s["simulated"] == sum(v for k, v in c["simulator"].items()
                                                   if k in ("pushed", "reset", "restarted"))
     assert c["accepted"] + c["dropped"] == c["in"]
-    got = by_topic(out)                                                   # closed and readable
+    got = raw_by_topic(out)                                                   # closed and readable
     assert len(got["/gimbal/joint_states"]) == c["out"] == s["output"]["outputs"]
     assert len(got["/imu"]) == c["in"] and len(got["/imu"]) + len(got["/odom_twist"]) == s["input"]["messages"]
 

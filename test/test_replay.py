@@ -39,7 +39,7 @@ from gyro_platform.bags.paths import read_metadata
 from gyro_platform.engine.outputs import BEARING_FRAMES, BEARING_NAMES, GIMBAL_NAMES, MOUNT_NAMES
 from gyro_platform.pipeline.gate import TimeGate
 from gyro_platform.pipeline.gate_rules import Action, GateConfig
-from imubag import write_imu_bag
+from imubag import raw_by_topic, write_imu_bag
 
 BAGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bags"
 CABRILLO = BAGS / "cabrillo_rov_bno085_imu"
@@ -79,14 +79,6 @@ def grid_count(times_ns: np.ndarray, rate: float | None) -> int:
         return len(times_ns)
     slots = [math.floor((int(t) - int(times_ns[0])) * 1e-9 * rate + 1e-9) for t in times_ns]
     return 1 + sum(1 for a, b in zip(slots, slots[1:]) if b > a)
-
-
-def raw_by_topic(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
-    res: dict[str, list] = {}
-    with Reader(bag) as r:
-        for c, ts, raw in r.messages():
-            res.setdefault(c.topic, []).append((ts, bytes(raw)))
-    return res
 
 
 def read_output(bag: Path, undecodable_ok: tuple[str, ...] = ()) -> dict[str, list]:
