@@ -312,22 +312,14 @@ def _ignore_further_interrupts() -> None:
         pass
 
 
-#: the node is starting (modules, kernels, warm-up): Ctrl-C raises KeyboardInterrupt; once it is
-#: ready rclpy's own handler (which calls ours after it) shuts the context down and spin ends
-_STARTING = [True]
-
-
 def _interrupt_once() -> None:
-    """Ctrl-C raises KeyboardInterrupt once, while the node starts: the handler itself ignores
-    every later SIGINT. ``ros2 launch`` sends its own SIGINT right after the terminal's (process
-    group), and a busy node (a parameter storm) may still be unwinding the first when it comes: a
-    second KeyboardInterrupt there escaped ``main`` with a traceback (exit −2). Once ready it
-    raises nothing: raised into whatever ran (a garbage collector's weakref callback while the
-    executor was being made) it printed "Exception ignored" tracebacks."""
+    """Ctrl-C raises KeyboardInterrupt once: the handler itself ignores every later SIGINT.
+    ``ros2 launch`` sends its own SIGINT right after the terminal's (process group), and a busy
+    node (a parameter storm) may still be unwinding the first when it comes: a second
+    KeyboardInterrupt there escaped ``main`` with a traceback (exit −2)."""
     def handler(signum: int, frame: Any) -> None:
-        if _STARTING[0]:
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-            raise KeyboardInterrupt
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
 
     try:
         signal.signal(signal.SIGINT, handler)
@@ -358,7 +350,6 @@ def main(args: list[str] | None = None) -> int:
     code = 0
     try:
         node = PlatformNode()
-        _STARTING[0] = False          # ready: rclpy's handler stops spin from here on
         freeze_startup_objects()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
