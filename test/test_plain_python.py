@@ -26,9 +26,9 @@ import subprocess
 import sys
 
 from test_cli import small_bag
-from test_replay import raw_by_topic
 
 from gyro_platform.messages import output_topics
+from imubag import raw_by_topic
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -457,12 +457,12 @@ def test_bag_scene_restarts_its_output_grid_after_a_loop_like_replay(tmp_path):
     assert s["counts"]["resets_by_reason"] == {"jump_back": 1} and summary["bag"]["reset"] == 1
     # replay's instants: joint state stamps, as s since the first accepted stamp (the scene's t)
     from rosbags.typesys import get_typestore, Stores
-    from test_chunked import by_topic
+    from imubag import raw_by_topic
 
     store = get_typestore(Stores.ROS2_JAZZY)
     js = [
         store.deserialize_cdr(raw, "sensor_msgs/msg/JointState")
-        for _, raw in by_topic(tmp_path / "out")["/gimbal/joint_states"]
+        for _, raw in raw_by_topic(tmp_path / "out")["/gimbal/joint_states"]
     ]
     t_replay = [(x.header.stamp.sec * 10**9 + x.header.stamp.nanosec - s["gate"]["origin_ns"]) / 1e9 for x in js]
     assert len(t_replay) == 10 + 8                      # 2 s and 1.5 s at 5 Hz

@@ -30,7 +30,6 @@ import math
 from typing import Any, Callable
 
 import numpy as np
-from scipy.integrate import trapezoid
 
 from ..engine.outputs import BEARING_NAMES, GIMBAL_NAMES
 
@@ -181,8 +180,8 @@ def figures_of_arrays(t: np.ndarray, gimbal_angles: np.ndarray, drift_angle: np.
         # the time average (trapezoid over the outputs): a plain mean of the instants counts both
         # ends of the run and depends on the output rate (one period of a roll: 0.026 rad/s at 10 Hz)
         span = float(t_rel[-1])
-        f.mean_vehicle_rate = (trapezoid(vehicle_omega, t_rel, axis=0) / span if span > 0
-                               else vehicle_omega.mean(axis=0))
+        area = 0.5 * np.sum((vehicle_omega[1:] + vehicle_omega[:-1]) * np.diff(t_rel)[:, None], axis=0)
+        f.mean_vehicle_rate = area / span if span > 0 else vehicle_omega.mean(axis=0)
         f.max_abs_vehicle_rate = max_abs_axes(vehicle_omega)
     if relative_attitude is not None:
         if vehicle_omega is not None and steady(vehicle_omega[win]):
