@@ -29,6 +29,8 @@ import textwrap
 
 import pytest
 
+from gyro_platform.heap import USER_SETTINGS
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -63,7 +65,10 @@ def _probe(setup: str, env: dict | None = None) -> tuple[int, int]:
     """(keepcost, blocks mapped for themselves by a 1 MiB allocation) of a new process
     that ran ``setup`` first."""
     code = PROBE.replace("SETUP", setup)
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env={**os.environ, **(env or {})},
+    # a clean allocator environment: Dask's LocalCluster (a sweep run in this test process earlier)
+    # leaves MALLOC_TRIM_THRESHOLD_ in os.environ for its workers
+    base = {k: v for k, v in os.environ.items() if k not in USER_SETTINGS}
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env={**base, **(env or {})},
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     keep, mapped = out.stdout.split()[-2:]
