@@ -133,14 +133,10 @@ def vehicle_attitude_over(y0, y1, i, seg):
     h = seg[SEG_DT] / MAGNUS_PIECES
     c = h * h / 12.0
     x, y, z, w = y0[i], y0[i + 1], y0[i + 2], y0[i + 3]
+    b0, b1, b2 = seg_at(seg, seg[SEG_T0], SEG_W0)
     for p in range(MAGNUS_PIECES):
-        s0, s1 = p / MAGNUS_PIECES, (p + 1) / MAGNUS_PIECES
-        a0 = seg[SEG_W0] + s0 * (seg[SEG_W1] - seg[SEG_W0])
-        a1 = seg[SEG_W0 + 1] + s0 * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
-        a2 = seg[SEG_W0 + 2] + s0 * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
-        b0 = seg[SEG_W0] + s1 * (seg[SEG_W1] - seg[SEG_W0])
-        b1 = seg[SEG_W0 + 1] + s1 * (seg[SEG_W1 + 1] - seg[SEG_W0 + 1])
-        b2 = seg[SEG_W0 + 2] + s1 * (seg[SEG_W1 + 2] - seg[SEG_W0 + 2])
+        a0, a1, a2 = b0, b1, b2                         # the rate at the piece's start, then its end
+        b0, b1, b2 = seg_at(seg, seg[SEG_T0] + (p + 1) * h, SEG_W0)
         t0 = 0.5 * h * (a0 + b0) + c * (a1 * b2 - a2 * b1)
         t1 = 0.5 * h * (a1 + b1) + c * (a2 * b0 - a0 * b2)
         t2 = 0.5 * h * (a2 + b2) + c * (a0 * b1 - a1 * b0)

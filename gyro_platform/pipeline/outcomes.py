@@ -31,6 +31,15 @@ ADVANCED = ("pushed", "reset", "restarted")
 _ACT_DROP, _ACT_RESET = Action.DROP, Action.RESET
 
 
+#: how a sample the simulator refused begins its line in ``Pipeline.errors``
+REFUSED = "refused: "
+
+
+def refusal(e: InputError) -> str:
+    """The ``Pipeline.errors`` line of a sample the simulator refused (read by :func:`no_sample_hint`)."""
+    return f"{REFUSED}{e}"
+
+
 def apply_decision(sim: Any, decision: Decision, refused: Callable[[str], None] | None = None) -> str:
     """Apply a gate decision to a ``Simulator``. Returns ``"pushed"``, ``"reset"`` (reset, then
     pushed), ``"dropped"``, ``"rejected"`` (the simulator refused the sample: InputError, state
@@ -46,7 +55,7 @@ def apply_decision(sim: Any, decision: Decision, refused: Callable[[str], None] 
         sim.push(decision.sample)
     except InputError as e:
         if refused is not None:
-            refused(f"refused: {e}")
+            refused(refusal(e))
         return "rejected"
     except SimulationError:
         return restart_at(sim, decision.sample)
@@ -84,7 +93,7 @@ def no_sample_hint(dropped_by_reason: dict[str, int], n_in: int, errors: Sequenc
     reason, count = max(dropped_by_reason.items(), key=lambda kv: kv[1])
     hint = DROP_HINTS.get(reason, "see dropped_by_reason in the summary")
     if reason == "refused" and errors:
-        hint = f"the simulator refused them: {errors[0].removeprefix('refused: ')}"
+        hint = f"the simulator refused them: {errors[0].removeprefix(REFUSED)}"
     return f"none of the {n_in} input messages was accepted ({count} dropped as {reason}): {hint}"
 
 

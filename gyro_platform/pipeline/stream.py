@@ -39,7 +39,7 @@ from .chunked import ChunkedRuns
 from .gate import TimeGate
 from .gate_rules import Decision, NS, plain_decision
 from .grid import check_grid_rate, grid_index
-from .outcomes import ADVANCED, apply_decision, restart_at
+from .outcomes import ADVANCED, apply_decision, refusal, restart_at
 from .. import messages as msgs
 from ..bags.reader import InputBag
 from ..engine.inputs import RateSample
@@ -166,7 +166,7 @@ class Pipeline(ChunkedRuns):
             self.sim.push_plain(plain[0], plain[1], plain[2])
         except InputError as e:
             outcome = "rejected"
-            self.record_error(f"refused: {e}")
+            self.record_error(refusal(e))
         except SimulationError:
             outcome = restart_at(self.sim, gate.last.sample)
         else:

@@ -515,6 +515,8 @@ class _Run:
 
     def summary(self, in_bag: Path, out_bag: Path, wall: float, cpu: float) -> dict[str, Any]:
         snap = self.gate.snapshot()
+        idle = nothing_integrated_hint(self.outcomes, snap["resets_by_reason"], snap["accepted"],
+                                       self.cfg.gate.max_gap)
         duration = 0.0 if self.first_ts is None else (self.last_ts - self.first_ts) / NS
         opts = self.sim.options
         return {
@@ -540,8 +542,7 @@ class _Run:
             "real_time_factor": duration / wall if wall > 0 else None,
             "messages_per_s": self.n_msgs / wall if wall > 0 else None,
             "simulated": self.simulated,
-            "no_usable_input": bool(self.n_in) and (self.simulated == 0 or nothing_integrated_hint(
-                self.outcomes, snap["resets_by_reason"], snap["accepted"], self.cfg.gate.max_gap) is not None),
+            "no_usable_input": bool(self.n_in) and (self.simulated == 0 or idle is not None),
             "engine": self.cfg.engine,
             "interrupted_by": self.interrupted,
             "ranges": self.stats.ranges(),
@@ -553,16 +554,15 @@ class _Run:
                        "unknown_frame": self.cfg.mounting.unknown_frame,
                        "frames_taken_as_base_link": [*map(msgs.frame_label, self.identity_frames),
                                                      *(["…"] if self.identity_more else [])]},
-            "warnings": self.warnings(snap),
+            "warnings": self.warnings(snap, idle),
             "error": self.error,
             "write_error": self.write_error,
         }
 
-    def warnings(self, snap: dict[str, Any]) -> list[str]:
-        """What a user must know about this replay's results (also printed)."""
+    def warnings(self, snap: dict[str, Any], idle: str | None) -> list[str]:
+        """What a user must know about this replay's results (also printed); ``idle``: the line
+        saying no interval was integrated (``nothing_integrated_hint``), or None."""
         res = []
-        idle = nothing_integrated_hint(self.outcomes, snap["resets_by_reason"], snap["accepted"],
-                                       self.cfg.gate.max_gap)
         if self.n_in and not snap["accepted"]:
             res.append(no_sample_hint(snap["dropped_by_reason"], self.n_in, self.sim_errors))
         elif idle is not None and self.n_out:
