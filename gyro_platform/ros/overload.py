@@ -363,8 +363,8 @@ class InputLoss:
             if srt and any(abs(s / ref - round(s / ref)) > tol for s in srt):
                 ref = srt[0]
         near = self._regular(srt, ref)
-        if not near:
-            self._no_single = 0            # spread: an overload, not a slower publisher
+        if not near or self._steady_overload(srt[:near]):
+            self._no_single = 0            # spread, or whole periods: an overload, not a slower publisher
             return
         if self._n >= self.CONFIRM:
             span = sum(self._steps)
@@ -376,6 +376,18 @@ class InputLoss:
         self._sum, self._n, self._no_single = sum(singles), len(singles), 0
         self._ref = self._sum / self._n
         self._pending = self._fast = None
+
+    def _steady_overload(self, cluster: list[int]) -> bool:
+        """Are the sorted steps of a regular slower rate (``cluster``: the window's steps near its
+        minimum) whole multiples (two or more) of the period, each within ``MULTIPLE_TOL``: a
+        node that takes every m-th sample at a steady pace (its callbacks cost the same each
+        time), not a slower publisher? The two look alike in the stamps; the loss is counted (a
+        publisher that slows to an exact fraction of its rate without a pause reads as loss,
+        rather than a real loss as none)."""
+        ref, tol = self._ref, self.MULTIPLE_TOL
+        if not cluster or cluster[0] < (2 - tol) * ref:
+            return False
+        return all(abs(s / ref - round(s / ref)) <= tol for s in cluster)
 
     def restart(self) -> None:
         """A new time base (reset): stamp steps across it are not gaps; the period is learnt
