@@ -77,12 +77,13 @@ class InputLoss:
     segment closes where those steps began and they start a new one at their period (a period
     that never had ``CONFIRM`` singles is abandoned instead: the segment is recounted at the
     slower one, no count made at it is kept; the count of a segment is never more than its
-    span at ``P`` minus the samples taken). An exact
-    integer slow-down (100 → 50 Hz) cannot be told from every other sample lost and counts as loss
-    until the rest of the window spreads. A step longer than ``max_gap`` is a pause (the gate's,
-    not counted; the segment closes, the period is kept) unless the receive times say the samples
-    came without one (receive step ≤ ``max_gap``: a replay faster than its stamps loses them).
-    Per sample: O(1) and an insertion into the sorted window of ``WINDOW`` steps."""
+    span at ``P`` minus the samples taken). A slower rate whose steps are whole multiples of
+    ``P`` (100 → 50 Hz) cannot be told from a node that takes every m-th sample at a steady pace
+    (its callbacks cost the same each time): it counts as loss (:meth:`_steady_overload`). A
+    step longer than ``max_gap`` is a pause (the gate's, not counted; the segment closes, the
+    period is kept) unless the receive times say the samples came without one (receive step
+    ≤ ``max_gap``: a replay faster than its stamps loses them). Per sample: O(1) and an
+    insertion into the sorted window of ``WINDOW`` steps."""
 
     WINDOW = 64
     SINGLE = 1.5
